@@ -1,0 +1,16 @@
+"""dopplertof: physically based simulation of Doppler time-of-flight cameras on stock Mitsuba 3."""
+
+from .backend import configure_llvm_path as _configure_llvm_path
+
+_configure_llvm_path()  # must precede the first `import drjit`
+
+__version__ = "0.1.0"
+
+from . import scenes  # noqa: E402
+from .backend import set_variant  # noqa: E402
+from .loader import load_scene  # noqa: E402
+from .modulation import Camera  # noqa: E402
+from .render import RenderResult, TimeSampling, render  # noqa: E402
+from .scene import DynamicScene, SceneError  # noqa: E402
+
+__all__ = ["Camera", "DynamicScene", "RenderResult", "SceneError", "TimeSampling", "load_scene", "render", "scenes", "set_variant"]

@@ -1,0 +1,218 @@
+"""Camera configurations and the modulation weight W(t, L) of a D-ToF measurement.
+
+A D-ToF pixel is the exposure average (1/T)∫ W(t, L) f dt of the path throughput f
+weighted by the product of the sensor and light modulations (DESIGN §3.7). With
+``u = t/T`` the normalised time and ``k = 2π f_g / c`` (rad per metre of optical path):
+
+* low-pass (default): ``W = (g1/2) · Λ(2π h u + ψ + k L)``
+* full waveform:     ``W = s(ω_s t + ψ) · [g1 · g(ω_g t − k L) + g0]``, ω_s = ω_g + 2π h/T
+
+Every phase is computed in Float64 and wrapped with a floor-based modulo, so negative
+phases (negative ``h`` or ``ψ``, early times in full-waveform mode) are right.
+
+Waveforms (θ wrapped to [0, 2π), c = min(θ/π, 2 − θ/π) ∈ [0, 1]):
+
+===============  ==========================  =================================
+name             s(θ) = g(θ), full waveform  Λ(θ), low-pass
+===============  ==========================  =================================
+sinusoidal       cos θ                       cos θ
+rectangular      sign(cos θ) = ±1            2 − 4c
+triangular       1 − 2c                      (2/3)(4c³ − 6c² + 1)
+trapezoidal      sensor sign(cos θ), light   clamp(4 − 8c, −2, 2)
+                 4·[c < 1/4] (mean 1)
+===============  ==========================  =================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+SPEED_OF_LIGHT_M_S = 299_792_458.0
+TWO_PI = 2.0 * math.pi
+WAVEFORMS = ("sinusoidal", "rectangular", "triangular", "trapezoidal")
+
+
+@dataclass(frozen=True)
+class Camera:
+    """One D-ToF camera configuration (SI units).
+
+    Parameters
+    ----------
+    modulation_frequency : float, Hz. Light modulation f_g. Default 30 MHz.
+    exposure : float, s. Exposure T. Default 1.5 ms.
+    heterodyne : float. h, beat cycles per exposure (0 homodyne, 1 "perfect" heterodyne).
+    phase : float, rad. Sensor phase offset ψ.
+    waveform : str. One of ``sinusoidal``, ``rectangular``, ``triangular``, ``trapezoidal``.
+    g1, g0 : float. Light modulation amplitude and DC offset (g0 enters full-waveform only).
+    low_pass : bool. Low-pass (correlation) model if True, else the full waveform product.
+    """
+
+    modulation_frequency: float = 30e6
+    exposure: float = 1.5e-3
+    heterodyne: float = 1.0
+    phase: float = 0.0
+    waveform: str = "sinusoidal"
+    g1: float = 0.5
+    g0: float = 0.5
+    low_pass: bool = True
+
+    def __post_init__(self):
+        for name in ("modulation_frequency", "exposure", "heterodyne", "phase", "g1", "g0"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(value):
+                raise ValueError(f"Camera: {name} must be a finite number, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        if self.modulation_frequency <= 0:
+            raise ValueError(f"Camera: modulation_frequency must be > 0 Hz, got {self.modulation_frequency!r}")
+        if self.exposure <= 0:
+            raise ValueError(f"Camera: exposure must be > 0 s, got {self.exposure!r}")
+        if self.waveform not in WAVEFORMS:
+            raise ValueError(f"Camera: unknown waveform {self.waveform!r}; choose one of {', '.join(WAVEFORMS)}")
+        object.__setattr__(self, "low_pass", bool(self.low_pass))
+
+    @property
+    def wavenumber(self) -> float:
+        """k = 2π f_g / c, rad per metre of optical path."""
+        return TWO_PI * self.modulation_frequency / SPEED_OF_LIGHT_M_S
+
+    @property
+    def beat_frequency(self) -> float:
+        """Sensor minus light modulation frequency, h / T (Hz)."""
+        return self.heterodyne / self.exposure
+
+    def label(self) -> str:
+        return f"h={self.heterodyne:g},psi={self.phase:g}"
+
+    @classmethod
+    def from_original(cls, params: dict, where: str = "integrator") -> "Camera":
+        """A Camera from the original code's parameter names (MHz frequencies).
+
+        Accepts ``time``, ``w_g`` (MHz), ``w_s`` (MHz), ``g_1``, ``g_0``, ``hetero_frequency``,
+        ``hetero_offset`` (fraction of 2π, overrides ``sensor_phase_offset``),
+        ``sensor_phase_offset`` (rad), ``wave_function_type``,
+        ``low_frequency_component_only``. Other keys are ignored here.
+        """
+        exposure = float(params.get("time", 1.5e-3))
+        f_g = float(params.get("w_g", 30.0)) * 1e6
+        if "hetero_frequency" in params:
+            h = float(params["hetero_frequency"])
+        else:  # the original's w_s, converted without float32 cancellation
+            h = (float(params.get("w_s", params.get("w_g", 30.0))) * 1e6 - f_g) * exposure
+        if "hetero_offset" in params:
+            psi = TWO_PI * float(params["hetero_offset"])
+        else:
+            psi = float(params.get("sensor_phase_offset", 0.0))
+        try:
+            return cls(
+                modulation_frequency=f_g,
+                exposure=exposure,
+                heterodyne=h,
+                phase=psi,
+                waveform=str(params.get("wave_function_type", "sinusoidal")),
+                g1=float(params.get("g_1", 0.5)),
+                g0=float(params.get("g_0", 0.5)),
+                low_pass=bool(params.get("low_frequency_component_only", True)),
+            )
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
+
+
+# ----------------------------------------------------------------------------------------
+# Waveforms, generic over numpy and Dr.Jit arrays
+
+
+def _ops(x):
+    """(floor, minimum, maximum, clip, cos, select) for numpy or Dr.Jit arrays."""
+    if isinstance(x, np.ndarray) or np.isscalar(x):
+        return np.floor, np.minimum, np.maximum, np.cos, np.where
+    import drjit as dr
+
+    return dr.floor, dr.minimum, dr.maximum, dr.cos, dr.select
+
+
+def wrap_phase(theta):
+    """θ − 2π⌊θ/2π⌋ ∈ [0, 2π) (floor-based; correct for negative θ)."""
+    floor = _ops(theta)[0]
+    return theta - TWO_PI * floor(theta * (1.0 / TWO_PI))
+
+
+def _distance_to_peak(theta):
+    """c = min(a, 2 − a), a = wrapped θ/π: normalised distance to the nearest 2πk."""
+    minimum = _ops(theta)[1]
+    a = wrap_phase(theta) * (1.0 / math.pi)
+    return minimum(a, 2.0 - a)
+
+
+def lowpass_waveform(theta, waveform: str):
+    """Λ(θ): the correlation of sensor and light waveforms (table in module docstring)."""
+    floor, minimum, maximum, cos, select = _ops(theta)
+    if waveform == "sinusoidal":
+        return cos(wrap_phase(theta))
+    c = _distance_to_peak(theta)
+    if waveform == "rectangular":
+        return 2.0 - 4.0 * c
+    if waveform == "triangular":
+        return (2.0 / 3.0) * (4.0 * c * c * c - 6.0 * c * c + 1.0)
+    if waveform == "trapezoidal":
+        return minimum(maximum(4.0 - 8.0 * c, -2.0), 2.0)
+    raise ValueError(f"unknown waveform {waveform!r}; choose one of {', '.join(WAVEFORMS)}")
+
+
+def sensor_waveform(theta, waveform: str):
+    """Sensor modulation s(θ) for full-waveform mode (zero mean over a period)."""
+    floor, minimum, maximum, cos, select = _ops(theta)
+    if waveform == "sinusoidal":
+        return cos(wrap_phase(theta))
+    c = _distance_to_peak(theta)
+    if waveform in ("rectangular", "trapezoidal"):
+        return select(c < 0.5, 1.0, -1.0) + 0.0 * c
+    if waveform == "triangular":
+        return 1.0 - 2.0 * c
+    raise ValueError(f"unknown waveform {waveform!r}; choose one of {', '.join(WAVEFORMS)}")
+
+
+def light_waveform(theta, waveform: str):
+    """Light modulation g(θ) for full-waveform mode.
+
+    Equal to :func:`sensor_waveform` except ``trapezoidal``: a pulse of amplitude 4 and a
+    quarter-period width (mean 1), whose correlation with the square sensor is the
+    trapezoid clamp(2 − 4c, −1, 1) of the low-pass model.
+    """
+    if waveform == "trapezoidal":
+        floor, minimum, maximum, cos, select = _ops(theta)
+        c = _distance_to_peak(theta)
+        return select(c < 0.25, 4.0, 0.0) + 0.0 * c
+    return sensor_waveform(theta, waveform)
+
+
+def lowpass_phase(camera: Camera, u, path_length_m):
+    """Phase (rad) of the low-pass weight: 2π h u + ψ + k L. Float64 in, Float64 out."""
+    return TWO_PI * camera.heterodyne * u + camera.phase + camera.wavenumber * path_length_m
+
+
+def weight(camera: Camera, u, path_length_m):
+    """W(t, L) at normalised time ``u = t/T`` and optical path length ``L`` (m).
+
+    ``u`` and ``path_length_m`` should be Float64 (Dr.Jit or numpy); the result has the
+    same type. See :func:`full_weight` for ``low_pass=False``.
+    """
+    if camera.low_pass:
+        return (0.5 * camera.g1) * lowpass_waveform(lowpass_phase(camera, u, path_length_m), camera.waveform)
+    return full_weight(camera, u, path_length_m)
+
+
+def full_weight(camera: Camera, u, path_length_m):
+    """Full-waveform weight s(ω_s t + ψ) · [g1 g(ω_g t − k L) + g0].
+
+    The carrier phase ω_g t = 2π f_g T u is reduced modulo 2π in Float64 before it is
+    combined (f_g T u reaches ~5e4 cycles at 30 MHz and 1.5 ms).
+    """
+    cycles = camera.modulation_frequency * camera.exposure * u
+    floor = _ops(cycles)[0]
+    carrier = TWO_PI * (cycles - floor(cycles))  # ω_g t mod 2π
+    sensor = sensor_waveform(carrier + TWO_PI * camera.heterodyne * u + camera.phase, camera.waveform)
+    light = light_waveform(carrier - camera.wavenumber * path_length_m, camera.waveform)
+    return sensor * (camera.g1 * light + camera.g0)

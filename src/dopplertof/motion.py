@@ -1,0 +1,457 @@
+"""Rigid motion of bodies during the exposure, evaluated per lane (per ray time).
+
+A motion maps a point ``x_local`` of a body to the world at time ``t`` (seconds)::
+
+    p_world = b(t) + R(t) · (s(t) ∘ x_local)
+
+with ``R`` a rotation (unit quaternion ``q``), ``s`` a per-axis scale and ``b`` a
+translation. Both motion models produce a :class:`Pose` that also carries the time
+derivatives ``ω`` (angular velocity, rad/s, world frame), ``ḃ`` (m/s) and ``ṡ`` (1/s), so
+the velocity of any world point on the body is available in closed form
+(:meth:`Pose.velocity`).
+
+=====================  =========================================================
+model                  meaning
+=====================  =========================================================
+:class:`Keyframed`     any number of keys ``(time_s, 4x4 matrix)``; translation
+                       and scale interpolated linearly, rotation by slerp (constant
+                       angular velocity between keys); clamped outside the key
+                       range (zero velocity there)
+:class:`Parametric`    ``M(t) = Translate(pivot + v t) · Rotate(ω t) ·
+                       Translate(−pivot) · M0``: linear velocity ``v`` (m/s) and
+                       angular velocity ``ω`` (rad/s, axis·rate) about ``pivot``
+                       (m), applied to a base transform ``M0``
+=====================  =========================================================
+
+Motion parameters live in Dr.Jit arrays made opaque, so changing them does not
+recompile the rendering kernel; only the number of keys is baked in.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# ----------------------------------------------------------------------------------------
+# Host-side (numpy) decomposition of 4x4 matrices
+
+
+def _quat_from_matrix(r: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a 3x3 rotation matrix."""
+    m = r
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    if trace > 0:
+        s = 0.5 / np.sqrt(trace + 1.0)
+        q = [0.25 / s, (m[2, 1] - m[1, 2]) * s, (m[0, 2] - m[2, 0]) * s, (m[1, 0] - m[0, 1]) * s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
+    else:
+        s = 2.0 * np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
+    q = np.asarray(q, dtype=np.float64)
+    return q / np.linalg.norm(q)
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return np.array(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ]
+    )
+
+
+def _quat_to_axis_angle(q: np.ndarray) -> tuple[np.ndarray, float]:
+    """Axis (unit) and angle (rad, in [0, π]) of a unit quaternion."""
+    q = q if q[0] >= 0 else -q
+    sin_half = np.linalg.norm(q[1:])
+    angle = 2.0 * np.arctan2(sin_half, q[0])
+    axis = q[1:] / sin_half if sin_half > 1e-300 else np.array([0.0, 0.0, 1.0])
+    return axis, float(angle)
+
+
+def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def decompose(matrix, where: str = "transform") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Split an affine 4x4 matrix into (translation, quaternion (w,x,y,z), scale).
+
+    The matrix must be ``Translate · Rotate · Scale`` with a per-axis scale (no shear,
+    no reflection). Raises ValueError naming ``where`` otherwise.
+    """
+    m = np.asarray(matrix, dtype=np.float64)
+    if m.shape != (4, 4):
+        raise ValueError(f"{where}: expected a 4x4 matrix, got shape {m.shape}")
+    if not np.allclose(m[3], [0, 0, 0, 1], atol=1e-9):
+        raise ValueError(f"{where}: projective matrices cannot be rigid motion keys (last row {m[3]})")
+    linear = m[:3, :3]
+    scale = np.linalg.norm(linear, axis=0)
+    if np.any(scale <= 0):
+        raise ValueError(f"{where}: degenerate (zero-scale) transform")
+    rotation = linear / scale
+    if np.linalg.det(rotation) < 0:
+        raise ValueError(f"{where}: reflections cannot be interpolated as rigid motion")
+    if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-5):
+        raise ValueError(
+            f"{where}: transform has shear; motion keys must be Translate·Rotate·Scale "
+            "with a per-axis scale"
+        )
+    return m[:3, 3].copy(), _quat_from_matrix(rotation), scale
+
+
+def compose(translation, quaternion, scale) -> np.ndarray:
+    """Inverse of :func:`decompose`: the 4x4 matrix ``T · R · S``."""
+    m = np.eye(4)
+    m[:3, :3] = _quat_to_matrix(np.asarray(quaternion, dtype=np.float64)) * np.asarray(scale)
+    m[:3, 3] = translation
+    return m
+
+
+# ----------------------------------------------------------------------------------------
+# Per-lane pose (Dr.Jit)
+
+
+def _cross(a, b):
+    import drjit as dr
+
+    return dr.cross(a, b)
+
+
+def _rotate(q, v):
+    """Rotate vector ``v`` by unit quaternion ``q = (w, x, y, z)`` (tuple of scalars or arrays)."""
+    import drjit as dr
+
+    w, qv = q[0], type(v)(q[1], q[2], q[3])
+    t = 2.0 * dr.cross(qv, v)
+    return v + w * t + dr.cross(qv, t)
+
+
+def _conj(q):
+    return (q[0], -q[1], -q[2], -q[3])
+
+
+@dataclass
+class Pose:
+    """Per-lane rigid pose and its time derivatives (see module docstring).
+
+    ``q`` is a tuple (w, x, y, z) of arrays; ``scale``, ``translation``, ``omega``,
+    ``translation_rate`` and ``scale_rate`` are 3-vectors of the same float type
+    (``mi.Vector3f`` or ``mi.Vector3d``).
+    """
+
+    q: tuple
+    scale: object
+    translation: object
+    omega: object
+    translation_rate: object
+    scale_rate: object
+
+    def point_to_world(self, x_local):
+        return self.translation + _rotate(self.q, self.scale * x_local)
+
+    def point_to_local(self, p_world):
+        return _rotate(_conj(self.q), p_world - self.translation) / self.scale
+
+    def vector_to_world(self, v_local):
+        return _rotate(self.q, self.scale * v_local)
+
+    def vector_to_local(self, v_world):
+        return _rotate(_conj(self.q), v_world) / self.scale
+
+    def normal_to_world(self, n_local):
+        import drjit as dr
+
+        return dr.normalize(_rotate(self.q, n_local / self.scale))
+
+    def velocity(self, p_world):
+        """Velocity (m/s) of the body point currently at ``p_world``."""
+        r = p_world - self.translation
+        stretch = _rotate(self.q, (self.scale_rate / self.scale) * _rotate(_conj(self.q), r))
+        return self.translation_rate + _cross(self.omega, r) + stretch
+
+
+class Motion:
+    """Base class: a rigid motion evaluated per lane. Subclasses implement :meth:`pose`."""
+
+    def pose(self, time_s, precise: bool = False) -> Pose:  # pragma: no cover - interface
+        """Pose at per-lane times ``time_s`` (``mi.Float64``, seconds).
+
+        ``precise=True`` returns Float64 components (``mi.Vector3d``), else Float32.
+        """
+        raise NotImplementedError
+
+    def matrix(self, time_s: float) -> np.ndarray:
+        """The 4x4 world transform at one time (host-side, numpy float64)."""
+        raise NotImplementedError
+
+    def time_range(self) -> tuple[float, float]:
+        """Times (s) outside which the pose is constant (±inf for unbounded motion)."""
+        raise NotImplementedError
+
+    def is_static(self) -> bool:
+        return False
+
+    def swept_bounds(self, bbox_min, bbox_max, t0: float, t1: float, samples: int = 65):
+        """World-space AABB covering a local box over [t0, t1], padded for rotation."""
+        lo = np.asarray(bbox_min, dtype=np.float64)
+        hi = np.asarray(bbox_max, dtype=np.float64)
+        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        times = np.linspace(t0, t1, samples)
+        pts = np.concatenate([(self.matrix(t) @ corners.T).T[:, :3] for t in times])
+        # Between samples a rotating corner leaves the chord by at most r·(1 − cos(Δθ/2)):
+        # pad by the box diagonal times a generous fraction.
+        pad = 1e-3 * np.linalg.norm(hi - lo) + 1e-6 * (1 + np.abs(pts).max())
+        return pts.min(axis=0) - pad, pts.max(axis=0) + pad
+
+
+def _opaque_f64(values):
+    import drjit as dr
+    import mitsuba as mi
+
+    arr = mi.Float64(np.asarray(values, dtype=np.float64))
+    dr.make_opaque(arr)
+    return arr
+
+
+class Keyframed(Motion):
+    """Keyframed rigid motion: keys ``(time_s, 4x4 matrix)``, strictly increasing times.
+
+    Parameters
+    ----------
+    times : sequence of float
+        Key times in seconds, strictly increasing.
+    matrices : sequence of 4x4 array_like
+        World transforms ``T · R · S`` at each key (no shear).
+    """
+
+    def __init__(self, times, matrices, where: str = "motion"):
+        times = np.asarray(times, dtype=np.float64)
+        if times.ndim != 1 or len(times) < 1:
+            raise ValueError(f"{where}: at least one keyframe is needed")
+        if len(matrices) != len(times):
+            raise ValueError(f"{where}: {len(times)} key times but {len(matrices)} matrices")
+        if not np.all(np.isfinite(times)):
+            raise ValueError(f"{where}: keyframe times must be finite numbers, got {times.tolist()}")
+        if np.any(np.diff(times) <= 0):
+            raise ValueError(f"{where}: keyframe times must be strictly increasing, got {times.tolist()}")
+        parts = [decompose(m, f"{where}, key at t={t:g} s") for t, m in zip(times, matrices)]
+        self.times = times
+        self.translations = np.array([p[0] for p in parts])
+        quats = [parts[0][1]]
+        for p in parts[1:]:  # shortest-arc slerp: keep consecutive quaternions in one hemisphere
+            quats.append(p[1] if np.dot(p[1], quats[-1]) >= 0 else -p[1])
+        self.quaternions = np.array(quats)
+        self.scales = np.array([p[2] for p in parts])
+        self._upload()
+
+    def _segments(self):
+        """Per-segment axis, angle and duration (host arrays; one dummy for a single key)."""
+        n = len(self.times)
+        axes, angles, durations = [], [], []
+        for i in range(max(n - 1, 1)):
+            j = min(i + 1, n - 1)
+            rel = _quat_mul(self.quaternions[j], self.quaternions[i] * np.array([1, -1, -1, -1]))
+            axis, angle = _quat_to_axis_angle(rel)
+            axes.append(axis)
+            angles.append(angle)
+            durations.append(self.times[j] - self.times[i] if j != i else 1.0)
+        return np.array(axes), np.array(angles), np.array(durations)
+
+    def _upload(self):
+        axes, angles, durations = self._segments()
+        n = len(self.times)
+        nxt = np.minimum(np.arange(n) + 1, n - 1)
+        self._key_times = _opaque_f64(self.times)
+        self._data = {
+            "t": self._key_times,
+            **{f"b{k}": _opaque_f64(self.translations[:, k]) for k in range(3)},
+            **{f"db{k}": _opaque_f64(self.translations[nxt, k] - self.translations[:, k]) for k in range(3)},
+            **{f"s{k}": _opaque_f64(self.scales[:, k]) for k in range(3)},
+            **{f"ds{k}": _opaque_f64(self.scales[nxt, k] - self.scales[:, k]) for k in range(3)},
+            **{f"q{k}": _opaque_f64(self.quaternions[:, k]) for k in range(4)},
+            **{f"axis{k}": _opaque_f64(np.append(axes[:, k], 0.0)) for k in range(3)},
+            "angle": _opaque_f64(np.append(angles, 0.0)),
+            "duration": _opaque_f64(np.append(durations, 1.0)),
+        }
+
+    def time_range(self):
+        return float(self.times[0]), float(self.times[-1])
+
+    def is_static(self):
+        return len(self.times) == 1 or (
+            np.allclose(self.translations, self.translations[0], atol=0)
+            and np.allclose(self.quaternions, self.quaternions[0], atol=0)
+            and np.allclose(self.scales, self.scales[0], atol=0)
+        )
+
+    def matrix(self, time_s: float) -> np.ndarray:
+        n = len(self.times)
+        if n == 1 or time_s <= self.times[0]:
+            return compose(self.translations[0], self.quaternions[0], self.scales[0])
+        if time_s >= self.times[-1]:
+            return compose(self.translations[-1], self.quaternions[-1], self.scales[-1])
+        i = int(np.searchsorted(self.times, time_s, side="right") - 1)
+        alpha = (time_s - self.times[i]) / (self.times[i + 1] - self.times[i])
+        axes, angles, _ = self._segments()
+        half = 0.5 * alpha * angles[i]
+        q = _quat_mul(np.array([np.cos(half), *(np.sin(half) * axes[i])]), self.quaternions[i])
+        b = (1 - alpha) * self.translations[i] + alpha * self.translations[i + 1]
+        s = (1 - alpha) * self.scales[i] + alpha * self.scales[i + 1]
+        return compose(b, q, s)
+
+    def pose(self, time_s, precise: bool = False) -> Pose:
+        import drjit as dr
+        import mitsuba as mi
+
+        d = self._data
+        n = len(self.times)
+        t = mi.Float64(time_s)
+        # Index of the segment holding t (clamped); the unrolled loop is over keys, not lanes.
+        idx = mi.UInt32(0)
+        for k in range(1, n - 1):
+            idx = dr.select(t >= dr.gather(mi.Float64, d["t"], k), mi.UInt32(k), idx)
+        t0 = dr.gather(mi.Float64, d["t"], idx)
+        duration = dr.gather(mi.Float64, d["duration"], idx)
+        inside = (t >= dr.gather(mi.Float64, d["t"], 0)) & (t < dr.gather(mi.Float64, d["t"], n - 1))
+        alpha64 = dr.clip((t - t0) / duration, 0.0, 1.0)
+        if n == 1:
+            alpha64 = mi.Float64(0.0)
+        F = mi.Float64 if precise else mi.Float
+        V = mi.Vector3d if precise else mi.Vector3f
+        alpha = F(alpha64)
+        rate = F(dr.select(inside, 1.0 / duration, 0.0))
+
+        def g(name):
+            return F(dr.gather(mi.Float64, d[name], idx))
+
+        db = V(g("db0"), g("db1"), g("db2"))
+        ds = V(g("ds0"), g("ds1"), g("ds2"))
+        translation = V(g("b0"), g("b1"), g("b2")) + alpha * db
+        scale = V(g("s0"), g("s1"), g("s2")) + alpha * ds
+        axis = V(g("axis0"), g("axis1"), g("axis2"))
+        angle = g("angle")
+        half = 0.5 * alpha * angle
+        sh, ch = dr.sincos(half)
+        q_rel = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
+        q = _quat_mul_lanes(q_rel, (g("q0"), g("q1"), g("q2"), g("q3")))
+        return Pose(
+            q=q,
+            scale=scale,
+            translation=translation,
+            omega=axis * (angle * rate),
+            translation_rate=db * rate,
+            scale_rate=ds * rate,
+        )
+
+
+def _quat_mul_lanes(a, b):
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+class Parametric(Motion):
+    """Constant linear and angular velocity about a pivot (see module docstring).
+
+    Parameters
+    ----------
+    linear_velocity : (3,) array_like, m/s
+    angular_velocity : (3,) array_like, rad/s (axis times rate, right-handed)
+    pivot : (3,) array_like, m. Default: the origin.
+    base : 4x4 array_like. Pose at t = 0 (``M0``). Default: identity.
+    """
+
+    def __init__(self, linear_velocity=(0, 0, 0), angular_velocity=(0, 0, 0), pivot=(0, 0, 0), base=None, where="motion"):
+        def vec3(name, value):
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+                raise ValueError(f"{where}: {name} must be 3 finite numbers, got {value!r}")
+            return arr
+
+        self.linear_velocity = vec3("linear_velocity", linear_velocity)
+        self.angular_velocity = vec3("angular_velocity", angular_velocity)
+        self.pivot = vec3("pivot", pivot)
+        self.base = np.eye(4) if base is None else np.asarray(base, dtype=np.float64)
+        self.b0, self.q0, self.s0 = decompose(self.base, f"{where}: base transform")
+        rate = np.linalg.norm(self.angular_velocity)
+        self.axis = self.angular_velocity / rate if rate > 0 else np.array([0.0, 0.0, 1.0])
+        self.rate = rate
+        self._data = {
+            k: _opaque_f64(v)
+            for k, v in {
+                "v": self.linear_velocity,
+                "axis": self.axis,
+                "rate": [self.rate],
+                "pivot": self.pivot,
+                "b0": self.b0,
+                "q0": self.q0,
+                "s0": self.s0,
+            }.items()
+        }
+
+    def time_range(self):
+        return -np.inf, np.inf
+
+    def is_static(self):
+        return not np.any(self.linear_velocity) and not np.any(self.angular_velocity)
+
+    def matrix(self, time_s: float) -> np.ndarray:
+        half = 0.5 * self.rate * time_s
+        q_rot = np.array([np.cos(half), *(np.sin(half) * self.axis)])
+        rot = _quat_to_matrix(q_rot)
+        b = self.pivot + self.linear_velocity * time_s + rot @ (self.b0 - self.pivot)
+        return compose(b, _quat_mul(q_rot, self.q0), self.s0)
+
+    def pose(self, time_s, precise: bool = False) -> Pose:
+        import drjit as dr
+        import mitsuba as mi
+
+        F = mi.Float64 if precise else mi.Float
+        V = mi.Vector3d if precise else mi.Vector3f
+        d = self._data
+
+        def vec(name):
+            a = d[name]
+            return V(F(dr.gather(mi.Float64, a, 0)), F(dr.gather(mi.Float64, a, 1)), F(dr.gather(mi.Float64, a, 2)))
+
+        t64 = mi.Float64(time_s)
+        rate = F(dr.gather(mi.Float64, d["rate"], 0))
+        axis = vec("axis")
+        pivot = vec("pivot")
+        v = vec("v")
+        sh, ch = dr.sincos(F(0.5 * t64 * dr.gather(mi.Float64, d["rate"], 0)))
+        q_rot = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
+        q0 = tuple(F(dr.gather(mi.Float64, d["q0"], k)) for k in range(4))
+        t = F(t64)
+        translation = pivot + v * t + _rotate(q_rot, vec("b0") - pivot)
+        omega = axis * rate
+        return Pose(
+            q=_quat_mul_lanes(q_rot, q0),
+            scale=vec("s0"),
+            translation=translation,
+            omega=omega,
+            translation_rate=v + dr.cross(omega, translation - pivot - v * t),
+            scale_rate=V(0, 0, 0),
+        )
