@@ -347,6 +347,15 @@ def _check_min_amplitude(min_amplitude) -> None:
         raise ValueError(f"min_amplitude must be a finite number >= 0, got {min_amplitude!r}")
 
 
+def _data_amplitude(flat: np.ndarray) -> np.ndarray:
+    """Signal amplitude estimated from the data alone, sqrt(2 mean_i m_i²), shape (N,).
+
+    For a sinusoid sampled at spread phases this is ≈ (g1/2)|Z|; unlike the fitted
+    amplitude it cannot blow up, so it sets the default threshold's scale.
+    """
+    return np.sqrt(2.0 * np.mean(flat * flat, axis=0))
+
+
 def _default_threshold(amplitude: np.ndarray, min_amplitude) -> float:
     if min_amplitude is not None:
         return float(min_amplitude)
@@ -492,9 +501,14 @@ def _grid_search(m: np.ndarray, cams: _CameraSet, max_phase: float) -> np.ndarra
     return start + np.where(ok, np.clip(shift, -spacing, spacing), 0.0)
 
 
-def _gauss_newton(m, start, cams: _CameraSet, max_step: float) -> np.ndarray:
-    """Refine the Doppler phase per pixel by safeguarded variable-projection Gauss-Newton."""
-    a = start.copy()
+def _gauss_newton(m, start, cams: _CameraSet, max_step: float, max_phase: float) -> np.ndarray:
+    """Refine the Doppler phase per pixel by safeguarded variable-projection Gauss-Newton.
+
+    Steps are limited to ``max_step`` and a stays in [−max_phase, max_phase]: outside the
+    search range the model has degenerate points (e.g. F(2π) = 0 for homodyne cameras at
+    a = 2π) where the fitted amplitude diverges.
+    """
+    a = np.clip(start, -max_phase, max_phase)
     rss = _linear_fit(m, a, cams)["rss"]
     active = np.arange(a.size)
     for _ in range(_MAX_GAUSS_NEWTON_ITERATIONS):
@@ -507,6 +521,7 @@ def _gauss_newton(m, start, cams: _CameraSet, max_step: float) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
             step = np.sum(jac * fit["residual"], axis=0) / curvature
         step = np.where(np.isfinite(step), np.clip(step, -max_step, max_step), 0.0)
+        step = np.clip(aa + step, -max_phase, max_phase) - aa
         accepted = np.zeros(active.size, dtype=bool)
         pending = np.flatnonzero(step != 0.0)
         for _ in range(_MAX_STEP_HALVINGS):
@@ -649,7 +664,7 @@ def _velocity_fit(flat, cams, min_amplitude, max_doppler_hz):
     max_phase = 2.0 * np.pi * max_doppler_hz * cams.exposure_s
     start = _grid_search(flat, cams, max_phase)
     spacing = 2.0 * max_phase / (_GRID_POINTS - 1)
-    doppler_phase = _gauss_newton(flat, start, cams, max_step=spacing)
+    doppler_phase = _gauss_newton(flat, start, cams, max_step=spacing, max_phase=max_phase)
     # Per-pixel identifiability: the data must respond to a beyond what Z can absorb.
     fit = _linear_fit(flat, doppler_phase, cams)
     _, jac_perp = _projected_sensitivity(fit, doppler_phase, cams)
@@ -658,11 +673,11 @@ def _velocity_fit(flat, cams, min_amplitude, max_doppler_hz):
     with np.errstate(divide="ignore", invalid="ignore"):
         sensitivity = np.sqrt(np.sum(jac_perp * jac_perp, axis=0)) / scale
     signal = np.mean(cams.half_g1) * z_abs
-    threshold = _default_threshold(signal, min_amplitude)
+    threshold = _default_threshold(_data_amplitude(flat), min_amplitude)
     ok = (
         (signal > threshold)
         & (sensitivity > _MIN_SENSITIVITY)
-        & (np.abs(doppler_phase) <= max_phase)
+        & (np.abs(doppler_phase) < max_phase)  # at the bound: outside the search range
         & np.isfinite(doppler_phase)
     )
     return doppler_phase, ok, threshold
@@ -736,7 +751,7 @@ def velocity(
     a_for_depth = np.where(ok, doppler_phase, 0.0)
     depth_m, amplitude, signal, fit = _depth_and_amplitude(flat, a_for_depth, cams)
     if depth_threshold is None:
-        depth_threshold = _default_threshold(signal, min_amplitude)
+        depth_threshold = _default_threshold(_data_amplitude(flat), min_amplitude)
     depth_ok = ok & fit["full_rank"] & (signal > depth_threshold)
 
     def out(values, mask):
@@ -795,7 +810,7 @@ def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None
             f"ψ = {cams.phase_rad.tolist()} rad"
         )
     depth_m, _, signal, fit = _depth_and_amplitude(flat, np.zeros(flat.shape[1]), cams)
-    threshold = _default_threshold(signal, min_amplitude)
+    threshold = _default_threshold(_data_amplitude(flat), min_amplitude)
     ok = finite & fit["full_rank"] & (signal > threshold)
     return np.where(ok, depth_m, np.nan).reshape(shape)
 
