@@ -111,6 +111,19 @@ def _seeded_pcg(seed_u32, stream, key_a, key_b):
     return rng
 
 
+def _aperture_point(sensor, ray):
+    """Float64 point where the camera ray leaves the aperture (the camera plane z = 0).
+
+    Mitsuba's perspective cameras start rays at the near-clip plane; optical path lengths
+    and depths are measured from the aperture instead.
+    """
+    to_world = sensor.world_transform()
+    eye = to_world.translation()
+    forward = dr.normalize(to_world @ mi.Vector3f(0, 0, 1))
+    back = dr.dot(ray.o - eye, forward) / dr.dot(ray.d, forward)
+    return mi.Vector3d(ray.o) - mi.Vector3d(ray.d) * mi.Float64(back)
+
+
 def _mis_weight(pdf_a, pdf_b):
     """Power heuristic (β = 2) for pdf_a against pdf_b; 0 where both vanish."""
     a2 = dr.square(pdf_a)
@@ -182,7 +195,7 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
     measurements = [mi.Float(0) for _ in ops]
     eta = mi.Float(1)
     path_length = mi.Float64(0)
-    x_prev = mi.Vector3d(ray.o)  # Float64 position of the previous vertex
+    x_prev = _aperture_point(sensor, ray)  # Float64 position of the previous vertex
     prev_si = dr.zeros(mi.SurfaceInteraction3f)
     prev_bsdf_pdf = mi.Float(1)
     prev_bsdf_delta = mi.Bool(True)
@@ -204,7 +217,7 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
         o_local = pose64.point_to_local(x_prev)
         d_local = pose64.vector_to_local(d64)
         n_local = mi.Vector3d(hit.n_local)
-        t64 = dr.dot(n_local, mi.Vector3d(hit.p_local) - o_local) / dr.dot(n_local, d_local)
+        t64 = dr.dot(n_local, mi.Vector3d(hit.plane_local) - o_local) / dr.dot(n_local, d_local)
         t64 = dr.select(dr.isfinite(t64) & (t64 > 0), t64, mi.Float64(si.t))
         x_hit = x_prev + d64 * t64
         path_length = dr.select(valid, path_length + t64 * mi.Float64(eta), path_length)

@@ -21,7 +21,8 @@ Two estimators:
     pairs each homodyne camera (h = 0) with a heterodyne one (h = 1) at the same ψ. For the
     sinusoid E/H = a/(a + 2π) *exactly* (the exposure-average of cos over the beat cancels
     the phase), so a = 2π r/(1 − r) with r = E/H, i.e. v = c r / (2 f_g T (1 − r)), the
-    original formula; no small-r approximation. Several phases are fused as
+    original formula; no small-r approximation (c is the exact ``SPEED_OF_LIGHT_M_S``
+    here, where the original used 3e8). Several phases are fused as
     r̄ = Σ r_i |H_i| / Σ |H_i|. Other waveforms are accepted but the ratio is then only
     approximately a/(a + 2π).
 ``"fit"``
@@ -50,8 +51,9 @@ name                   unit    default                      meaning
                                                             ``phase`` (rad), ``waveform``,
                                                             ``g1``; all must share f_g and T
 ``min_amplitude``      meas.   1e-3 × 99th percentile       pixels whose signal amplitude
-                                                            (|H_i| for the ratio, (g1/2)|Z| for
-                                                            the fit) is not above it are invalid
+                               of the image's amplitude     (|H_i| per phase for the ratio,
+                                                            (g1/2)|Z| for the fit and depth)
+                                                            is not above it are invalid
 ``method``             –       ``"auto"``                   ``"ratio"``, ``"fit"`` or ``"auto"``
                                                             (ratio iff the cameras form matched
                                                             h = 0 / h = 1 pairs)
@@ -702,8 +704,10 @@ def velocity(
         Sharing f_g (Hz) and T (s). See the module docstring.
     min_amplitude : float, optional
         Signal amplitude (measurement units) at or below which a pixel is invalid:
-        |H_i| per phase for the ratio, (g1/2)|Z| for the fit. Default: 1e-3 × the 99th
-        percentile of that amplitude over the image.
+        |H_i| per phase for the ratio, (g1/2)|Z| for the fit (g1/2 averaged over the
+        cameras). Default: 1e-3 × the 99th percentile over the image of |H_i| (ratio) or
+        of the data amplitude sqrt(2 mean_i m_i²) (fit; unlike the fitted amplitude it
+        cannot be inflated by ill-conditioned pixels).
     method : {"auto", "ratio", "fit"}
         ``"auto"`` uses the ratio when the cameras are matched h=0/h=1 pairs, else the fit.
     max_doppler_hz : float, optional
@@ -783,7 +787,8 @@ def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None
     measurements : array_like, shape (n_cameras, ...)
     cameras : sequence of n_cameras camera configurations (shared f_g, T)
     min_amplitude : float, optional
-        (g1/2)|Z| threshold (measurement units); default 1e-3 × 99th percentile.
+        (g1/2)|Z| threshold (measurement units); default 1e-3 × the 99th percentile of
+        the data amplitude sqrt(2 mean_i m_i²).
 
     Returns
     -------
@@ -800,15 +805,18 @@ def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None
     m = _measurement_array(measurements, cams)
     _check_min_amplitude(min_amplitude)
     sinusoid = all(w == "sinusoidal" for w in cams.waveforms)
-    if sinusoid and (_ratio_pairs(cams) is not None or _velocity_identifiable(cams) is None):
-        return velocity(m, cameras, min_amplitude=min_amplitude).depth
-    flat, shape, finite = _flatten(m)
-    if _column_rank(*_design_columns(np.zeros(1), cams)) < 2:
+    determines_velocity = _ratio_pairs(cams) is not None or _velocity_identifiable(cams) is None
+    # generic Doppler phase when it is fitted, a = 0 when it is not
+    probe = np.array([0.123 if sinusoid and determines_velocity else 0.0])
+    if _column_rank(*_design_columns(probe, cams)) < 2:
         raise ValueError(
             "depth needs at least two independent phase measurements (e.g. homodyne at "
             f"ψ = 0 and π/2); got h = {cams.heterodyne.tolist()}, "
             f"ψ = {cams.phase_rad.tolist()} rad"
         )
+    if sinusoid and determines_velocity:
+        return velocity(m, cameras, min_amplitude=min_amplitude).depth
+    flat, shape, finite = _flatten(m)
     depth_m, _, signal, fit = _depth_and_amplitude(flat, np.zeros(flat.shape[1]), cams)
     threshold = _default_threshold(_data_amplitude(flat), min_amplitude)
     ok = finite & fit["full_rank"] & (signal > threshold)

@@ -47,13 +47,17 @@ class Hit:
 
     ``si`` is a ``mi.SurfaceInteraction3f`` in world space; ``body`` is 0 for static
     geometry and ``b + 1`` for ``bodies[b]``; ``p_local`` is the hit in the frame of the
-    body (world frame for static geometry); ``n_local`` the geometric normal there.
+    body (world frame for static geometry); ``n_local`` the geometric normal there;
+    ``plane_local`` a point of the hit primitive's plane in that frame that is the same
+    for every hit of the primitive (a triangle's first vertex; ``p_local`` for analytic
+    shapes), so distances recomputed against it cancel exactly between correlated paths.
     """
 
     si: object
     body: object
     p_local: object
     n_local: object
+    plane_local: object
 
 
 @dataclass
@@ -143,6 +147,10 @@ class DynamicScene:
                 body_index = dr.select(closer, mi.UInt32(b + 1), body_index)
         si = pi.compute_surface_interaction(ray_hit, mi.RayFlags.All, active)
         p_local, n_local = mi.Point3f(si.p), mi.Normal3f(si.n)
+        is_mesh = active & si.is_valid() & si.shape.is_mesh()
+        mesh = mi.MeshPtr(si.shape)
+        first_vertex = mesh.vertex_position(mesh.face_indices(si.prim_index, is_mesh).x, is_mesh)
+        plane_local = dr.select(is_mesh, mi.Point3f(first_vertex), p_local)
         if self.bodies:
             pose = self.select_pose(poses, body_index)
             si.p = pose.point_to_world(si.p)
@@ -154,7 +162,7 @@ class DynamicScene:
             )
             si.dp_du = pose.vector_to_world(si.dp_du)
             si.dp_dv = pose.vector_to_world(si.dp_dv)
-        return Hit(si=si, body=body_index, p_local=p_local, n_local=n_local)
+        return Hit(si=si, body=body_index, p_local=p_local, n_local=n_local, plane_local=plane_local)
 
     def occluded(self, ray, time_s, active=True, poses=None):
         """True where world-space ``ray`` (up to ``ray.maxt``) is blocked at its lane's time."""

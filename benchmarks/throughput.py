@@ -1,0 +1,384 @@
+#!/usr/bin/env python
+"""Throughput of dopplertof against stock Mitsuba 3 ``path`` on the same scenes.
+
+One process, one timer (``time.perf_counter``), configurations interleaved::
+
+    python benchmarks/throughput.py            # default run (see --help for the knobs)
+    python benchmarks/throughput.py --quick    # smoke test, a few seconds of rendering
+
+Scenes (Cornell-like box, point light at the camera):
+
+* ``static``  -- the short and tall boxes at rest;
+* ``2-moving`` -- the same boxes, each translating 15 mm over the 1.5 ms exposure;
+* ``8-moving`` -- eight small cubes, each with its own 15 mm translation.
+
+Configurations per scene:
+
+* ``stock``   -- ``mi.render`` with the ``path`` integrator (moving bodies baked at their
+  t = 0 pose), box reconstruction filter, forced evaluation (``np.array(img)``);
+* ``ours``    -- ``dopplertof.render(..., time_sampling="uniform")`` (intensity only);
+* ``dtof1``   -- D-ToF, 1 camera (h=1, psi=0), antithetic time sampling, replay correlation;
+* ``dtof4``   -- D-ToF, 4 cameras (h in {0, 1} x psi in {0, pi/2}), same settings.
+
+Each configuration is warmed up once (JIT compilation; Dr.Jit caches the kernels), then
+the R repetitions run interleaved (stock, ours, dtof1, dtof4, stock, ...; the order is
+rotated every repetition). Reported: median time, paths/s = W*H*spp / median time, and
+ratios to stock ``path`` on the same scene. All medians, minima and maxima go to a CSV.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import os
+import platform
+import statistics
+import sys
+import time
+
+import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets the libLLVM path)
+
+EXPOSURE_S = 1.5e-3
+DISPLACEMENT_M = 0.015
+
+WHITE = [0.725, 0.71, 0.68]
+RED = [0.63, 0.065, 0.05]
+GREEN = [0.14, 0.45, 0.091]
+
+CONFIGS = ("stock", "ours", "dtof1", "dtof4")
+CONFIG_LABELS = {
+    "stock": "stock path",
+    "ours": "ours intensity (uniform)",
+    "dtof1": "D-ToF 1 camera (antithetic, replay)",
+    "dtof4": "D-ToF 4 cameras (antithetic, replay)",
+}
+SCENE_NAMES = ("static", "2-moving", "8-moving")
+
+
+# ----------------------------------------------------------------------------------------
+# Scenes
+
+
+def _xf(translate=(0, 0, 0), rotate_y_deg=0.0, scale=(1, 1, 1), rotate_x_deg=0.0):
+    import mitsuba as mi
+
+    t = mi.ScalarTransform4f().translate(list(translate))
+    t = t @ mi.ScalarTransform4f().rotate([0, 1, 0], rotate_y_deg) @ mi.ScalarTransform4f().rotate([1, 0, 0], rotate_x_deg)
+    return t @ mi.ScalarTransform4f().scale(list(scale))
+
+
+def _diffuse(rgb):
+    return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(rgb)}}
+
+
+def _room(resolution):
+    """Walls, camera and point light of the box (no bodies)."""
+    import mitsuba as mi
+
+    return {
+        "type": "scene",
+        "sensor": {
+            "type": "perspective",
+            "fov": 19.5,
+            "to_world": mi.ScalarTransform4f().look_at(origin=[0, 1, 6.8], target=[0, 1, 0], up=[0, 1, 0]),
+            "film": {"type": "hdrfilm", "width": resolution, "height": resolution, "rfilter": {"type": "box"}},
+        },
+        "floor": {"type": "rectangle", "to_world": _xf((0, 0, 0), rotate_x_deg=-90), "bsdf": _diffuse(WHITE)},
+        "ceiling": {"type": "rectangle", "to_world": _xf((0, 2, 0), rotate_x_deg=90), "bsdf": _diffuse(WHITE)},
+        "back": {"type": "rectangle", "to_world": _xf((0, 1, -1)), "bsdf": _diffuse(WHITE)},
+        "red-wall": {"type": "rectangle", "to_world": _xf((-1, 1, 0), rotate_y_deg=90), "bsdf": _diffuse(RED)},
+        "green-wall": {"type": "rectangle", "to_world": _xf((1, 1, 0), rotate_y_deg=-90), "bsdf": _diffuse(GREEN)},
+        "light": {"type": "point", "position": [0.0, 1.0, 6.8], "intensity": {"type": "rgb", "value": [100.0] * 3}},
+    }
+
+
+def _bodies(name):
+    """[(key, M0 at t=0, displacement over the exposure)] of the scene's bodies."""
+    two = [
+        ("short-box", _xf((0.33, 0.3, 0.37), rotate_y_deg=-17, scale=(0.3, 0.3, 0.3)), (0, 0, DISPLACEMENT_M)),
+        ("tall-box", _xf((-0.33, 0.6, -0.29), rotate_y_deg=17, scale=(0.3, 0.6, 0.3)), (0, 0, -DISPLACEMENT_M)),
+    ]
+    if name in ("static", "2-moving"):
+        return two
+    if name == "8-moving":
+        d = DISPLACEMENT_M
+        s = 1.0 / math.sqrt(2.0)
+        directions = [(0, 0, 1), (0, 0, -1), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (s, 0, s), (-s, 0, s), (s, s, 0)]
+        cubes = []
+        for i, direction in enumerate(directions):
+            x = -0.6 + 0.4 * (i % 4)
+            z = -0.45 if i < 4 else 0.35
+            y = 0.1 + 0.15 * (i % 3)  # some on the floor, some floating
+            m0 = _xf((x, y, z), rotate_y_deg=11.0 * i, scale=(0.1, 0.1, 0.1))
+            cubes.append((f"cube-{i}", m0, tuple(d * c for c in direction)))
+        return cubes
+    raise ValueError(f"unknown scene {name!r}")
+
+
+def scene_dicts(name, resolution, max_depth):
+    """(dopplertof dict, stock Mitsuba dict) of the named benchmark scene."""
+    import mitsuba as mi
+
+    ours = _room(resolution)
+    stock = _room(resolution)
+    stock["integrator"] = {"type": "path", "max_depth": max_depth}
+    for key, m0, disp in _bodies(name):
+        stock[key] = {"type": "cube", "bsdf": _diffuse(WHITE), "to_world": m0}
+        if name == "static":
+            ours[key] = {"type": "cube", "bsdf": _diffuse(WHITE), "to_world": m0}
+        else:
+            m1 = mi.ScalarTransform4f().translate(list(disp)) @ m0
+            ours[key] = {
+                "type": "cube",
+                "bsdf": _diffuse(WHITE),
+                "motion": {"type": "keyframes", "keys": [(0.0, m0), (EXPOSURE_S, m1)]},
+            }
+    return ours, stock
+
+
+# ----------------------------------------------------------------------------------------
+# Machine
+
+
+def cpu_model():
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def machine_line(variant):
+    import drjit as dr
+    import mitsuba as mi
+
+    try:
+        threads = dr.thread_count()
+    except Exception:  # noqa: BLE001
+        threads = "?"
+    llvm = os.environ.get("DRJIT_LIBLLVM_PATH", "?")
+    return (
+        f"machine: {cpu_model()} | {os.cpu_count()} cores (Dr.Jit threads: {threads}) | "
+        f"Mitsuba {mi.__version__} | Dr.Jit {dr.__version__} | variant {variant} | "
+        f"dopplertof {dopplertof.__version__} | Python {platform.python_version()} | libLLVM {os.path.basename(llvm)}"
+    )
+
+
+def loadavg():
+    try:
+        return "%.2f %.2f %.2f" % os.getloadavg()
+    except OSError:
+        return "?"
+
+
+# ----------------------------------------------------------------------------------------
+# Benchmark
+
+
+def make_runners(ours_scene, stock_scene, spp, max_depth):
+    """config -> callable(seed) that renders and forces evaluation."""
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+
+    cam1 = [dopplertof.Camera(heterodyne=1.0, phase=0.0)]
+    cam4 = [dopplertof.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
+
+    def stock(seed):
+        img = mi.render(stock_scene, spp=spp, seed=seed)
+        a = np.array(img)  # forces evaluation and the copy to the host
+        dr.sync_thread()
+        return a
+
+    def ours(seed):
+        return dopplertof.render(ours_scene, spp=spp, seed=seed, max_depth=max_depth, time_sampling="uniform")
+
+    def dtof(cams):
+        def run(seed):
+            return dopplertof.render(
+                ours_scene, cameras=cams, spp=spp, seed=seed, max_depth=max_depth,
+                time_sampling="antithetic", correlation="replay",
+            )
+
+        return run
+
+    return {"stock": stock, "ours": ours, "dtof1": dtof(cam1), "dtof4": dtof(cam4)}
+
+
+def sanity(config, out):
+    """Raise if a render produced no finite image (a benchmark of garbage is worthless)."""
+    import numpy as np
+
+    img = out if config == "stock" else out.intensity
+    if not np.isfinite(img).all() or float(np.mean(img)) <= 0.0:
+        raise RuntimeError(f"{config}: non-finite or black image (mean {float(np.nanmean(img))!r})")
+    if config.startswith("dtof") and not np.isfinite(out.measurements).all():
+        raise RuntimeError(f"{config}: non-finite D-ToF measurements")
+
+
+def bench_scene(name, args, log):
+    ours_dict, stock_dict = scene_dicts(name, args.resolution, args.max_depth)
+    import mitsuba as mi
+
+    t = time.perf_counter()
+    ours_scene = dopplertof.load_scene(ours_dict)
+    stock_scene = mi.load_dict(stock_dict)
+    log(f"[{name}] scenes loaded in {time.perf_counter() - t:.2f} s ({len(ours_scene.bodies)} moving bodies)")
+    runners = make_runners(ours_scene, stock_scene, args.spp, args.max_depth)
+    configs = [c for c in CONFIGS if c in args.configs]
+
+    warm = {}
+    for c in configs:
+        t = time.perf_counter()
+        out = runners[c](10_000)  # a seed never used by the timed runs
+        warm[c] = time.perf_counter() - t
+        sanity(c, out)
+        log(f"[{name}] warm-up {c:<6} {warm[c]:8.3f} s")
+    times = {c: [] for c in configs}
+    for r in range(args.reps):
+        order = configs[r % len(configs):] + configs[: r % len(configs)]  # rotate the start
+        for c in order:
+            t = time.perf_counter()
+            runners[c](r)
+            times[c].append(time.perf_counter() - t)
+        log(f"[{name}] rep {r + 1}/{args.reps}: " + "  ".join(f"{c} {times[c][-1]:.3f}s" for c in configs))
+    return warm, times
+
+
+def summarise(name, warm, times, args):
+    paths = args.resolution * args.resolution * args.spp
+    rows = {}
+    for c, ts in times.items():
+        med = statistics.median(ts)
+        rows[c] = dict(
+            scene=name, config=c, label=CONFIG_LABELS[c], resolution=args.resolution, spp=args.spp,
+            max_depth=args.max_depth, reps=len(ts), paths=paths,
+            median_s=med, min_s=min(ts), max_s=max(ts), warmup_s=warm[c],
+            mpaths_per_s_median=paths / med / 1e6, mpaths_per_s_best=paths / min(ts) / 1e6,
+            times_s=" ".join(f"{t:.4f}" for t in ts),
+        )
+    stock = rows.get("stock")
+    for row in rows.values():
+        if stock is not None:
+            # throughput ratio to stock (same paths): stock time / our time
+            row["ratio_to_stock_median"] = stock["median_s"] / row["median_s"]
+            row["ratio_to_stock_best"] = stock["min_s"] / row["min_s"]
+        else:
+            row["ratio_to_stock_median"] = row["ratio_to_stock_best"] = float("nan")
+    if "dtof1" in rows and "dtof4" in rows:
+        rows["dtof4"]["time_vs_dtof1_median"] = rows["dtof4"]["median_s"] / rows["dtof1"]["median_s"]
+    return rows
+
+
+CSV_FIELDS = [
+    "scene", "config", "label", "resolution", "spp", "max_depth", "reps", "paths",
+    "median_s", "min_s", "max_s", "warmup_s", "mpaths_per_s_median", "mpaths_per_s_best",
+    "ratio_to_stock_median", "ratio_to_stock_best", "time_vs_dtof1_median", "times_s",
+]
+
+
+def write_csv(path, all_rows, meta):
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path, "w", newline="") as f:
+        f.write(f"# {meta}\n")
+        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+        w.writeheader()
+        for rows in all_rows:
+            for row in rows.values():
+                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+
+
+def markdown_table(all_rows):
+    def cell(rows, c):
+        if c not in rows:
+            return "-"
+        r = rows[c]
+        ratio = r["ratio_to_stock_median"]
+        ratio_s = "" if math.isnan(ratio) else f" ({ratio:.3f}x)"
+        return f"{r['mpaths_per_s_median']:.3f}{ratio_s}"
+
+    lines = [
+        "| scene | stock path Mpaths/s | ours intensity Mpaths/s (vs stock) | D-ToF 1 camera (vs stock) | D-ToF 4 cameras (vs stock) | time 4 cams / 1 cam |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for rows in all_rows:
+        name = next(iter(rows.values()))["scene"]
+        stock = f"{rows['stock']['mpaths_per_s_median']:.3f}" if "stock" in rows else "-"
+        r41 = rows.get("dtof4", {}).get("time_vs_dtof1_median")
+        lines.append(
+            f"| {name} | {stock} | {cell(rows, 'ours')} | {cell(rows, 'dtof1')} | {cell(rows, 'dtof4')} | "
+            f"{'-' if r41 is None else f'{r41:.2f}'} |"
+        )
+    return "\n".join(lines)
+
+
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--resolution", type=int, default=None, help="square film side, pixels (default 256; quick 32)")
+    p.add_argument("--spp", type=int, default=None, help="paths per pixel (even; default 64; quick 8)")
+    p.add_argument("--max-depth", type=int, default=None, help="path depth, Mitsuba semantics (default 5)")
+    p.add_argument("--reps", type=int, default=None, help="timed repetitions per configuration (default 5; quick 2)")
+    p.add_argument("--scenes", nargs="+", choices=SCENE_NAMES, default=list(SCENE_NAMES))
+    p.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
+    p.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
+    p.add_argument("--csv", default=None, help="CSV output (default benchmarks/results/throughput.csv; quick: throughput_quick.csv)")
+    p.add_argument("--quick", action="store_true", help="tiny smoke-test run (32x32, 8 spp, 2 reps)")
+    p.add_argument("--quiet", action="store_true", help="only print the machine line and the table")
+    args = p.parse_args(argv)
+    defaults = dict(resolution=32, spp=8, max_depth=5, reps=2) if args.quick else dict(resolution=256, spp=64, max_depth=5, reps=5)
+    for k, v in defaults.items():
+        if getattr(args, k) is None:
+            setattr(args, k, v)
+    if args.csv is None:
+        here = os.path.dirname(os.path.abspath(__file__))
+        args.csv = os.path.join(here, "results", "throughput_quick.csv" if args.quick else "throughput.csv")
+    if args.resolution <= 0 or args.spp <= 0 or args.reps <= 0:
+        p.error("--resolution, --spp and --reps must be positive")
+    if args.spp % 2 and any(c.startswith("dtof") for c in args.configs):
+        p.error("--spp must be even for the antithetic D-ToF configurations")
+    if "stock" not in args.configs:
+        print("note: without 'stock' no ratios are reported", file=sys.stderr)
+    return args
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    variant = dopplertof.set_variant(args.variant or "llvm_ad_rgb")
+
+    def log(msg):
+        if not args.quiet:
+            print(msg, flush=True)
+
+    mline = machine_line(variant)
+    print(mline, flush=True)
+    settings = (
+        f"settings: {args.resolution}x{args.resolution}, spp {args.spp}, max_depth {args.max_depth}, "
+        f"{args.reps} interleaved reps after 1 warm-up per config; timer time.perf_counter; load avg at start {loadavg()}"
+    )
+    print(settings, flush=True)
+    t_all = time.perf_counter()
+    all_rows = []
+    for name in args.scenes:
+        warm, times = bench_scene(name, args, log)
+        all_rows.append(summarise(name, warm, times, args))
+    elapsed = time.perf_counter() - t_all
+    print()
+    print(markdown_table(all_rows))
+    print()
+    print(
+        "Mpaths/s = W*H*spp / median wall time of one render call (incl. host-side accumulation); "
+        "(Nx) = throughput relative to stock `path` on the same scene (stock time / our time); "
+        "D-ToF spp counts paths (an antithetic pair = 2)."
+    )
+    print(f"total {elapsed:.1f} s; load avg at end {loadavg()}")
+    write_csv(args.csv, all_rows, f"{mline} || {settings}")
+    print(f"CSV: {args.csv}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,411 @@
+"""Tests of dopplertof.reconstruct on synthetic closed-form measurements."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from dopplertof import reconstruct as rc
+from dopplertof.reconstruct import SPEED_OF_LIGHT_M_S as C
+
+T = 1.5e-3
+FREQUENCIES = (30e6, 150e6)
+VELOCITIES = np.concatenate([np.linspace(-20.0, -0.5, 40), np.linspace(0.5, 20.0, 40)])
+
+
+@dataclass
+class Cam:
+    modulation_frequency: float = 30e6
+    exposure: float = T
+    heterodyne: float = 0.0
+    phase: float = 0.0
+    waveform: str = "sinusoidal"
+    g1: float = 0.5
+    g0: float = 0.5
+    low_pass: bool = True
+
+
+def cams_from(f, pairs, **kw):
+    return [Cam(modulation_frequency=f, heterodyne=h, phase=p, **kw) for h, p in pairs]
+
+
+def ratio_set(f, phases):
+    return cams_from(f, [(h, p) for p in phases for h in (0.0, 1.0)])
+
+
+def hu_set(f):
+    return cams_from(f, zip((0.5, 0.5, -0.5, -0.5), (1.5 * np.pi, 0.0, 0.5 * np.pi, np.pi)))
+
+
+def scene(n, seed=0, max_depth=4.0):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(0.2, 2.0, n), rng.uniform(0.3, max_depth, n)
+
+
+def depth_error(estimate, truth, f):
+    """Distance between depths modulo the ambiguity range."""
+    span = C / (2 * f)
+    return np.abs((estimate - truth + span / 2) % span - span / 2)
+
+
+def numeric_exposure_average(amplitude, depth_mid, v, cam, n=200_001):
+    """(1/T)∫(g1/2) cos(2π h t/T + ψ + k L(t)) A dt by the trapezoid rule, L(t) = 2 d(t)."""
+    t = np.linspace(0.0, cam.exposure, n)
+    k = 2 * np.pi * cam.modulation_frequency / C
+    distance = depth_mid + v * (t - cam.exposure / 2)
+    phase = 2 * np.pi * cam.heterodyne * t / cam.exposure + cam.phase + k * 2 * distance
+    integrand = 0.5 * cam.g1 * amplitude * np.cos(phase)
+    return np.trapezoid(integrand, t) / cam.exposure
+
+
+# ------------------------------------------------------------------ forward model
+
+
+@pytest.mark.parametrize("h, psi", [(0, 0), (1, 0.3), (0.5, 1.5 * np.pi), (-0.5, 2.0), (2.7, 1)])
+def test_model_matches_numerical_integral(h, psi):
+    cam = Cam(modulation_frequency=150e6, heterodyne=h, phase=psi)
+    for v in (-17.0, 3.0, 250.0):
+        expected = numeric_exposure_average(1.3, 2.345, v, cam)
+        got = rc.model_measurements(1.3, 2.345, v, [cam])[0]
+        assert got == pytest.approx(expected, abs=1e-9)
+
+
+def test_model_static_homodyne_is_half_g1_amplitude_cos():
+    cam = Cam(heterodyne=0.0, phase=0.4, g1=0.8)
+    k = 2 * np.pi * cam.modulation_frequency / C
+    got = rc.model_measurements(2.0, 1.7, 0.0, [cam])[0]
+    assert got == pytest.approx(0.4 * 2.0 * np.cos(0.4 + 2 * k * 1.7), rel=1e-12)
+
+
+def test_model_output_shape():
+    amp = np.ones((3, 5))
+    m = rc.model_measurements(amp, 1.0, np.zeros((3, 5)), ratio_set(30e6, [0, 1]))
+    assert m.shape == (4, 3, 5)
+
+
+@pytest.mark.parametrize("f", FREQUENCIES)
+def test_heterodyne_over_homodyne_is_exact(f):
+    """E/H = a/(a + 2π) for the sinusoid, no small-a approximation."""
+    amp, dist = scene(VELOCITIES.size)
+    h, e = rc.model_measurements(amp, dist, VELOCITIES, ratio_set(f, [0.7]))
+    a = 2 * np.pi * f / C * 2 * VELOCITIES * T
+    np.testing.assert_allclose(e / h, a / (a + 2 * np.pi), rtol=1e-9)
+
+
+# ------------------------------------------------------------------ ratio method
+
+
+@pytest.mark.parametrize("f", FREQUENCIES)
+@pytest.mark.parametrize("phases", [[0.0], [0.0, 0.5 * np.pi]])
+def test_ratio_recovers_velocity(f, phases):
+    amp, dist = scene(VELOCITIES.size, seed=1)
+    cams = ratio_set(f, phases)
+    m = rc.model_measurements(amp, dist, VELOCITIES, cams)
+    # single phase: keep away from cos θ ≈ 0, which is masked (tested below)
+    res = rc.velocity(m, cams)
+    assert res.method == "ratio"
+    assert res.valid.all()
+    np.testing.assert_allclose(res.velocity, VELOCITIES, rtol=1e-6)
+    # the original code's formula, v = c r / (2 f_g T (1 − r)), on the fused ratio
+    r = m[1] / m[0]
+    np.testing.assert_allclose(res.velocity, C * r / (2 * f * T * (1 - r)), rtol=1e-6)
+    np.testing.assert_allclose(res.doppler_hz, 2 * f * VELOCITIES / C, rtol=1e-6)
+    if len(phases) == 2:
+        assert np.all(depth_error(res.depth, dist, f) < 1e-9)
+        np.testing.assert_allclose(res.amplitude, amp, rtol=1e-6)
+    else:
+        assert np.isnan(res.depth).all()
+
+
+def test_ratio_per_phase_maps():
+    f = 30e6
+    amp, dist = scene(VELOCITIES.size, seed=2)
+    cams = [Cam(f, heterodyne=1, phase=0.5 * np.pi), Cam(f, heterodyne=0, phase=0.0),
+            Cam(f, heterodyne=0, phase=0.5 * np.pi), Cam(f, heterodyne=1, phase=0.0)]
+    m = rc.model_measurements(amp, dist, VELOCITIES, cams)
+    per = rc.ratio_velocity_per_phase(m, cams)
+    np.testing.assert_allclose(per.phase, [0.0, 0.5 * np.pi])
+    assert per.velocity.shape == (2, VELOCITIES.size)
+    # pair 0 is (camera 1, camera 3), pair 1 is (camera 2, camera 0)
+    np.testing.assert_allclose(per.ratio[0][per.valid[0]], (m[3] / m[1])[per.valid[0]])
+    np.testing.assert_allclose(per.ratio[1][per.valid[1]], (m[0] / m[2])[per.valid[1]])
+    for i in range(2):
+        ok = per.valid[i]
+        np.testing.assert_allclose(per.velocity[i][ok], VELOCITIES[ok], rtol=1e-6)
+    np.testing.assert_allclose(per.homodyne_amplitude, np.abs(m[[1, 2]]))
+
+
+def test_ratio_fusion_weights_by_homodyne_amplitude():
+    """r̄ = Σ r_i |H_i| / Σ |H_i|, checked on inconsistent (noisy-like) data."""
+    cams = ratio_set(30e6, [0.0, 0.5 * np.pi])
+    m = np.array([[2.0], [0.02], [-0.5], [-0.0025]])  # r_0 = 0.01, r_1 = 0.005
+    res = rc.velocity(m, cams, method="ratio")
+    r_bar = (0.01 * 2.0 + 0.005 * 0.5) / 2.5
+    expected = C * r_bar / (2 * 30e6 * T * (1 - r_bar))
+    assert res.velocity[0] == pytest.approx(expected, rel=1e-12)
+
+
+def test_ratio_masks_ill_conditioned_pixels():
+    f = 30e6
+    k = 2 * np.pi * f / C
+    cams = ratio_set(f, [0.0])
+    v = np.array([5.0, 5.0, 5.0, 5.0])
+    amp = np.array([1.0, 0.0, 1.0, 1.0])
+    # pixel 2: cos θ ≈ 0 over the exposure, i.e. k L(T/2) = π/2 exactly
+    d_quadrature = (np.pi / 2) / (2 * k)
+    dist = np.array([1.0, 1.0, d_quadrature, 1.0])
+    m = rc.model_measurements(amp, dist, v, cams)
+    m[:, 3] = [1.0, 1.5]  # r = 1.5 ≥ 1: no physical solution
+    res = rc.velocity(m, cams)
+    assert res.valid.tolist() == [True, False, False, False]
+    assert np.isnan(res.velocity[1:]).all()
+    assert np.isnan(res.doppler_hz[1:]).all()
+    assert res.velocity[0] == pytest.approx(5.0, rel=1e-6)
+    # without the mask the quadrature pixel's "velocity" is far from the truth
+    assert abs(C * (m[1, 2] / m[0, 2]) / (2 * f * T * (1 - m[1, 2] / m[0, 2])) - 5.0) > 1.0
+
+
+def test_ratio_phase_with_r_above_one_is_left_out_of_the_fusion():
+    cams = ratio_set(30e6, [0.0, 0.5 * np.pi])
+    good = rc.model_measurements(1.0, 1.0, 4.0, cams[2:])
+    m = np.array([[1.0], [1.2], [good[0]], [good[1]]])  # phase 0: r = 1.2
+    per = rc.ratio_velocity_per_phase(m, cams)
+    assert per.valid[:, 0].tolist() == [False, True]
+    res = rc.velocity(m, cams)
+    assert res.valid[0] and res.velocity[0] == pytest.approx(4.0, rel=1e-6)
+
+
+def test_ratio_second_phase_rescues_quadrature_pixel():
+    f = 30e6
+    k = 2 * np.pi * f / C
+    cams = ratio_set(f, [0.0, 0.5 * np.pi])
+    dist = np.array([(np.pi / 2) / (2 * k), 1.0])
+    m = rc.model_measurements(np.ones(2), dist, np.array([-7.0, 3.0]), cams)
+    res = rc.velocity(m, cams)
+    assert res.valid.all()
+    np.testing.assert_allclose(res.velocity, [-7.0, 3.0], rtol=1e-6)
+
+
+def test_non_finite_input_is_masked():
+    cams = ratio_set(30e6, [0.0, 0.5 * np.pi])
+    m = rc.model_measurements(np.ones(3), np.array([1.0, 2.0, 3.0]), np.ones(3), cams)
+    m[0, 1] = np.nan
+    m[3, 2] = np.inf
+    for method in ("ratio", "fit"):
+        res = rc.velocity(m, cams, method=method)
+        assert res.valid.tolist() == [True, False, False]
+        assert np.isnan(res.velocity[1:]).all()
+
+
+def test_explicit_min_amplitude():
+    cams = ratio_set(30e6, [0.0])
+    m = rc.model_measurements(np.array([1.0, 0.1]), 1.0, 2.0, cams)
+    assert rc.velocity(m, cams).valid.all()
+    only_bright = rc.velocity(m, cams, min_amplitude=0.5 * abs(m[0]).max())
+    assert only_bright.valid.tolist() == [True, False]
+
+
+def test_ratio_accepts_other_waveforms():
+    """Documented as approximate; it must run and follow the sign of the motion."""
+    cams = ratio_set(30e6, [0.0])
+    for c in cams:
+        c.waveform = "rectangular"
+    m = np.array([[1.0, 1.0], [0.01, -0.01]])
+    res = rc.velocity(m, cams)
+    assert res.valid.all() and res.velocity[0] > 0 > res.velocity[1]
+
+
+# ------------------------------------------------------------------ general fit
+
+
+@pytest.mark.parametrize("f", FREQUENCIES)
+@pytest.mark.parametrize("kind", ["homo_hetero_0_90", "hu"])
+def test_fit_recovers_velocity_and_depth(f, kind):
+    amp, dist = scene(VELOCITIES.size, seed=3, max_depth=C / (2 * f) * 0.999)
+    cams = ratio_set(f, [0.0, 0.5 * np.pi]) if kind != "hu" else hu_set(f)
+    m = rc.model_measurements(amp, dist, VELOCITIES, cams)
+    res = rc.velocity(m, cams, method="fit")
+    assert res.method == "fit"
+    assert res.valid.all()
+    np.testing.assert_allclose(res.velocity, VELOCITIES, rtol=1e-6)
+    np.testing.assert_allclose(res.doppler_hz, 2 * f * VELOCITIES / C, rtol=1e-6)
+    np.testing.assert_allclose(res.depth, dist, rtol=1e-6)
+    np.testing.assert_allclose(res.amplitude, amp, rtol=1e-6)
+
+
+def test_fit_on_a_single_pair_matches_ratio():
+    """Two measurements at one ψ: the linear part is rank 1, the fit still finds a."""
+    cams = ratio_set(150e6, [0.3])
+    amp, dist = scene(VELOCITIES.size, seed=7)
+    m = rc.model_measurements(amp, dist, VELOCITIES, cams)
+    fit = rc.velocity(m, cams, method="fit")
+    ratio = rc.velocity(m, cams, method="ratio")
+    assert fit.valid.all()
+    np.testing.assert_allclose(fit.velocity, ratio.velocity, rtol=1e-6)
+    np.testing.assert_allclose(fit.velocity, VELOCITIES, rtol=1e-6)
+    assert np.isnan(fit.depth).all()
+
+
+def test_fit_auto_selects_fit_for_hu_set():
+    cams = hu_set(30e6)
+    m = rc.model_measurements(np.ones(2), np.array([1.0, 2.0]), np.array([1.0, -1.0]), cams)
+    assert rc.velocity(m, cams).method == "fit"
+    assert rc.velocity(m, ratio_set(30e6, [0.0, 1.0])[:4]).method == "ratio"
+
+
+def test_fit_large_doppler_and_arbitrary_set():
+    """Velocities of hundreds of m/s (a ~ 1 rad), 3 cameras with fractional/negative h."""
+    f = 150e6
+    cams = cams_from(f, [(0.25, 0.1), (-1.3, 2.0), (0.0, 4.0), (0.8, 5.5)])
+    v = np.array([-300.0, -40.0, 0.3, 150.0, 310.0])
+    amp, dist = scene(v.size, seed=4)
+    m = rc.model_measurements(amp, dist, v, cams)
+    res = rc.velocity(m, cams)
+    assert res.valid.all()
+    np.testing.assert_allclose(res.velocity, v, rtol=1e-6)
+    assert np.all(depth_error(res.depth, dist, f) < 1e-8)
+
+
+def test_fit_with_noise_is_unbiased_on_average():
+    f = 150e6
+    cams = ratio_set(f, [0.0, 0.5 * np.pi])
+    n = 20_000
+    m = rc.model_measurements(np.ones(n), np.full(n, 1.234), np.full(n, 12.0), cams)
+    m = m + np.random.default_rng(5).normal(0.0, 1e-3, m.shape)
+    res = rc.velocity(m, cams, method="fit")
+    assert res.valid.mean() > 0.99
+    v = res.velocity[res.valid]
+    assert abs(v.mean() - 12.0) < 5 * v.std() / np.sqrt(v.size)
+
+
+def test_fit_masks_zero_amplitude_and_out_of_range():
+    f = 30e6
+    cams = hu_set(f)
+    k = 2 * np.pi * f / C
+    v_too_fast = 0.97 * np.pi / (2 * k * T)  # a = 0.97π, outside the search range 0.9π
+    v = np.array([3.0, 3.0, v_too_fast])
+    m = rc.model_measurements(np.array([1.0, 0.0, 1.0]), 1.0, v, cams)
+    res = rc.velocity(m, cams, max_doppler_hz=0.9 / (2 * T))
+    assert res.valid.tolist() == [True, False, False]
+    assert np.isnan(res.velocity[1:]).all()
+    assert res.velocity[0] == pytest.approx(3.0, rel=1e-6)
+
+
+def test_fit_masks_faint_pixels_by_default():
+    cams = hu_set(30e6)
+    m = rc.model_measurements(np.array([1.0, 1e-5]), 1.0, 3.0, cams)
+    assert rc.velocity(m, cams).valid.tolist() == [True, False]
+    # the faint pixel is exact data: it is the threshold, not the fit, that masks it
+    res = rc.velocity(m, cams, min_amplitude=0.0)
+    np.testing.assert_allclose(res.velocity, [3.0, 3.0], rtol=1e-6)
+
+
+def test_all_zero_image_is_all_invalid():
+    cams = hu_set(30e6)
+    res = rc.velocity(np.zeros((4, 3, 3)), cams)
+    assert not res.valid.any() and np.isnan(res.velocity).all() and np.isnan(res.depth).all()
+
+
+# ------------------------------------------------------------------ depth
+
+
+@pytest.mark.parametrize("f", FREQUENCIES)
+def test_four_phase_homodyne_depth(f):
+    cams = cams_from(f, [(0.0, p) for p in (0, 0.5 * np.pi, np.pi, 1.5 * np.pi)])
+    amp, dist = scene(VELOCITIES.size, seed=6, max_depth=C / (2 * f) * 0.999)
+    m = rc.model_measurements(amp, dist, VELOCITIES, cams)
+    got = rc.depth(m, cams)
+    # exact at mid-exposure despite the motion
+    np.testing.assert_allclose(got, dist, rtol=1e-6)
+    # the classic closed form
+    phi = np.mod(np.arctan2(m[3] - m[1], m[0] - m[2]), 2 * np.pi)
+    np.testing.assert_allclose(got, C * phi / (4 * np.pi * f), rtol=1e-9)
+
+
+def test_depth_wraps_at_ambiguity_range():
+    f = 30e6
+    span = rc.ambiguity_range_m(f)
+    assert span == pytest.approx(C / (2 * f))
+    cams = cams_from(f, [(0.0, 0.0), (0.0, 0.5 * np.pi), (0.0, np.pi)])
+    m = rc.model_measurements(1.0, span + 0.75, 0.0, cams)
+    assert rc.depth(m, cams) == pytest.approx(0.75, rel=1e-9)
+
+
+def test_depth_uses_fit_when_velocity_is_determined():
+    f = 150e6
+    cams = hu_set(f)
+    m = rc.model_measurements(np.ones(2), np.array([0.4, 0.6]), np.array([-15.0, 15.0]), cams)
+    np.testing.assert_allclose(rc.depth(m, cams), [0.4, 0.6], rtol=1e-9)
+
+
+def test_velocity_from_homodyne_only_set_raises():
+    cams = cams_from(30e6, [(0.0, p) for p in (0, 0.5 * np.pi, np.pi, 1.5 * np.pi)])
+    m = rc.model_measurements(np.ones(2), 1.0, 1.0, cams)
+    with pytest.raises(ValueError, match="velocity is not determined"):
+        rc.velocity(m, cams)
+
+
+# ------------------------------------------------------------------ validation
+
+
+def test_count_mismatch_raises():
+    cams = ratio_set(30e6, [0.0])
+    with pytest.raises(ValueError, match=r"n_cameras = 2.*\(3, 4\)"):
+        rc.velocity(np.zeros((3, 4)), cams)
+    with pytest.raises(ValueError, match="n_cameras = 2"):
+        rc.depth(np.zeros((3, 4)), cams)
+
+
+@pytest.mark.parametrize("attribute, value, match", [
+    ("modulation_frequency", 60e6, "modulation_frequency"),
+    ("exposure", 2e-3, "exposure"),
+])
+def test_mismatched_cameras_raise(attribute, value, match):
+    cams = ratio_set(30e6, [0.0, 0.5 * np.pi])
+    setattr(cams[3], attribute, value)
+    with pytest.raises(ValueError, match=match) as info:
+        rc.velocity(np.ones((4, 2)), cams)
+    assert str(value) in str(info.value)
+
+
+def test_fit_rejects_non_sinusoid():
+    cams = hu_set(30e6)
+    cams[2].waveform = "triangular"
+    with pytest.raises(ValueError, match=r"sinusoid.*triangular"):
+        rc.velocity(np.ones((4, 2)), cams, method="fit")
+
+
+def test_ratio_rejects_unpaired_cameras():
+    cams = ratio_set(30e6, [0.0]) + [Cam(heterodyne=0.0, phase=1.0)]
+    with pytest.raises(ValueError, match="pair"):
+        rc.velocity(np.ones((3, 2)), cams, method="ratio")
+    mismatched = [Cam(heterodyne=0.0, phase=0.0), Cam(heterodyne=1.0, phase=0.5)]
+    with pytest.raises(ValueError, match="pair"):
+        rc.velocity(np.ones((2, 2)), mismatched, method="ratio")
+
+
+def test_underdetermined_fit_raises():
+    cams = cams_from(30e6, [(0.0, 0.0), (1.0, 0.5 * np.pi)])
+    with pytest.raises(ValueError, match="at least 3 measurements"):
+        rc.velocity(np.ones((2, 2)), cams)
+
+
+def test_bad_arguments_raise():
+    cams = ratio_set(30e6, [0.0])
+    m = np.ones((2, 2))
+    with pytest.raises(ValueError, match="method"):
+        rc.velocity(m, cams, method="magic")
+    with pytest.raises(ValueError, match="min_amplitude"):
+        rc.velocity(m, cams, min_amplitude=-1.0)
+    with pytest.raises(ValueError, match="max_doppler_hz"):
+        rc.velocity(m, cams, max_doppler_hz=0.0)
+    with pytest.raises(ValueError, match="exposure"):
+        rc.velocity(m, [Cam(exposure=-1.0), Cam(exposure=-1.0, heterodyne=1)])
+    with pytest.raises(ValueError, match="depth needs at least two"):
+        rc.depth(np.ones((1, 2)), [Cam()])
+    with pytest.raises(ValueError, match="depth needs at least two"):
+        rc.depth(np.ones((2, 2)), cams)  # one homodyne/heterodyne pair: a single phase
+    with pytest.raises(ValueError, match="sinusoid"):
+        rc.model_measurements(1.0, 1.0, 1.0, [Cam(waveform="rectangular")])
