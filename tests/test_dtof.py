@@ -121,17 +121,3 @@ def test_four_cameras_together_equal_each_alone():
         alone = dt.render(scene, cameras=[cam], spp=16, max_depth=3, seed=5)
         np.testing.assert_allclose(alone.measurements[0], together.measurements[i], rtol=1e-5, atol=1e-9)
         np.testing.assert_allclose(alone.intensity, together.intensity, rtol=1e-6)
-
-
-def test_doppler_sign_on_cornell_boxes():
-    """A receding surface advances the phase: at h = 1, ψ chosen per box, the two boxes differ in sign
-    exactly as the homodyne-relative ratio a/(a + 2π) predicts (a = k·2v·T)."""
-    scene = dt.scenes.cornell_box(resolution=32)
-    cams = [dt.Camera(heterodyne=0.0), dt.Camera(heterodyne=1.0)]
-    res = dt.render(scene, cameras=cams, spp=64, max_depth=2, seed=2)
-    v = np.where(np.isfinite(res.velocity), res.velocity, 0.0)
-    for sign in (-1, 1):
-        mask = (np.abs(v - sign * 10) < 1.0) & (np.abs(res.measurements[0]) > 0.02)
-        ratio = np.median(res.measurements[1][mask] / res.measurements[0][mask])
-        a = cams[0].wavenumber * 2 * sign * 10 * cams[0].exposure
-        assert ratio == pytest.approx(a / (a + 2 * math.pi), rel=0.1)
