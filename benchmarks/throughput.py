@@ -3,8 +3,9 @@
 
 One process, one timer (``time.perf_counter``), configurations interleaved::
 
-    python benchmarks/throughput.py            # default run (see --help for the knobs)
-    python benchmarks/throughput.py --quick    # smoke test, a few seconds of rendering
+    python benchmarks/throughput.py            # default: 256x256, 32 spp, depth 5, 3 reps (~3-4 min, 2 cores)
+    python benchmarks/throughput.py --full     # 256x256, 64 spp, 5 reps (~9 min on 2 idle cores)
+    python benchmarks/throughput.py --quick    # smoke test: 32x32, 8 spp, 2 reps (< 40 s)
 
 Scenes (Cornell-like box, point light at the camera):
 
@@ -239,17 +240,20 @@ def bench_scene(name, args, log):
         sanity(c, out)
         log(f"[{name}] warm-up {c:<6} {warm[c]:8.3f} s")
     times = {c: [] for c in configs}
+    cpu = {c: [] for c in configs}
     for r in range(args.reps):
         order = configs[r % len(configs):] + configs[: r % len(configs)]  # rotate the start
         for c in order:
+            p = time.process_time()
             t = time.perf_counter()
             runners[c](r)
             times[c].append(time.perf_counter() - t)
+            cpu[c].append(time.process_time() - p)
         log(f"[{name}] rep {r + 1}/{args.reps}: " + "  ".join(f"{c} {times[c][-1]:.3f}s" for c in configs))
-    return warm, times
+    return warm, times, cpu
 
 
-def summarise(name, warm, times, args):
+def summarise(name, warm, times, cpu, args):
     paths = args.resolution * args.resolution * args.spp
     rows = {}
     for c, ts in times.items():
@@ -259,6 +263,7 @@ def summarise(name, warm, times, args):
             max_depth=args.max_depth, reps=len(ts), paths=paths,
             median_s=med, min_s=min(ts), max_s=max(ts), warmup_s=warm[c],
             mpaths_per_s_median=paths / med / 1e6, mpaths_per_s_best=paths / min(ts) / 1e6,
+            cpu_median_s=statistics.median(cpu[c]),
             times_s=" ".join(f"{t:.4f}" for t in ts),
         )
     stock = rows.get("stock")
@@ -267,6 +272,7 @@ def summarise(name, warm, times, args):
             # throughput ratio to stock (same paths): stock time / our time
             row["ratio_to_stock_median"] = stock["median_s"] / row["median_s"]
             row["ratio_to_stock_best"] = stock["min_s"] / row["min_s"]
+            row["cpu_ratio_to_stock_median"] = stock["cpu_median_s"] / row["cpu_median_s"]
         else:
             row["ratio_to_stock_median"] = row["ratio_to_stock_best"] = float("nan")
     if "dtof1" in rows and "dtof4" in rows:
@@ -277,7 +283,8 @@ def summarise(name, warm, times, args):
 CSV_FIELDS = [
     "scene", "config", "label", "resolution", "spp", "max_depth", "reps", "paths",
     "median_s", "min_s", "max_s", "warmup_s", "mpaths_per_s_median", "mpaths_per_s_best",
-    "ratio_to_stock_median", "ratio_to_stock_best", "time_vs_dtof1_median", "times_s",
+    "ratio_to_stock_median", "ratio_to_stock_best", "time_vs_dtof1_median",
+    "cpu_median_s", "cpu_ratio_to_stock_median", "times_s",
 ]
 
 
@@ -319,17 +326,25 @@ def markdown_table(all_rows):
 def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--resolution", type=int, default=None, help="square film side, pixels (default 256; quick 32)")
-    p.add_argument("--spp", type=int, default=None, help="paths per pixel (even; default 64; quick 8)")
+    p.add_argument("--spp", type=int, default=None, help="paths per pixel (even; default 32; --full 64; quick 8)")
     p.add_argument("--max-depth", type=int, default=None, help="path depth, Mitsuba semantics (default 5)")
-    p.add_argument("--reps", type=int, default=None, help="timed repetitions per configuration (default 5; quick 2)")
+    p.add_argument("--reps", type=int, default=None, help="timed repetitions per configuration (default 3; --full 5; quick 2)")
     p.add_argument("--scenes", nargs="+", choices=SCENE_NAMES, default=list(SCENE_NAMES))
     p.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
     p.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
     p.add_argument("--csv", default=None, help="CSV output (default benchmarks/results/throughput.csv; quick: throughput_quick.csv)")
-    p.add_argument("--quick", action="store_true", help="tiny smoke-test run (32x32, 8 spp, 2 reps)")
+    p.add_argument("--quick", action="store_true", help="tiny smoke-test run (32x32, 8 spp, 2 reps; < 40 s)")
+    p.add_argument("--full", action="store_true", help="256x256, 64 spp, 5 reps (about 9 min on 2 idle cores)")
     p.add_argument("--quiet", action="store_true", help="only print the machine line and the table")
     args = p.parse_args(argv)
-    defaults = dict(resolution=32, spp=8, max_depth=5, reps=2) if args.quick else dict(resolution=256, spp=64, max_depth=5, reps=5)
+    if args.quick and args.full:
+        p.error("--quick and --full exclude each other")
+    if args.quick:
+        defaults = dict(resolution=32, spp=8, max_depth=5, reps=2)
+    elif args.full:
+        defaults = dict(resolution=256, spp=64, max_depth=5, reps=5)
+    else:  # fits ~4 min on 2 idle cores; spp 32 at 256x256 = one 2M-lane pass of dopplertof.render
+        defaults = dict(resolution=256, spp=32, max_depth=5, reps=3)
     for k, v in defaults.items():
         if getattr(args, k) is None:
             setattr(args, k, v)
@@ -363,8 +378,8 @@ def main(argv=None):
     t_all = time.perf_counter()
     all_rows = []
     for name in args.scenes:
-        warm, times = bench_scene(name, args, log)
-        all_rows.append(summarise(name, warm, times, args))
+        warm, times, cpu = bench_scene(name, args, log)
+        all_rows.append(summarise(name, warm, times, cpu, args))
     elapsed = time.perf_counter() - t_all
     print()
     print(markdown_table(all_rows))
@@ -373,6 +388,14 @@ def main(argv=None):
         "Mpaths/s = W*H*spp / median wall time of one render call (incl. host-side accumulation); "
         "(Nx) = throughput relative to stock `path` on the same scene (stock time / our time); "
         "D-ToF spp counts paths (an antithetic pair = 2)."
+    )
+    print(
+        "process CPU-time ratios to stock (less sensitive to other load on the machine): "
+        + "; ".join(
+            f"{next(iter(rows.values()))['scene']}: "
+            + ", ".join(f"{c} {rows[c]['cpu_ratio_to_stock_median']:.3f}x" for c in rows if c != "stock" and "cpu_ratio_to_stock_median" in rows[c])
+            for rows in all_rows
+        )
     )
     print(f"total {elapsed:.1f} s; load avg at end {loadavg()}")
     write_csv(args.csv, all_rows, f"{mline} || {settings}")
