@@ -165,10 +165,6 @@ def _parse_animation(anim, where: str) -> Keyframed:
         raise SceneError(str(exc)) from None
 
 
-def _line(el) -> str:
-    return ""  # ElementTree keeps no line numbers; names/ids identify elements instead
-
-
 def _describe(el, index: int) -> str:
     ident = el.attrib.get("id") or el.attrib.get("name")
     return f"<{el.tag} type=\"{el.attrib.get('type', '?')}\"{' id=' + repr(ident) if ident else ''}> #{index}"

@@ -116,7 +116,6 @@ class DynamicScene:
     def _box_hit(ray_o, ray_d, bmin, bmax, maxt):
         """Slab test of a world-space ray against an AABB (conservative)."""
         import drjit as dr
-        import mitsuba as mi
 
         inv = dr.rcp(ray_d)
         t_a = (bmin - ray_o) * inv
@@ -124,7 +123,7 @@ class DynamicScene:
         t_near = dr.max(dr.minimum(t_a, t_b))
         t_far = dr.min(dr.maximum(t_a, t_b))
         # NaNs (0 * inf on a slab boundary) must not reject: treat them as hits.
-        return ~((t_near > t_far * 1.0000002) | (t_far < 0) | (t_near > maxt)) | dr.isnan(t_near) | dr.isnan(t_far) | mi.Bool(False)
+        return ~((t_near > t_far * 1.0000002) | (t_far < 0) | (t_near > maxt)) | dr.isnan(t_near) | dr.isnan(t_far)
 
     def intersect(self, ray, time_s, active=True, poses=None, coherent=False):
         """Closest hit of world-space ``ray`` at per-lane times; returns a :class:`Hit`."""
