@@ -38,7 +38,12 @@ def _restore_file_resolver():
     test_loading_xml_keeps_the_file_resolver` checks that the loader itself keeps it
     intact; this fixture only stops one failure from cascading into unrelated tests.
     """
+    _reset_file_resolver()  # also after module/session fixtures that loaded XML scenes
     yield
+    _reset_file_resolver()
+
+
+def _reset_file_resolver():
     if _resolver_paths() != _INITIAL_RESOLVER_PATHS:
         resolver = mi.file_resolver()
         resolver.clear()

@@ -254,7 +254,8 @@ def _load_xml(path: str, params: dict) -> DynamicScene:
             groups.setdefault(key, (motion, []))[1].append((index, el))
             root.remove(el)
 
-    resolver = mi.Thread.thread().file_resolver()
+    resolver = mi.file_resolver()
+    saved_paths = [str(resolver[i]) for i in range(len(resolver))]
     resolver.prepend(scene_dir)
     try:
         try:
@@ -275,8 +276,9 @@ def _load_xml(path: str, params: dict) -> DynamicScene:
                 raise _mitsuba_error(f"{path}: moving shape(s) {name}", exc) from None
             bodies.append(_make_body(name, body_scene, motion))
     finally:
-        resolver.clear()
-        resolver.append(os.getcwd())
+        resolver.clear()  # restore Mitsuba's own search path (it finds plugins there)
+        for entry in saved_paths:
+            resolver.append(entry)
     if not static.sensors():
         raise SceneError(f"{path}: the scene has no <sensor>")
     return DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path)

@@ -97,7 +97,9 @@ def _validate_positive_int(name, value):
 def _block_moments(values, group, per_pixel):
     """(Σ, Σ²) per pixel of group means of a per-lane array (Dr.Jit)."""
     import drjit as dr
+    import mitsuba as mi
 
+    values = mi.Float64(values)  # Σx² of low-variance pixels cancels badly in float32
     g = dr.block_sum(values, group) * (1.0 / group) if group > 1 else values
     return dr.block_sum(g, per_pixel), dr.block_sum(g * g, per_pixel)
 

@@ -1,0 +1,325 @@
+"""Loading dynamic scenes from XML (original Mitsuba 3 D-ToF syntax) and dicts, and the
+messages for bad input."""
+
+import os
+
+import mitsuba as mi
+import numpy as np
+import pytest
+
+import dopplertof as dt
+from dopplertof.motion import Keyframed, Parametric
+
+T = mi.ScalarTransform4f
+
+SHORT_BOX = np.array([0.286891427, 0, -0.0877115114, 0.33, 0, 0.3, 0, 0.3, 0.0877115114, 0, 0.286891427, 0.37, 0, 0, 0, 1]).reshape(4, 4)
+TALL_BOX = np.array([0.286891427, 0, 0.0877115114, -0.33, 0, 0.6, 0, 0.6, -0.0877115114, 0, 0.286891427, -0.29, 0, 0, 0, 1]).reshape(4, 4)
+
+
+def translate(x=0.0, y=0.0, z=0.0):
+    m = np.eye(4)
+    m[:3, 3] = [x, y, z]
+    return m
+
+
+def assert_one_line(exc_info, max_len=600):
+    text = str(exc_info.value)
+    assert "\n" not in text, text
+    assert len(text) < max_len, text
+
+
+SENSOR_XML = """
+    <sensor type="perspective">
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+    </sensor>"""
+
+
+def write_scene(tmp_path, body, name="scene.xml", with_sensor=True):
+    path = tmp_path / name
+    path.write_text(f'<scene version="3.0.0">{SENSOR_XML if with_sensor else ""}\n{body}\n</scene>\n')
+    return path
+
+
+def animated(shape_inner="", keys=((0.0, '<translate x="0"/>'), (1e-3, '<translate x="1"/>')), shape="sphere"):
+    frames = "".join(f'<transform time="{t}">{ops}</transform>' for t, ops in keys)
+    return f'<shape type="{shape}">{shape_inner}<animation name="to_world">{frames}</animation></shape>'
+
+
+# ----------------------------------------------------------------------------------------
+# The original Mitsuba 3 D-ToF Cornell box
+
+
+@pytest.fixture(scope="module")
+def original(data_dir):
+    return dt.load_scene(data_dir / "original_cornell.xml")
+
+
+def test_original_scene_loads_with_two_bodies(original):
+    assert sorted(b.name for b in original.bodies) == ["short-box", "tall-box"]
+    assert original.resolution == (256, 256)
+    assert original.spp_hint == 1024
+    assert len(original.static.emitters()) == 1
+    for body in original.bodies:
+        assert len(body.scene.shapes()) == 1 and body.scene.shapes()[0].class_name() == "Cube"
+
+
+def test_original_scene_keeps_the_integrator_parameters(original):
+    p = original.integrator_params
+    assert p["type"] == "dopplertofpath"
+    assert p["time"] == pytest.approx(0.0015)
+    assert p["w_g"] == pytest.approx(30.0)
+    assert p["hetero_frequency"] == pytest.approx(1.0)
+    assert p["time_sampling_method"] == "antithetic"
+    assert p["path_correlation_depth"] == 4 and isinstance(p["path_correlation_depth"], int)
+    assert p["max_depth"] == 4
+
+
+def test_original_sampler_becomes_a_stock_sampler(original):
+    sampler = original.sensor.sampler()
+    assert sampler.sample_count() == 1024
+    assert "Independent" in sampler.class_name()
+
+
+def test_original_keyframes_compose_like_mitsuba(original):
+    """Later operations left-multiply: the second key is Translate(z) · matrix."""
+    bodies = {b.name: b for b in original.bodies}
+    for name, matrix, dz in [("short-box", SHORT_BOX, 0.015), ("tall-box", TALL_BOX, -0.015)]:
+        motion = bodies[name].motion
+        assert isinstance(motion, Keyframed)
+        np.testing.assert_allclose(motion.times, [0.0, 0.0015])
+        np.testing.assert_allclose(motion.matrix(0.0), matrix, atol=1e-7)
+        np.testing.assert_allclose(motion.matrix(0.0015), translate(z=dz) @ matrix, atol=1e-7)
+        np.testing.assert_allclose(motion.matrix(0.00075), translate(z=dz / 2) @ matrix, atol=1e-7)
+
+
+def test_original_scene_intersections(original):
+    """A ray along the camera axis through the short box's front face hits it, and its
+    hit point moves 15 mm towards the camera over the exposure."""
+    bodies = [b.name for b in original.bodies]
+    short_index = bodies.index("short-box") + 1
+    centre = SHORT_BOX[:3, 3]
+    origin = [float(centre[0]), float(centre[1]), 6.8]
+    ray = mi.Ray3f(mi.Point3f(*[np.full(2, v, dtype=np.float32) for v in origin]), mi.Vector3f(0, 0, -1))
+    hit = original.intersect(ray, mi.Float64([0.0, 0.0015]))
+    np.testing.assert_array_equal(np.asarray(hit.body), [short_index, short_index])
+    t = np.asarray(hit.si.t, dtype=np.float64)
+    assert t[0] - t[1] == pytest.approx(0.015, abs=2e-6)
+
+
+def test_original_scene_renders_like_the_builtin_cornell_box(original):
+    """Same geometry, same seed: the XML scene and the built-in one render the same paths.
+
+    The transforms differ in their last float bits, so a ray grazing an edge may go another
+    way: allow a handful of differing pixels out of 65536."""
+    builtin = dt.scenes.cornell_box(resolution=256)
+    a = dt.render(original, spp=2, seed=3, max_depth=4)
+    b = dt.render(builtin, spp=2, seed=3, max_depth=4)
+    for name in ("depth", "velocity", "point_velocity", "intensity"):
+        x, y = getattr(a, name), getattr(b, name)
+        same = np.isclose(x, y, rtol=1e-4, atol=1e-4, equal_nan=True)
+        assert same.mean() > 0.999, (name, np.argwhere(~same)[:5])
+    assert np.nanmin(a.velocity) < -9 and np.nanmax(a.velocity) > 9  # the boxes do move
+
+
+def test_xml_defaults_can_be_overridden(data_dir):
+    scene = dt.load_scene(data_dir / "original_cornell.xml", res=24, spp=8)
+    assert scene.resolution == (24, 24)
+    assert scene.spp_hint == 8
+
+
+# ----------------------------------------------------------------------------------------
+# Other XML features
+
+
+def test_animation_ops_compose_like_a_static_transform(tmp_path):
+    """The ops of a keyframe give the same matrix as Mitsuba's own <transform> parser."""
+    ops = (
+        '<scale x="0.5" y="2" z="1"/><rotate x="0.6" y="0" z="0.8" angle="40"/>'
+        '<translate x="1" y="-2" z="3"/><rotate y="1" angle="-25"/>'
+    )
+    body = (
+        f'<shape type="rectangle" id="still"><transform name="to_world">{ops}</transform></shape>'
+        + animated(keys=((0.0, ops), (1.0, ops + '<translate z="1"/>')), shape="rectangle")
+    )
+    scene = dt.load_scene(write_scene(tmp_path, body))
+    stock = np.array(mi.traverse(scene.static)["still.to_world"].matrix, dtype=np.float64).reshape(4, 4)
+    motion = scene.bodies[0].motion
+    np.testing.assert_allclose(motion.matrix(0.0), stock, atol=1e-6)
+    np.testing.assert_allclose(motion.matrix(1.0), translate(z=1) @ stock, atol=1e-6)
+
+
+def test_moving_mesh_file_is_found_next_to_the_scene(data_dir, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # relative file names resolve against the scene's folder
+    scene = dt.load_scene(data_dir / "moving_mesh.xml")
+    assert len(scene.bodies) == 1
+    result = dt.render(scene, spp=2, seed=0, max_depth=2, exposure=1e-3)  # keys span 1 ms
+    centre = result.velocity[6:10, 6:10]
+    # Receding at 4 m/s: d/dt of the distance along a ray at angle θ to the axis is 4/cos θ.
+    assert np.all(centre >= 4.0 * (1 - 1e-5)) and np.all(centre < 4.0 / np.cos(np.radians(6)))
+    assert result.intensity[8, 8].min() > 0
+
+
+def test_loading_xml_keeps_the_file_resolver(data_dir):
+    """Mitsuba finds its plugins through the file resolver: loading an XML scene must leave
+    the resolver's search paths as they were (it may add and remove its own folder)."""
+    resolver = mi.file_resolver()
+    before = [str(resolver[i]) for i in range(len(resolver))]
+    dt.load_scene(data_dir / "moving_mesh.xml")
+    after = [str(resolver[i]) for i in range(len(resolver))]
+    assert after == before
+    # A plugin type not used elsewhere in the tests still loads afterwards.
+    mi.load_dict({"type": "scene", "s": {"type": "sphere", "bsdf": {"type": "roughplastic"}}})
+
+
+def test_shapes_sharing_a_motion_form_one_body(tmp_path):
+    keys = ((0.0, '<translate x="0"/>'), (1e-3, '<translate x="1"/>'))
+    body = animated(keys=keys) + animated(keys=keys, shape="cube") + animated(keys=((0.0, "<translate y='0'/>"), (1e-3, "<translate y='1'/>")))
+    scene = dt.load_scene(write_scene(tmp_path, body))
+    assert len(scene.bodies) == 2
+    assert sorted(len(b.scene.shapes()) for b in scene.bodies) == [1, 2]
+
+
+# ----------------------------------------------------------------------------------------
+# Bad XML
+
+
+@pytest.mark.parametrize(
+    "body, match",
+    [
+        ('<shape type="sphere">', r"malformed XML"),
+        ('<shape type="sphere"><bsdf type="diffuse"><float name="bogus" value="1"/></bsdf></shape>', r"bogus"),
+        (animated(keys=((1e-3, '<translate x="0"/>'), (1e-3, '<translate x="1"/>'))), r"strictly increasing"),
+        (animated(keys=((2e-3, '<translate x="0"/>'), (1e-3, '<translate x="1"/>'))), r"strictly increasing"),
+        (animated(keys=(("abc", '<translate x="0"/>'),)), r"keyframe time 'abc' is not a number"),
+        ('<shape type="obj"><string name="filename" value="nope.obj"/></shape>', r"nope\.obj"),
+        (animated(keys=((0.0, '<shear x="1"/>'),)), r"unknown transform operation"),
+        ('<shape type="sphere"><animation name="to_world"></animation></shape>', r"no keyframes"),
+        ('<shape type="sphere"><animation name="radius"><transform time="0"/></animation></shape>', r'only <animation name="to_world">'),
+        ('<shape type="sphere"><animation name="to_world"><translate x="1"/></animation></shape>', r"may only contain <transform"),
+        ('<shape type="sphere"><animation name="to_world"><transform><translate x="1"/></transform></animation></shape>', r"time"),
+        (animated('<transform name="to_world"><translate x="1"/></transform>'), r"both"),
+        (animated('<emitter type="area"/>', shape="rectangle"), r"moving emitters"),
+        (animated(keys=((0.0, '<matrix value="1 0 0"/>'),)), r"matrix needs 9 or 16 numbers"),
+        (animated(keys=((0.0, '<translate x="one"/>'),)), r"expected numbers"),
+        ('<shape type="sphere"><float name="radius" value="$r"/></shape>', r"unresolved parameter"),
+    ],
+)
+def test_bad_xml_raises_a_one_line_scene_error(tmp_path, body, match):
+    with pytest.raises(dt.SceneError, match=match) as info:
+        dt.load_scene(write_scene(tmp_path, body))
+    assert_one_line(info)
+    assert "scene.xml" in str(info.value)  # says which file
+
+
+def test_missing_scene_file(tmp_path):
+    with pytest.raises(dt.SceneError, match="not found") as info:
+        dt.load_scene(tmp_path / "absent.xml")
+    assert_one_line(info)
+
+
+def test_wrong_root_element(tmp_path):
+    path = tmp_path / "x.xml"
+    path.write_text("<shape type='sphere'/>")
+    with pytest.raises(dt.SceneError, match="root element must be <scene>") as info:
+        dt.load_scene(path)
+    assert_one_line(info)
+
+
+def test_scene_without_sensor(tmp_path):
+    with pytest.raises(dt.SceneError, match="no <sensor>") as info:
+        dt.load_scene(write_scene(tmp_path, '<shape type="sphere"/>', with_sensor=False))
+    assert_one_line(info)
+
+
+def test_scene_error_is_a_value_error():
+    assert issubclass(dt.SceneError, ValueError)
+    with pytest.raises(dt.SceneError, match="file path or a dict"):
+        dt.load_scene(42)
+
+
+# ----------------------------------------------------------------------------------------
+# Dicts
+
+
+def dict_scene(**shapes):
+    return {
+        "type": "scene",
+        "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 8, "height": 8}},
+        **shapes,
+    }
+
+
+def test_dict_motion_forms():
+    keys = [(0.0, T().translate([0, 0, 0])), (1e-3, np.array(T().translate([0, 0, 1]).matrix))]
+    custom = Parametric([1, 0, 0])
+    scene = dt.load_scene(
+        dict_scene(
+            a={"type": "sphere", "motion": {"type": "keyframes", "keys": keys}},
+            b={"type": "sphere", "to_world": T().translate([2, 0, 0]), "motion": {"type": "parametric", "angular_velocity": [0, 0, 10], "pivot": [0, 0, 0]}},
+            c={"type": "sphere", "motion": custom},
+            d={"type": "sphere"},
+        )
+    )
+    bodies = {b.name: b for b in scene.bodies}
+    assert sorted(bodies) == ["a", "b", "c"]
+    assert bodies["c"].motion is custom
+    np.testing.assert_allclose(bodies["a"].motion.matrix(0.5e-3), translate(z=0.5), atol=1e-12)
+    # Parametric motion acts on top of to_world: rotating about the origin moves the centre.
+    c, s = np.cos(0.1), np.sin(0.1)
+    np.testing.assert_allclose(bodies["b"].motion.matrix(0.01)[:3, 3], [2 * c, 2 * s, 0], atol=1e-12)
+    assert len(scene.static.shapes()) == 1
+
+
+@pytest.mark.parametrize(
+    "motion, match",
+    [
+        ({"type": "wobble"}, r"'keyframes' or 'parametric'"),
+        ("fast", r"'keyframes' or 'parametric'"),
+        ({"type": "keyframes", "keys": [(0.0, np.eye(4))], "speed": 3}, r"unknown motion parameter\(s\) \['speed'\]"),
+        ({"type": "parametric", "spin": 1.0}, r"unknown motion parameter\(s\) \['spin'\]"),
+        ({"type": "keyframes", "keys": [(2e-3, np.eye(4)), (1e-3, np.eye(4))]}, r"strictly increasing"),
+        ({"type": "keyframes", "keys": [("soon", np.eye(4))]}, r"keyframe time 'soon' is not a number"),
+        ({"type": "keyframes", "keys": []}, r"at least one keyframe"),
+        ({"type": "keyframes", "keys": [(0.0, np.eye(3))]}, r"4x4"),
+        ({"type": "parametric", "linear_velocity": [1, 0]}, r"linear_velocity must be 3 finite numbers"),
+    ],
+)
+def test_bad_dict_motion(motion, match):
+    with pytest.raises(dt.SceneError, match=match) as info:
+        dt.load_scene(dict_scene(ball={"type": "sphere", "motion": motion}))
+    assert_one_line(info)
+    assert "'ball'" in str(info.value)  # says which entry
+
+
+def test_keyframes_and_to_world_conflict():
+    motion = {"type": "keyframes", "keys": [(0.0, np.eye(4))]}
+    with pytest.raises(dt.SceneError, match="replaces 'to_world'") as info:
+        dt.load_scene(dict_scene(ball={"type": "sphere", "to_world": T(), "motion": motion}))
+    assert_one_line(info)
+
+
+def test_dict_moving_emitter_is_rejected():
+    shape = {"type": "rectangle", "emitter": {"type": "area"}, "motion": {"type": "parametric", "linear_velocity": [1, 0, 0]}}
+    with pytest.raises(dt.SceneError, match="moving emitters") as info:
+        dt.load_scene(dict_scene(lamp=shape))
+    assert_one_line(info)
+
+
+def test_dict_unknown_plugin_parameter():
+    with pytest.raises(dt.SceneError, match="bogus") as info:
+        dt.load_scene(dict_scene(ball={"type": "sphere", "bsdf": {"type": "diffuse", "bogus": 1.0}}))
+    assert_one_line(info)
+
+
+def test_dict_without_scene_type_or_sensor():
+    with pytest.raises(dt.SceneError, match="'type': 'scene'"):
+        dt.load_scene({"ball": {"type": "sphere"}})
+    with pytest.raises(dt.SceneError, match="no sensor") as info:
+        dt.load_scene({"type": "scene", "ball": {"type": "sphere"}})
+    assert_one_line(info)
+
+
+def test_relative_paths_do_not_depend_on_the_working_directory(data_dir, monkeypatch):
+    monkeypatch.chdir(os.path.dirname(data_dir))
+    scene = dt.load_scene(os.path.join("data", "original_cornell.xml"), res=8)
+    assert scene.resolution == (8, 8)
