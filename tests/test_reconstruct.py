@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -10,21 +9,9 @@ import pytest
 from dopplertof import reconstruct as rc
 from dopplertof.reconstruct import SPEED_OF_LIGHT_M_S as C
 
-T = 1.5e-3
+from camera_stub import T, Cam  # noqa: E402
 FREQUENCIES = (30e6, 150e6)
 VELOCITIES = np.concatenate([np.linspace(-20.0, -0.5, 40), np.linspace(0.5, 20.0, 40)])
-
-
-@dataclass
-class Cam:
-    modulation_frequency: float = 30e6
-    exposure: float = T
-    heterodyne: float = 0.0
-    phase: float = 0.0
-    waveform: str = "sinusoidal"
-    g1: float = 0.5
-    g0: float = 0.5
-    low_pass: bool = True
 
 
 def cams_from(f, pairs, **kw):

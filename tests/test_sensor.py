@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -10,20 +9,8 @@ import pytest
 from dopplertof import reconstruct as rc
 from dopplertof.sensor import SensorModel, luminance
 
-T = 1.5e-3
+from camera_stub import T, Cam  # noqa: E402
 N_SAMPLES = 400_000
-
-
-@dataclass
-class Cam:
-    modulation_frequency: float = 30e6
-    exposure: float = T
-    heterodyne: float = 0.0
-    phase: float = 0.0
-    waveform: str = "sinusoidal"
-    g1: float = 0.5
-    g0: float = 0.5
-    low_pass: bool = True
 
 
 def mean_and_variance_bounds(samples, mean, variance, z=5.0):

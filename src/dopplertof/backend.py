@@ -82,21 +82,13 @@ _INSTALL_HINT = (
 )
 
 
-def _cuda_works() -> bool:
+def _backend_works(name: str) -> bool:
+    """True if Dr.Jit can start its ``CUDA`` or ``LLVM`` backend."""
     import drjit as dr
 
     try:
-        return bool(dr.has_backend(dr.JitBackend.CUDA))
-    except Exception:  # noqa: BLE001 - any failure means "no CUDA"
-        return False
-
-
-def _llvm_works() -> bool:
-    import drjit as dr
-
-    try:
-        return bool(dr.has_backend(dr.JitBackend.LLVM))
-    except Exception:  # noqa: BLE001
+        return bool(dr.has_backend(getattr(dr.JitBackend, name)))
+    except Exception:  # noqa: BLE001 - any failure means "not available"
         return False
 
 
@@ -105,9 +97,9 @@ def default_variant(mono: bool = False) -> str:
     forced = os.environ.get("DOPPLERTOF_VARIANT")
     if forced:
         return forced
-    if _cuda_works():
+    if _backend_works("CUDA"):
         backend = "cuda"
-    elif _llvm_works():
+    elif _backend_works("LLVM"):
         backend = "llvm"
     else:
         raise BackendError(f"no Dr.Jit backend works: {_INSTALL_HINT}")

@@ -125,7 +125,7 @@ class Camera:
 
 
 def _ops(x):
-    """(floor, minimum, maximum, clip, cos, select) for numpy or Dr.Jit arrays."""
+    """(floor, minimum, maximum, cos, select) for numpy or Dr.Jit arrays."""
     if isinstance(x, np.ndarray) or np.isscalar(x):
         return np.floor, np.minimum, np.maximum, np.cos, np.where
     import drjit as dr

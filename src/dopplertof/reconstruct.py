@@ -72,7 +72,8 @@ from typing import Sequence
 
 import numpy as np
 
-SPEED_OF_LIGHT_M_S = 299_792_458.0
+from .modulation import SPEED_OF_LIGHT_M_S
+
 DEFAULT_RELATIVE_MIN_AMPLITUDE = 1e-3
 """Default ``min_amplitude`` as a fraction of the 99th-percentile amplitude of the image."""
 
