@@ -12,5 +12,10 @@ from .loader import load_scene  # noqa: E402
 from .modulation import Camera  # noqa: E402
 from .render import RenderResult, TimeSampling, render  # noqa: E402
 from .scene import DynamicScene, SceneError  # noqa: E402
+from .plugin import register_on_variant_change as _register_plugin  # noqa: E402
+
+# Like mitransient: the `dopplertof`/`dopplertofpath` integrators exist for mi.load_dict,
+# mi.load_file and mi.render once a supported variant is active (now, or when one is set).
+_register_plugin()
 
 __all__ = ["Camera", "DynamicScene", "RenderResult", "SceneError", "TimeSampling", "load_scene", "render", "scenes", "set_variant"]

@@ -112,30 +112,33 @@ def scenes():
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def render(scene, spp, output, camera_specs, seed, max_depth, time_sampling, correlation, correlation_depth, exposure, resolution, quiet):
     """Render SCENE (an XML file or a built-in scene name) into OUTPUT."""
+    import dataclasses
+
     from .backend import BackendError
+    from .plugin import render_settings
     from .render import render as run_render
     from .scene import SceneError
 
     try:
         dyn = _load(scene, resolution)
-        params = dyn.integrator_params
-        cameras = [parse_camera(c, exposure) for c in camera_specs]
-        if not cameras and params.get("type") in ("dopplertofpath", "dopplertof"):
-            cameras = [Camera.from_original(params, f"{scene}: <integrator>")]
+        # The scene's <integrator> (original parameter names) first; options replace it.
+        settings = render_settings(dyn.integrator_params, f"{scene}: <integrator>") if dyn.integrator_params else {}
+        if camera_specs:
+            settings["cameras"] = [parse_camera(c, exposure) for c in camera_specs]
+        elif exposure is not None and settings.get("cameras"):
+            settings["cameras"] = [dataclasses.replace(c, exposure=exposure) for c in settings["cameras"]]
+        cameras = settings.setdefault("cameras", [])
+        if time_sampling is not None:
+            settings["time_sampling"] = time_sampling
+            if "antithetic_shift" not in dyn.integrator_params:  # the file's default suited its method
+                settings.pop("antithetic_shift", None)
+        settings.setdefault("time_sampling", "antithetic" if cameras else "uniform")
+        settings["correlation"] = correlation or settings.get("correlation", "replay")
+        if correlation_depth is not None:
+            settings["correlation_depth"] = correlation_depth
+        settings["max_depth"] = max_depth if max_depth is not None else settings.get("max_depth", 5)
         spp = spp if spp is not None else (dyn.spp_hint or 64)
-        max_depth = max_depth if max_depth is not None else int(params.get("max_depth", 5))
-        result = run_render(
-            dyn,
-            cameras=cameras,
-            spp=spp,
-            seed=seed,
-            max_depth=max_depth,
-            time_sampling=time_sampling or params.get("time_sampling_method", "antithetic" if cameras else "uniform"),
-            correlation=correlation or "replay",
-            correlation_depth=correlation_depth,
-            exposure=None if cameras else exposure,
-            progress=not quiet,
-        )
+        result = run_render(dyn, spp=spp, seed=seed, exposure=None if cameras else exposure, progress=not quiet, **settings)
         written = write_result(result, output)
     except (ValueError, SceneError, BackendError, FileNotFoundError) as exc:
         _fail(str(exc))

@@ -51,5 +51,11 @@ class Correlation:
         return self.effective_depth >= 1
 
     def correlates_bounce(self, depth):
-        """Per-lane Bool: is bounce ``depth`` (0 at the camera-ray hit) correlated?"""
-        return (depth + 1) < min(self.effective_depth, UNBOUNDED)
+        """Is bounce ``depth`` (0 at the camera-ray hit) correlated?
+
+        A Python bool where the answer is the same at every depth, else a per-lane Bool.
+        """
+        k = self.effective_depth
+        if k <= 1 or k >= UNBOUNDED:
+            return k >= UNBOUNDED
+        return (depth + 1) < k

@@ -55,26 +55,6 @@ class LaneSetup:
     seed: int
 
 
-class _OpaqueCamera:
-    """A camera whose numeric parameters are opaque Dr.Jit scalars (no recompiles)."""
-
-    def __init__(self, camera: modulation.Camera):
-        def opaque(v):
-            a = mi.Float64(float(v))
-            dr.make_opaque(a)
-            return a
-
-        self.waveform = camera.waveform
-        self.low_pass = camera.low_pass
-        self.heterodyne = opaque(camera.heterodyne)
-        self.phase = opaque(camera.phase)
-        self.wavenumber = opaque(camera.wavenumber)
-        self.g1 = opaque(camera.g1)
-        self.g0 = opaque(camera.g0)
-        self.modulation_frequency = opaque(camera.modulation_frequency)
-        self.exposure = opaque(camera.exposure)
-
-
 def _opaque_u32(v):
     a = mi.UInt32(int(v) & 0xFFFFFFFF)
     dr.make_opaque(a)
@@ -82,7 +62,15 @@ def _opaque_u32(v):
 
 
 def _next_1d(rng_shared, rng_own, correlated):
-    """One uniform: the group's where ``correlated``, else the lane's; both streams advance."""
+    """One uniform: the group's stream where ``correlated``, else the lane's own.
+
+    ``correlated`` is a Python bool when it is the same for every lane (only that stream
+    advances) or a per-lane Bool (both advance, so each stays in step within its group).
+    """
+    if correlated is True:
+        return rng_shared.next_float32()
+    if correlated is False:
+        return rng_own.next_float32()
     a = rng_shared.next_float32()
     b = rng_own.next_float32()
     return dr.select(correlated, a, b)
@@ -92,15 +80,14 @@ def _next_2d(rng_shared, rng_own, correlated):
     return mi.Point2f(_next_1d(rng_shared, rng_own, correlated), _next_1d(rng_shared, rng_own, correlated))
 
 
-def _accumulate(radiance, measurements, cameras, u, contrib, length_m, mask):
+def _accumulate(radiance, measurements, bank, contrib, length_m, mask):
     """Add an emitter contribution to the intensity and, weighted by W(u, L), every camera."""
     radiance = dr.select(mask, radiance + contrib, radiance)
+    if not bank.size:
+        return radiance, measurements
     lum = mi.luminance(contrib) if mi.is_rgb else contrib[0]
-    weighted = []
-    for m, cam in zip(measurements, cameras):
-        w = mi.Float(modulation.weight(cam, u, length_m))
-        weighted.append(dr.select(mask, m + w * lum, m))
-    return radiance, weighted
+    weights = bank.weights(length_m)
+    return radiance, [dr.select(mask, m + w * lum, m) for m, w in zip(measurements, weights)]
 
 
 def _seeded_pcg(seed_u32, stream, key_a, key_b):
@@ -175,7 +162,8 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
 
     # ---------------------------------------------------------------- camera ray
     sensor = scene.sensor
-    corr_pixel = mi.Bool(correlation.correlates_pixel())
+    grouped = setup.n_times > 1  # a lone time has no partner to correlate with
+    corr_pixel = grouped and correlation.correlates_pixel()
     pixel_xy = mi.Point2f(mi.Float(pixel % setup.width), mi.Float(pixel // setup.width))
     jitter = _next_2d(rng_shared, rng_own, corr_pixel)
     aperture = _next_2d(rng_shared, rng_own, corr_pixel)
@@ -183,7 +171,8 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
     film_pos = (pixel_xy + jitter) / mi.ScalarVector2f(setup.width, setup.height)
     ray, ray_weight = sensor.sample_ray(mi.Float(time_s), wavelength_sample, film_pos, aperture)
 
-    ops = [_OpaqueCamera(c) for c in cameras]
+    bank = modulation.CameraBank(cameras, u)
+    track_length = bool(cameras)  # Float64 path lengths only where a camera needs them
     bsdf_ctx = mi.BSDFContext()
     static = scene.static
     max_depth_u = 0xFFFFFFFF if max_depth < 0 else max_depth
@@ -192,7 +181,7 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
     depth = mi.UInt32(0)
     beta = mi.Spectrum(ray_weight)
     radiance = mi.Spectrum(0)
-    measurements = [mi.Float(0) for _ in ops]
+    measurements = [mi.Float(0) for _ in cameras]
     eta = mi.Float(1)
     path_length = mi.Float64(0)
     x_prev = _aperture_point(sensor, ray)  # Float64 position of the previous vertex
@@ -205,21 +194,25 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
     first_hit = mi.Bool(False)
     active = mi.Bool(True)
 
-    while dr.hint(active, label="dopplertof path", max_iterations=-1, exclude=[scene, correlation, ops, poses, poses64, static, bsdf_ctx]):
+    while dr.hint(active, label="dopplertof path", max_iterations=-1, exclude=[scene, correlation, bank, poses, poses64, static, bsdf_ctx, track_length, grouped]):
         # ---------------------------------------------------- intersect (at the lane's time)
         hit = scene.intersect(ray, time_s, active, poses=poses)
         si = hit.si
         valid = active & si.is_valid()
 
         # ---------------------------------------------------- Float64 path length
-        pose64 = scene.select_pose(poses64, hit.body)
-        d64 = dr.normalize(mi.Vector3d(ray.d))
-        o_local = pose64.point_to_local(x_prev)
-        d_local = pose64.vector_to_local(d64)
-        n_local = mi.Vector3d(hit.n_local)
-        t64 = dr.dot(n_local, mi.Vector3d(hit.plane_local) - o_local) / dr.dot(n_local, d_local)
-        t64 = dr.select(dr.isfinite(t64) & (t64 > 0), t64, mi.Float64(si.t))
-        x_hit = x_prev + d64 * t64
+        if dr.hint(track_length, mode="scalar"):
+            pose64 = scene.select_pose(poses64, hit.body)
+            d64 = dr.normalize(mi.Vector3d(ray.d))
+            o_local = pose64.point_to_local(x_prev)
+            d_local = pose64.vector_to_local(d64)
+            n_local = mi.Vector3d(hit.n_local)
+            t64 = dr.dot(n_local, mi.Vector3d(hit.plane_local) - o_local) / dr.dot(n_local, d_local)
+            t64 = dr.select(dr.isfinite(t64) & (t64 > 0), t64, mi.Float64(si.t))
+            x_hit = x_prev + d64 * t64
+        else:  # intensity only: float32 is plenty for the depth
+            t64 = mi.Float64(dr.norm(si.p - mi.Point3f(x_prev)))
+            x_hit = mi.Vector3d(si.p)
         path_length = dr.select(valid, path_length + t64 * mi.Float64(eta), path_length)
 
         # ---------------------------------------------------- ground truth at the camera ray
@@ -241,12 +234,12 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
         mis_bsdf = _mis_weight(prev_bsdf_pdf, em_pdf)
         le = emitter.eval(si, visible_emitter)
         length_hit = dr.select(si.is_valid(), path_length, path_length + 1e6)
-        radiance, measurements = _accumulate(radiance, measurements, ops, u, beta * mis_bsdf * le, length_hit, visible_emitter)
+        radiance, measurements = _accumulate(radiance, measurements, bank, beta * mis_bsdf * le, length_hit, visible_emitter)
 
         # ---------------------------------------------------- continue?
         active_next = valid & ((depth + 1) < max_depth_u)
         bsdf = si.bsdf(ray)
-        corr_bounce = mi.Bool(correlation.correlates_bounce(depth))
+        corr_bounce = grouped and correlation.correlates_bounce(depth)
 
         # ---------------------------------------------------- emitter sampling (NEE)
         active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
@@ -259,7 +252,7 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
         bsdf_val_em, bsdf_pdf_em = bsdf.eval_pdf(bsdf_ctx, si, wo_em, active_em)
         mis_em = dr.select(ds_em.delta, 1.0, _mis_weight(ds_em.pdf, bsdf_pdf_em))
         length_em = path_length + dr.norm(mi.Vector3d(ds_em.p) - x_hit)
-        radiance, measurements = _accumulate(radiance, measurements, ops, u, beta * bsdf_val_em * em_weight * mis_em, length_em, active_em)
+        radiance, measurements = _accumulate(radiance, measurements, bank, beta * bsdf_val_em * em_weight * mis_em, length_em, active_em)
 
         # ---------------------------------------------------- BSDF sampling
         sample_1 = _next_1d(rng_shared, rng_own, corr_bounce)

@@ -35,6 +35,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from .motion import Keyframed, Motion, Parametric
+from .plugin import PLUGIN_NAMES
 from .scene import Body, DynamicScene, SceneError
 
 _SHAPE_TAGS = {"shape"}
@@ -353,7 +354,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
     integrator_params = {}
     for key, value in scene_dict.items():
         where = f"<dict>: entry {key!r}"
-        if isinstance(value, dict) and value.get("type") == "dopplertof":
+        if isinstance(value, dict) and value.get("type") in PLUGIN_NAMES:
             integrator_params = {k: v for k, v in value.items()}
             continue
         if isinstance(value, dict) and "motion" in value:

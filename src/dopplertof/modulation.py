@@ -216,3 +216,82 @@ def full_weight(camera: Camera, u, path_length_m):
     sensor = sensor_waveform(carrier + TWO_PI * camera.heterodyne * u + camera.phase, camera.waveform)
     light = light_waveform(carrier - camera.wavenumber * path_length_m, camera.waveform)
     return sensor * (camera.g1 * light + camera.g0)
+
+
+# ----------------------------------------------------------------------------------------
+# Per-lane evaluation for the integrator (Dr.Jit)
+
+
+class _OpaqueCamera:
+    """A camera whose numeric parameters are opaque Dr.Jit Float64 scalars (no recompiles)."""
+
+    def __init__(self, camera: Camera):
+        import drjit as dr
+        import mitsuba as mi
+
+        def opaque(v):
+            a = mi.Float64(float(v))
+            dr.make_opaque(a)
+            return a
+
+        self.waveform = camera.waveform
+        self.low_pass = camera.low_pass
+        for name in ("heterodyne", "phase", "wavenumber", "g1", "g0", "modulation_frequency", "exposure"):
+            setattr(self, name, opaque(getattr(camera, name)))
+
+
+class CameraBank:
+    """W(u, L) of several cameras for lanes whose normalised time ``u`` is fixed.
+
+    A path contributes several times (every NEE and emitter hit) at one time ``u``, so the
+    time part of each low-pass phase, 2π h u + ψ, is wrapped once per lane here. For the
+    sinusoid the contribution then needs cos(a + kL) = cos a cos kL − sin a sin kL: one
+    Float64 ``sincos(kL)`` per contribution shared by every camera with the same
+    modulation frequency, plus two multiply-adds per camera. All phase arithmetic stays
+    in Float64 (DESIGN §3.5).
+    """
+
+    def __init__(self, cameras, u):
+        import drjit as dr
+
+        self.size = len(cameras)
+        self._terms = []
+        wavenumbers = {}  # host k (rad/m) -> opaque Float64, shared by cameras
+        for camera in cameras:
+            cam = _OpaqueCamera(camera)
+            k_key = camera.wavenumber
+            cam.wavenumber = wavenumbers.setdefault(k_key, cam.wavenumber)
+            if not camera.low_pass:
+                self._terms.append(("full", cam, u))
+                continue
+            time_phase = wrap_phase(TWO_PI * cam.heterodyne * u + cam.phase)
+            amplitude = 0.5 * cam.g1
+            if camera.waveform == "sinusoidal":
+                sin_a, cos_a = dr.sincos(time_phase)
+                self._terms.append(("sin", k_key, cam.wavenumber, amplitude * cos_a, amplitude * sin_a))
+            else:
+                self._terms.append(("lowpass", cam, time_phase, amplitude))
+
+    def weights(self, path_length_m):
+        """Float32 weights W (one per camera) for Float64 optical path lengths (m)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        trig = {}
+        out = []
+        for term in self._terms:
+            kind = term[0]
+            if kind == "sin":
+                _, k_key, k, c, s = term
+                if k_key not in trig:
+                    trig[k_key] = dr.sincos(k * path_length_m)
+                sin_kl, cos_kl = trig[k_key]
+                w = c * cos_kl - s * sin_kl
+            elif kind == "lowpass":
+                _, cam, time_phase, amplitude = term
+                w = amplitude * lowpass_waveform(time_phase + cam.wavenumber * path_length_m, cam.waveform)
+            else:
+                _, cam, u = term
+                w = full_weight(cam, u, path_length_m)
+            out.append(mi.Float(w))
+        return out

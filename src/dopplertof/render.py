@@ -242,6 +242,9 @@ def _accumulate_pass(acc, out, n, this_pass, channels):
     import drjit as dr
 
     per_pixel = this_pass // n
+    # One kernel traces every output; the block reductions below would otherwise each
+    # re-run the whole path tracer for their own input (DESIGN §3.3).
+    dr.eval(out["intensity"], out["measurements"], out["hit"], out["depth"], out["velocity"], out["point_velocity"])
     intensity = out["intensity"]
     parts = []
     for c in range(channels):
@@ -251,7 +254,7 @@ def _accumulate_pass(acc, out, n, this_pass, channels):
     hit = out["hit"]
     gts = [dr.block_sum(hit, this_pass)] + [dr.block_sum(out[k] * hit, this_pass) for k in ("depth", "velocity", "point_velocity")]
     parts.extend(gts)
-    dr.eval(parts)  # one kernel for every output (DESIGN §3.3)
+    dr.eval(parts)
     arrays = [np.asarray(p.numpy(), dtype=np.float64) for p in parts]
     k = 0
     for c in range(channels):
