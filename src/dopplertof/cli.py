@@ -185,5 +185,16 @@ def write_result(result, folder: str) -> list[str]:
     return out
 
 
+from .experiments.cli import experiment  # noqa: E402  (last: it uses the helpers above)
+
+main.add_command(experiment)
+
+from .animate import animate_command  # noqa: E402
+from .render_folder import reconstruct_command  # noqa: E402
+
+main.add_command(animate_command)
+main.add_command(reconstruct_command)
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -1,0 +1,337 @@
+"""Animations: a clip of a dynamic scene, one D-ToF exposure per frame, with reconstructed velocity.
+
+The scene's motion is defined over the whole clip (keyframe times in seconds); frame ``i``
+renders the exposure [i/fps, i/fps + T] (T the cameras' exposure) with
+:func:`dopplertof.render` at ``exposure_start = i/fps`` and seed ``seed + i``, then
+reconstructs the radial velocity from its measurements
+(:mod:`dopplertof.render_folder`). The default cameras are homodyne and heterodyne
+(h = 0 and 1) at ψ = 0 and 90°, which determine velocity and depth.
+
+Output folder:
+
+==========================  ====================================================================
+path                        content
+==========================  ====================================================================
+``animation.json``          the clip's settings; a rerun into the folder must match them
+``frame_0000/`` …           one ``dopplertof render`` folder per frame (intensity, depth, ground
+                            truth ``velocity``, measurements, metadata.json) plus the files of
+                            :mod:`dopplertof.render_folder` (``velocity_reconstructed`` …)
+``frame_0000/done.json``    written last: the frame is complete (its time and velocity error)
+``summary.csv``             per frame: time (s), valid fraction, velocity error (m/s)
+``velocity.gif``            per frame: ground truth (left) | reconstructed (right), one colour
+                            range for the whole clip (blue approaching, red receding, grey none)
+==========================  ====================================================================
+
+Resuming: a rerun skips the frames that have ``done.json`` and renders the others, so an
+interrupted run (Ctrl-C) continues where it stopped; the frame being rendered when it was
+interrupted is rendered again. ``frames`` may change between runs (a longer clip extends a
+shorter one), the other settings may not, unless ``overwrite=True`` deletes the old frames.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import os
+import re
+import shutil
+import time
+
+import click
+import numpy as np
+
+from . import io, viz
+from .modulation import Camera
+from .render_folder import describe_error, reconstruct, resolve_method, velocity_error, write_reconstruction
+
+DEFAULT_FPS = 30.0
+DEFAULT_CAMERAS = tuple((h, psi) for h in (0.0, 1.0) for psi in (0.0, math.pi / 2))
+"""(heterodyne h, phase ψ in rad) of the default cameras."""
+
+SETTINGS_FILE = "animation.json"
+DONE_FILE = "done.json"
+SUMMARY_FILE = "summary.csv"
+GIF_FILE = "velocity.gif"
+GIF_MIN_PANEL_PX = 256  # small renders are enlarged (nearest neighbour) to stay visible
+_FRAME_DIR = re.compile(r"frame_\d{4,}$")
+_SUMMARY_COLUMNS = ("frame", "time_s", "valid_fraction", "median_abs_error_m_s", "mean_abs_error_m_s", "rmse_m_s")
+
+
+def default_cameras(base: Camera | None = None) -> list[Camera]:
+    """Homodyne and heterodyne cameras at ψ = 0 and 90°, with the other parameters of ``base``."""
+    base = base or Camera()
+    return [dataclasses.replace(base, heterodyne=h, phase=psi) for h, psi in DEFAULT_CAMERAS]
+
+
+def check_frames_and_fps(frames, fps) -> tuple[int, float]:
+    """``frames`` as a positive int and ``fps`` as a finite positive float, else ValueError."""
+    if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames <= 0:
+        raise ValueError(f"frames must be a positive integer, got {frames!r}")
+    if isinstance(fps, bool) or not isinstance(fps, (int, float, np.number)) or not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be a finite number of frames per second > 0, got {fps!r}")
+    return int(frames), float(fps)
+
+
+def frame_count(duration_s: float, fps: float) -> int:
+    """Frames whose exposure opens during a clip of ``duration_s`` seconds (at least 1)."""
+    _, fps = check_frames_and_fps(1, fps)
+    return max(1, math.ceil(duration_s * fps - 1e-9))
+
+
+def motion_duration(scene) -> float | None:
+    """End (s) of the last keyframe of a scene's bodies; None if no body has a bounded motion."""
+    ends = [body.motion.time_range()[1] for body in scene.bodies]
+    ends = [t for t in ends if math.isfinite(t)]
+    return max(ends) if ends else None
+
+
+def frame_folder(output: str, index: int) -> str:
+    return os.path.join(output, f"frame_{index:04d}")
+
+
+def is_done(output: str, index: int) -> bool:
+    return os.path.isfile(os.path.join(frame_folder(output, index), DONE_FILE))
+
+
+def _jsonable(value):
+    """JSON round trip, so stored and new settings compare alike (tuples become lists ...)."""
+    return json.loads(json.dumps(value, default=lambda v: v.item() if hasattr(v, "item") else str(v)))
+
+
+def _existing_frames(output: str) -> list[str]:
+    if not os.path.isdir(output):
+        return []
+    return sorted(name for name in os.listdir(output) if _FRAME_DIR.match(name))
+
+
+def _prepare_output(output: str, settings: dict, overwrite: bool) -> None:
+    """Create ``output`` for ``settings``; refuse a folder holding a different clip."""
+    settings_path = os.path.join(output, SETTINGS_FILE)
+    if overwrite:
+        for name in _existing_frames(output):
+            shutil.rmtree(os.path.join(output, name))
+        for name in (SETTINGS_FILE, SUMMARY_FILE, GIF_FILE):
+            if os.path.exists(os.path.join(output, name)):
+                os.remove(os.path.join(output, name))
+    elif os.path.isfile(settings_path):
+        stored = io.read_json(settings_path)
+        ignore = {"frames"}  # a longer clip extends a shorter one
+        differ = sorted(k for k in set(stored) | set(settings) if k not in ignore and stored.get(k) != settings.get(k))
+        if differ:
+            changes = "; ".join(f"{k}: {stored.get(k)!r} there, {settings.get(k)!r} now" for k in differ)
+            raise ValueError(f"{output} holds an animation with other settings ({changes}); "
+                             "use another folder, or --overwrite to replace it")
+    elif _existing_frames(output):
+        raise ValueError(f"{output} has frame folders but no {SETTINGS_FILE}; use another folder, or --overwrite to replace them")
+    io.write_json(settings_path, settings)
+
+
+def _write_done(folder: str, summary: dict) -> None:
+    # Atomic: a Ctrl-C while writing leaves either no marker or a whole one.
+    temporary = os.path.join(folder, DONE_FILE + ".tmp")
+    io.write_json(temporary, summary)
+    os.replace(temporary, os.path.join(folder, DONE_FILE))
+
+
+def _render_frame(scene, index, fps, cameras, spp, seed, method, render_kwargs, folder, progress):
+    from .cli import write_result
+    from .render import render
+
+    start_s = index / fps
+    result = render(scene, cameras=cameras, spp=spp, seed=seed + index, exposure_start=start_s,
+                    progress=progress, **render_kwargs)
+    if result.interrupted:  # render() keeps a partial image on Ctrl-C; a frame must be whole
+        raise KeyboardInterrupt
+    write_result(result, folder)
+    reconstruction = reconstruct(result.measurements, cameras, method)
+    write_reconstruction(folder, reconstruction, result.velocity)
+    summary = {"frame": index, "time_s": start_s, "exposure_s": cameras[0].exposure,
+               **velocity_error(reconstruction, result.velocity)}
+    _write_done(folder, summary)
+    return summary
+
+
+def _gif_frame(truth, reconstructed, vmax):
+    """Ground truth | reconstructed, coloured, enlarged to at least GIF_MIN_PANEL_PX wide."""
+    scale = max(1, math.ceil(GIF_MIN_PANEL_PX / truth.shape[1]))
+    left, right = (np.kron(viz.signed_to_rgb8(v, vmax=vmax), np.ones((scale, scale, 1), np.uint8))
+                   for v in (truth, reconstructed))
+    gap = np.full((left.shape[0], max(2, scale), 3), 255, np.uint8)
+    return np.concatenate([left, gap, right], axis=1)
+
+
+def write_clip_files(output: str, frames: int, fps: float) -> list[str]:
+    """``summary.csv`` and ``velocity.gif`` from the finished frames 0 … frames−1."""
+    done = [i for i in range(frames) if is_done(output, i)]
+    summaries = [io.read_json(os.path.join(frame_folder(output, i), DONE_FILE)) for i in done]
+    summary_path = os.path.join(output, SUMMARY_FILE)
+    with open(summary_path, "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=_SUMMARY_COLUMNS, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(summaries)
+    written = [summary_path]
+    if done:
+        maps = [(io.read_exr(os.path.join(frame_folder(output, i), "velocity.exr")),
+                 io.read_exr(os.path.join(frame_folder(output, i), "velocity_reconstructed.exr"))) for i in done]
+        vmax = viz.auto_vmax([truth for truth, _ in maps])  # one range for the clip: colours compare across frames
+        gif_path = os.path.join(output, GIF_FILE)
+        viz.write_gif(gif_path, [_gif_frame(truth, rec, vmax) for truth, rec in maps], fps)
+        written.append(gif_path)
+    return written
+
+
+def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FPS, cameras=None, spp: int = 64,
+                     seed: int = 0, method: str | None = None, render_kwargs: dict | None = None,
+                     scene_label: str | None = None, overwrite: bool = False, progress: bool = False,
+                     log=print) -> list[dict]:
+    """Render a clip frame by frame into ``output`` (module docstring), resuming a previous run.
+
+    Parameters
+    ----------
+    scene : DynamicScene
+        Its keyframe times are seconds of the clip.
+    output : str
+        Output folder.
+    frames : int
+        Number of frames, > 0.
+    fps : float
+        Frames per second, > 0: frame ``i`` opens its exposure at i/fps seconds.
+    cameras : list of :class:`Camera`, optional
+        Default :func:`default_cameras`. They must determine velocity (see
+        :func:`dopplertof.render_folder.resolve_method`); checked before rendering.
+    spp, seed : int
+        Paths per pixel; frame ``i`` uses seed ``seed + i``.
+    method : {None, "auto", "ratio", "fit"}
+        Velocity reconstruction, see :func:`dopplertof.render_folder.resolve_method`.
+    render_kwargs : dict, optional
+        Further keyword arguments of :func:`dopplertof.render` (``max_depth``,
+        ``time_sampling``, ``correlation`` …), not ``exposure_start``.
+    scene_label : str, optional
+        Identifies the scene in ``animation.json`` (default ``scene.source``).
+    overwrite : bool
+        Delete the frames of a previous clip in ``output`` instead of refusing other settings.
+    progress : bool
+        A progress bar per frame.
+    log : callable
+        Receives one line per frame.
+
+    Returns
+    -------
+    list of dict
+        The summary of every frame (also in ``summary.csv``).
+
+    Raises
+    ------
+    ValueError
+        Bad frames/fps, a camera set that cannot determine velocity, or ``output`` holding
+        a clip with other settings.
+    KeyboardInterrupt
+        On Ctrl-C, after the finished frames are safe; a rerun resumes.
+    """
+    frames, fps = check_frames_and_fps(frames, fps)
+    cameras = list(cameras) if cameras else default_cameras()
+    method = resolve_method(cameras, method)
+    render_kwargs = dict(render_kwargs or {})
+    if "exposure_start" in render_kwargs:
+        raise ValueError("render_kwargs must not set exposure_start: each frame opens at frame / fps")
+    width, height = scene.resolution
+    settings = _jsonable({
+        "scene": scene_label or scene.source, "resolution": [width, height], "frames": frames, "fps": fps,
+        "spp": spp, "seed": seed, "method": method, "cameras": [dataclasses.asdict(c) for c in cameras],
+        "render": render_kwargs,
+    })
+    _prepare_output(output, settings, overwrite)
+
+    summaries = []
+    for index in range(frames):
+        folder = frame_folder(output, index)
+        head = f"frame {index + 1}/{frames} (t = {index / fps:.6g} s)"
+        if is_done(output, index):
+            summaries.append(io.read_json(os.path.join(folder, DONE_FILE)))
+            log(f"{head}: done in an earlier run, skipped")
+            continue
+        started = time.perf_counter()
+        summary = _render_frame(scene, index, fps, cameras, spp, seed, method, render_kwargs, folder, progress)
+        summaries.append(summary)
+        log(f"{head}: rendered in {time.perf_counter() - started:.1f} s; {describe_error(summary)}")
+    write_clip_files(output, frames, fps)
+    return summaries
+
+
+@click.command("animate")
+@click.argument("scene")
+@click.option("--frames", type=int, default=None,
+              help="Number of frames (default: the scene's motion length × fps, at least 1).")
+@click.option("--fps", type=float, default=DEFAULT_FPS, show_default=True,
+              help="Frames per second: frame i exposes [i/fps, i/fps + T].")
+@click.option("--spp", type=int, default=None, help="Paths per pixel per frame (default: the scene's sampler, else 64).")
+@click.option("--resolution", type=int, default=None, help="Film size of a built-in scene (pixels).")
+@click.option("-o", "--output", default=None, help="Output folder (default: out/<scene>-animation).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Frame i uses seed + i.")
+@click.option("--camera", "camera_specs", multiple=True,
+              help="A camera as in 'dopplertof render' (repeatable; default h=0 and h=1 at psi=0 and 90deg).")
+@click.option("--max-depth", type=int, default=None, help="Path depth (default: the scene's, else 5).")
+@click.option("--time-sampling", default=None, help="uniform | stratified | antithetic | antithetic_mirror (default antithetic).")
+@click.option("--correlation", default=None, help="none | pixel | replay (default replay).")
+@click.option("--method", type=click.Choice(["auto", "ratio", "fit"]), default=None,
+              help="Velocity reconstruction (default: fit for sinusoidal cameras, else auto).")
+@click.option("--overwrite", is_flag=True, help="Replace a clip with other settings in the output folder.")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def animate_command(scene, frames, fps, spp, resolution, output, seed, camera_specs, max_depth, time_sampling,
+                    correlation, method, overwrite, quiet):
+    """Render SCENE as a clip: one D-ToF exposure per frame, with reconstructed velocity and a GIF.
+
+    An interrupted run resumes where it stopped when run again with the same options.
+    """
+    from . import scenes
+    from .backend import BackendError
+    from .cli import _fail, _load, parse_camera
+    from .scene import SceneError
+
+    output = output or os.path.join("out", f"{os.path.splitext(os.path.basename(scene))[0]}-animation")
+    try:
+        check_frames_and_fps(1 if frames is None else frames, fps)  # before the scene loads
+        dyn = _load(scene, resolution)
+        base, kwargs = _scene_settings(dyn)
+        cameras = [parse_camera(c, base and base.exposure) for c in camera_specs] or default_cameras(base)
+        kwargs["max_depth"] = max_depth if max_depth is not None else kwargs.get("max_depth", 5)
+        if time_sampling is not None and "antithetic_shift" not in dyn.integrator_params:
+            kwargs.pop("antithetic_shift", None)  # the file's default suited its own method
+        kwargs["time_sampling"] = time_sampling or kwargs.get("time_sampling", "antithetic")
+        kwargs["correlation"] = correlation or kwargs.get("correlation", "replay")
+        if frames is None:
+            duration = scenes.clip_duration(scene) if scene in scenes.SCENES else motion_duration(dyn)
+            if duration is None:
+                raise ValueError(f"{scene}: its motion has no end (or nothing moves); give --frames")
+            frames = frame_count(duration, fps)
+        label = scene if scene in scenes.SCENES else os.path.abspath(scene)
+        render_animation(dyn, output, frames=frames, fps=fps, cameras=cameras,
+                         spp=spp if spp is not None else (dyn.spp_hint or 64), seed=seed, method=method,
+                         render_kwargs=kwargs, scene_label=label, overwrite=overwrite, progress=not quiet,
+                         log=click.echo)
+    except (ValueError, SceneError, BackendError, FileNotFoundError) as exc:
+        _fail(str(exc))
+    except KeyboardInterrupt:
+        click.echo(f"interrupted: the finished frames are in {os.path.abspath(output)}/; "
+                   "run the same command again to resume", err=True)
+        raise SystemExit(130) from None
+    click.echo(f"animation of {scene}: {frames} frame{'' if frames == 1 else 's'} in {os.path.abspath(output)}/ "
+               f"({GIF_FILE}: ground truth | reconstructed velocity; {SUMMARY_FILE}; frame_*/)")
+
+
+def _scene_settings(dyn) -> tuple[Camera | None, dict]:
+    """The camera parameters and render settings of the scene's ``<integrator>`` (if any).
+
+    The scene's camera gives f_g, T and the waveform of the default cameras; its h and ψ
+    are replaced by the default set, which determines velocity where one camera cannot.
+    """
+    if not dyn.integrator_params:
+        return None, {}
+    from .plugin import render_settings
+
+    settings = render_settings(dyn.integrator_params, f"{dyn.source}: <integrator>")
+    settings.pop("exposure_start", None)  # each frame sets its own
+    cameras = settings.pop("cameras", None)
+    return (cameras[0] if cameras else None), settings

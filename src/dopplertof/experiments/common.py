@@ -1,0 +1,316 @@
+"""What the experiments share: the scene, estimators, the reference cache, metrics and CSV.
+
+A *reference* is a high-spp render with the best estimator (antithetic times, replayed
+paths). It is stored in a cache folder under a key that hashes everything that determines
+its pixels: the scene (built-in name and builder arguments, or the XML file's bytes), the
+film size, the cameras, spp, seed, every render setting, the Mitsuba variant and the package
+version. A rerun with the same key loads it instead of rendering it again.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .. import __version__
+from ..correlation import Correlation
+from ..modulation import Camera
+from ..render import RenderResult, TimeSampling, render
+
+CACHE_ENV_VAR = "DOPPLERTOF_CACHE"
+N_TIMES = 2
+"""Correlated times per group for every estimator (an antithetic pair). Uniform and
+stratified sampling also draw pairs, so that the correlation mode means the same thing for
+all of them: the second path of a pair replays the first at an independent time."""
+
+DEFAULT_MAX_DEPTH = 4
+"""Path depth when the scene gives none: the original experiment scripts' Cornell box."""
+
+_DEFAULT_SHIFT = {"antithetic": 0.5, "antithetic_mirror": 0.0}
+"""The original scripts' antithetic shift per method (a = T/2, and the plain mirror 1 − t)."""
+
+Echo = Callable[[str], None]
+
+
+# ------------------------------------------------------------------------------------ scene
+
+
+_SCENE_RENDER_SETTINGS = ("rr_depth", "hide_emitters", "exposure_start")
+"""Render settings a scene's ``<integrator>`` may fix that the experiments keep as they are."""
+
+
+@dataclass(frozen=True)
+class ExperimentScene:
+    """A loaded scene with its name for files and its identity for the reference cache.
+
+    label : short name for output folders and CSV rows (built-in name or file stem)
+    scene : the :class:`~dopplertof.scene.DynamicScene`
+    identity : JSON-able description hashed into the cache key
+    base_camera : camera whose modulation settings every experiment camera inherits (from
+        the scene's ``<integrator type="dopplertofpath">``, else :class:`Camera` defaults)
+    max_depth : path depth from the scene's integrator, else :data:`DEFAULT_MAX_DEPTH`
+    render_settings : ``rr_depth``, ``hide_emitters``, ``exposure_start`` (s) where the
+        scene's integrator gives them; passed to every render
+    """
+
+    label: str
+    scene: object
+    identity: dict
+    base_camera: Camera
+    max_depth: int
+    render_settings: dict
+
+
+def open_scene(scene_arg: str, resolution: int | None) -> ExperimentScene:
+    """Load a built-in scene by name or a Mitsuba XML file, as ``dopplertof render`` does.
+
+    Raises ValueError (or SceneError) for an unknown scene, a missing file, bad
+    ``<integrator>`` parameters, or a ``resolution`` given for a file.
+    """
+    from .. import scenes
+    from ..cli import _load  # imported here: cli imports this package at its end
+    from ..plugin import render_settings
+
+    dyn = _load(scene_arg, resolution)
+    width, height = dyn.resolution
+    if scene_arg in scenes.SCENES:
+        identity = {"builtin": scene_arg, "kwargs": {"resolution": resolution}}
+        label = scene_arg
+    else:
+        identity = {"file_sha256": hashlib.sha256(Path(scene_arg).read_bytes()).hexdigest()}
+        label = Path(scene_arg).stem
+    identity["film"] = [width, height]
+    params = dyn.integrator_params
+    settings = render_settings(params, f"{scene_arg}: <integrator>") if params else {}
+    base = settings["cameras"][0] if settings.get("cameras") else Camera()
+    max_depth = settings.get("max_depth", DEFAULT_MAX_DEPTH)
+    kept = {k: settings[k] for k in _SCENE_RENDER_SETTINGS if k in settings}
+    return ExperimentScene(label, dyn, identity, base, max_depth, kept)
+
+
+def camera_grid(base: Camera, h_values: Sequence[float], phases_rad: Sequence[float]) -> list[Camera]:
+    """One camera per (h, ψ), h-major: ``cams[i * len(phases) + j]`` has h_i and ψ_j."""
+    return [dataclasses.replace(base, heterodyne=float(h), phase=float(p)) for h in h_values for p in phases_rad]
+
+
+# ------------------------------------------------------------------------------- estimators
+
+
+@dataclass(frozen=True)
+class Estimator:
+    """A time sampling and a correlation mode; the shift defaults to the method's usual one.
+
+    Raises ValueError for an unknown method or mode, or a shift outside [0, 1].
+    """
+
+    time_sampling: str
+    correlation: str
+    shift: float | None = None
+
+    def __post_init__(self):
+        self.render_settings()  # validates the names and the shift now, not after a long render
+
+    @property
+    def antithetic_shift(self) -> float:
+        return self.shift if self.shift is not None else _DEFAULT_SHIFT.get(self.time_sampling, 0.5)
+
+    @property
+    def shift_label(self):
+        """The shift (units of T) for the antithetic methods, "" for those that ignore it."""
+        return self.antithetic_shift if self.time_sampling in _DEFAULT_SHIFT else ""
+
+    @property
+    def label(self) -> str:
+        return f"{self.time_sampling}/{self.correlation}"
+
+    def render_settings(self) -> dict:
+        """Keyword arguments of :func:`dopplertof.render` for this estimator."""
+        return {
+            "time_sampling": TimeSampling(self.time_sampling, N_TIMES, self.antithetic_shift, True),
+            "correlation": Correlation(self.correlation),
+        }
+
+
+REFERENCE_ESTIMATOR = Estimator("antithetic", "replay")
+
+
+def reference_seed(seed: int) -> int:
+    """The reference's seed: never the seed of the renders it judges."""
+    return (seed + 1) % (1 << 32)
+
+
+def check_spp(name: str, spp: int) -> int:
+    """spp must be a positive multiple of the :data:`N_TIMES` paths of a group."""
+    if isinstance(spp, bool) or not isinstance(spp, int) or spp <= 0 or spp % N_TIMES:
+        raise ValueError(f"{name} must be a positive multiple of {N_TIMES} (paths of an antithetic pair), got {spp!r}")
+    return spp
+
+
+def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int, seed: int, max_depth: int, progress=False):
+    """(RenderResult, wall seconds) of one render; an interrupted render raises KeyboardInterrupt."""
+    start = time.perf_counter()
+    result = render(
+        scene.scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth, progress=progress,
+        **scene.render_settings, **estimator.render_settings(),
+    )  # fmt: skip
+    if result.interrupted:
+        raise KeyboardInterrupt
+    return result, time.perf_counter() - start
+
+
+# ---------------------------------------------------------------------------------- cache
+
+
+def default_cache_dir() -> Path:
+    """``$DOPPLERTOF_CACHE``, else ``$XDG_CACHE_HOME/dopplertof/references`` (``~/.cache``)."""
+    if os.environ.get(CACHE_ENV_VAR):
+        return Path(os.environ[CACHE_ENV_VAR])
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "dopplertof" / "references"
+
+
+_ARRAY_FIELDS = ("intensity", "stderr", "measurements", "measurement_stderr", "depth", "velocity", "point_velocity", "coverage")
+
+
+class ReferenceCache:
+    """Reference renders stored as ``<key>.npz`` in ``folder`` (created on first store)."""
+
+    def __init__(self, folder):
+        self.folder = Path(folder)
+
+    @staticmethod
+    def key(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, estimator: Estimator) -> str:
+        """SHA-256 of everything that determines the reference's pixels."""
+        import mitsuba as mi
+
+        settings = estimator.render_settings()
+        description = {
+            "scene": scene.identity,
+            "cameras": [dataclasses.asdict(c) for c in cameras],
+            "spp": spp,
+            "seed": seed,
+            "max_depth": max_depth,
+            "scene_settings": scene.render_settings,
+            "time_sampling": dataclasses.asdict(settings["time_sampling"]),
+            "correlation": dataclasses.asdict(settings["correlation"]),
+            "variant": mi.variant(),
+            "version": __version__,
+        }
+        return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()
+
+    def path(self, key: str) -> Path:
+        return self.folder / f"{key}.npz"
+
+    def load(self, key: str, cameras) -> RenderResult | None:
+        """The cached render, or None if there is none (or it cannot be read)."""
+        try:
+            with np.load(self.path(key), allow_pickle=False) as data:
+                meta = json.loads(str(data["meta"]))
+                arrays = {name: data[name] for name in _ARRAY_FIELDS}
+        except (OSError, KeyError, ValueError):
+            return None
+        return RenderResult(**arrays, cameras=list(cameras), spp=meta["spp"], seed=meta["seed"], settings=meta["settings"])
+
+    def store(self, key: str, result: RenderResult) -> Path:
+        """Write atomically, so that an interrupted write never leaves a readable bad file."""
+        self.folder.mkdir(parents=True, exist_ok=True)
+        final = self.path(key)
+        partial = final.with_name(f"{key}.{os.getpid()}.partial.npz")
+        meta = json.dumps({"spp": result.spp, "seed": result.seed, "settings": result.settings})
+        np.savez_compressed(partial, meta=np.array(meta), **{name: getattr(result, name) for name in _ARRAY_FIELDS})
+        os.replace(partial, final)
+        return final
+
+
+def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, cache: ReferenceCache, echo: Echo) -> RenderResult:
+    """The high-spp reference of ``cameras``: from the cache, else rendered and stored."""
+    seed = reference_seed(seed)
+    key = cache.key(scene, cameras, spp, seed, max_depth, REFERENCE_ESTIMATOR)
+    cached = cache.load(key, cameras)
+    if cached is not None:
+        echo(f"reference: loaded from cache {cache.path(key)}")
+        return cached
+    echo(f"reference: rendering {REFERENCE_ESTIMATOR.label} at {spp} spp (seed {seed}) ...")
+    result, seconds = timed_render(scene, cameras, REFERENCE_ESTIMATOR, spp, seed, max_depth, progress=sys.stderr.isatty())
+    path = cache.store(key, result)
+    echo(f"reference: rendered in {seconds:.1f} s, cached as {path}")
+    return result
+
+
+# -------------------------------------------------------------------------------- metrics
+
+
+def image_errors(image: np.ndarray, reference: np.ndarray) -> dict:
+    """Error of an image against a reference, as the original ``main_plot.py`` computed it.
+
+    Returns ``mae``, ``rmse`` (units of the images), ``relative_mae`` and ``relative_rmse``
+    (divided by mean |reference|; NaN if the reference is zero everywhere) and ``psnr_db``
+    (data range max − min of the reference; +inf for an exact match).
+    """
+    image = np.asarray(image, dtype=np.float64)
+    reference = np.asarray(reference, dtype=np.float64)
+    difference = image - reference
+    mae = float(np.mean(np.abs(difference)))
+    rmse = float(np.sqrt(np.mean(difference * difference)))
+    scale = float(np.mean(np.abs(reference)))
+    data_range = float(np.max(reference) - np.min(reference))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return {
+            "mae": mae,
+            "rmse": rmse,
+            "relative_mae": mae / scale if scale > 0 else math.nan,
+            "relative_rmse": rmse / scale if scale > 0 else math.nan,
+            "psnr_db": float(20.0 * np.log10(data_range / rmse)) if rmse > 0 else math.inf,
+        }
+
+
+def rms(values: np.ndarray) -> float:
+    """Root mean square, e.g. of a standard-error image (the RMSE that noise alone gives)."""
+    values = np.asarray(values, dtype=np.float64)
+    return float(np.sqrt(np.mean(values * values)))
+
+
+# ------------------------------------------------------------------------------------ CSV
+
+
+def write_csv(path: Path, rows: list[dict], columns: Sequence[str]) -> Path:
+    """Rows as CSV with a header; floats with 9 significant digits."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(columns)
+        for row in rows:
+            writer.writerow([f"{row[c]:.9g}" if isinstance(row[c], float) else row[c] for c in columns])
+    return path
+
+
+def mean_over(rows: list[dict], group_by: Sequence[str], metrics: Sequence[str]) -> list[dict]:
+    """Rows averaged over everything not in ``group_by``: ``<metric>_mean`` and ``<metric>_std``.
+
+    Groups keep the order of their first row. Infinite values (an exact PSNR) stay infinite.
+    """
+    groups: dict[tuple, list[dict]] = {}
+    for row in rows:
+        groups.setdefault(tuple(row[g] for g in group_by), []).append(row)
+    summary = []
+    for key, members in groups.items():
+        out = dict(zip(group_by, key))
+        out["count"] = len(members)
+        for metric in metrics:
+            values = np.array([m[metric] for m in members], dtype=np.float64)
+            with np.errstate(invalid="ignore"):
+                out[f"{metric}_mean"] = float(np.mean(values))
+                out[f"{metric}_std"] = float(np.std(values)) if np.all(np.isfinite(values)) else math.nan
+        summary.append(out)
+    return summary

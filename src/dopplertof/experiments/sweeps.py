@@ -1,0 +1,244 @@
+"""Error of time-sampling estimators over a grid of heterodyne ratios h and phases ψ.
+
+Both sweeps render the whole h × ψ grid of cameras in one render per estimator (all
+cameras of a render share its paths, and a camera costs little next to a path) and compare
+every camera's image with the same camera of a high-spp reference.
+
+``time_sampling``
+    The paper's Fig. 12: every time sampling × correlation mode; the error averaged over ψ
+    versus h (the original ``main_experiment.py`` E = 1 and ``main_plot.py``).
+``shifts``
+    The paper's Fig. 15: antithetic and mirrored antithetic sampling over the shift a ∈ [0, 1]
+    (units of T), the error versus a and h (the original E = 3).
+
+Both write ``results.csv`` (one row per estimator and camera), ``summary.csv`` (averaged
+over ψ, with the standard deviation over ψ), PNG plots and ``metadata.json``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .. import io, viz
+from .common import (
+    Echo,
+    Estimator,
+    ExperimentScene,
+    ReferenceCache,
+    camera_grid,
+    check_spp,
+    image_errors,
+    mean_over,
+    reference_render,
+    reference_seed,
+    rms,
+    timed_render,
+    write_csv,
+)
+
+METRICS = ("mae", "rmse", "relative_mae", "relative_rmse", "psnr_db")
+RESULT_COLUMNS = (
+    "scene", "time_sampling", "correlation", "shift", "h", "psi_deg", "spp", "seed",
+    *METRICS,
+    "stderr_rms", "reference_stderr_rms", "render_seconds",
+)  # fmt: skip
+"""``shift``: antithetic shift a (units of T), empty for methods without one; ``psi_deg``:
+ψ in degrees; errors in measurement units (see :func:`~.common.image_errors`);
+``stderr_rms``: the RMSE the render's own noise predicts; ``reference_stderr_rms``: the
+reference's, which adds in quadrature to every measured RMSE (the floor of the curves)."""
+
+SUMMARY_GROUP = ("scene", "time_sampling", "correlation", "shift", "h", "spp")
+SUMMARY_COLUMNS = (*SUMMARY_GROUP, "count", *(f"{m}_{s}" for m in METRICS for s in ("mean", "std")))
+
+
+@dataclass(frozen=True)
+class SweepSettings:
+    """The camera grid and sample counts of a sweep.
+
+    h_values : heterodyne ratios h (beat cycles per exposure)
+    phases_rad : sensor phase offsets ψ (rad)
+    spp, reference_spp : paths per pixel of the compared renders and of the reference
+    seed : seed of the compared renders (the reference uses another)
+    max_depth : path depth
+    """
+
+    h_values: tuple
+    phases_rad: tuple
+    spp: int
+    reference_spp: int
+    seed: int
+    max_depth: int
+
+    def __post_init__(self):
+        check_spp("spp", self.spp)
+        check_spp("reference spp", self.reference_spp)
+        if not self.h_values or not self.phases_rad:
+            raise ValueError(f"need at least one h and one phase, got h={self.h_values}, psi={self.phases_rad}")
+
+
+def evenly_spaced(count: int, name: str, stop: float = 1.0) -> tuple:
+    """``count`` ≥ 2 values from 0 to ``stop`` inclusive (the original linspace(0, 1, 11))."""
+    if isinstance(count, bool) or not isinstance(count, int) or count < 2:
+        raise ValueError(f"{name} must be an integer >= 2, got {count!r}")
+    return tuple(float(v) for v in np.linspace(0.0, stop, count))
+
+
+def phase_offsets(count: int) -> tuple:
+    """``count`` ≥ 1 phases ψ = π k / count (rad), k = 0 … count − 1.
+
+    Half a period is enough: every sensor waveform flips sign under ψ → ψ + π, so the
+    measurement and its error at ψ + π are those at ψ with the sign flipped.
+    """
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise ValueError(f"phases must be an integer >= 1, got {count!r}")
+    return tuple(math.pi * k / count for k in range(count))
+
+
+def _error_rows(scene, estimator, result, reference, seconds) -> list[dict]:
+    rows = []
+    for index, camera in enumerate(result.cameras):
+        rows.append({
+            "scene": scene.label,
+            "time_sampling": estimator.time_sampling,
+            "correlation": estimator.correlation,
+            "shift": estimator.shift_label,
+            "h": camera.heterodyne,
+            "psi_deg": math.degrees(camera.phase),
+            "spp": result.spp,
+            "seed": result.seed,
+            **image_errors(result.measurements[index], reference.measurements[index]),
+            "stderr_rms": rms(result.measurement_stderr[index]),
+            "reference_stderr_rms": rms(reference.measurement_stderr[index]),
+            "render_seconds": seconds,
+        })  # fmt: skip
+    return rows
+
+
+def _sweep(scene: ExperimentScene, estimators: Sequence[Estimator], settings: SweepSettings, cache: ReferenceCache, echo: Echo):
+    """Render every estimator and the reference; rows of :data:`RESULT_COLUMNS`."""
+    cameras = camera_grid(scene.base_camera, settings.h_values, settings.phases_rad)
+    reference = reference_render(scene, cameras, settings.reference_spp, settings.seed, settings.max_depth, cache, echo)
+    rows = []
+    for number, estimator in enumerate(estimators, 1):
+        result, seconds = timed_render(scene, cameras, estimator, settings.spp, settings.seed, settings.max_depth)
+        shift = f" shift {estimator.shift_label:g}" if estimator.shift_label != "" else ""
+        echo(f"[{number}/{len(estimators)}] {estimator.label}{shift}: {seconds:.1f} s")
+        rows.extend(_error_rows(scene, estimator, result, reference, seconds))
+    return rows, reference
+
+
+def _write_tables(folder: Path, rows, metadata) -> list[Path]:
+    summary = mean_over(rows, SUMMARY_GROUP, METRICS)
+    return [
+        write_csv(folder / "results.csv", rows, RESULT_COLUMNS),
+        write_csv(folder / "summary.csv", summary, SUMMARY_COLUMNS),
+        io.write_json(folder / "metadata.json", metadata),
+    ]
+
+
+def _metadata(scene, settings, estimators, cache, experiment) -> dict:
+    return {
+        "experiment": experiment,
+        "scene": scene.label,
+        "scene_identity": scene.identity,
+        "base_camera": vars(scene.base_camera),
+        "scene_render_settings": scene.render_settings,
+        "h_values": list(settings.h_values),
+        "psi_deg": [math.degrees(p) for p in settings.phases_rad],
+        "spp": settings.spp,
+        "seed": settings.seed,
+        "reference_spp": settings.reference_spp,
+        "reference_seed": reference_seed(settings.seed),
+        "reference_estimator": "antithetic/replay, shift 0.5",
+        "max_depth": settings.max_depth,
+        "estimators": [{"time_sampling": e.time_sampling, "correlation": e.correlation, "shift": e.shift_label} for e in estimators],
+        "cache": str(cache.folder),
+    }
+
+
+def _curve(summary, metric, **match):
+    """(mean, std) over ψ of ``metric`` versus h for the summary rows matching ``match``."""
+    chosen = [row for row in summary if all(row[k] == v for k, v in match.items())]
+    mean = np.array([row[f"{metric}_mean"] for row in chosen])
+    std = np.array([row[f"{metric}_std"] for row in chosen])
+    return mean, np.nan_to_num(std, nan=0.0)
+
+
+def run_time_sampling(scene: ExperimentScene, folder, estimators: Sequence[Estimator], settings: SweepSettings, cache: ReferenceCache, echo: Echo) -> list[Path]:
+    """Fig. 12: every estimator's error against the reference over the h × ψ grid.
+
+    Writes ``results.csv``, ``summary.csv``, ``metadata.json`` and, per correlation mode,
+    ``rmse_vs_h_<mode>.png`` and ``psnr_vs_h_<mode>.png`` (one curve per time sampling:
+    mean over ψ with ±1 std band). Returns the paths written.
+    """
+    folder = Path(folder)
+    rows, _ = _sweep(scene, estimators, settings, cache, echo)
+    written = _write_tables(folder, rows, _metadata(scene, settings, estimators, cache, "time-sampling"))
+    summary = mean_over(rows, SUMMARY_GROUP, METRICS)
+    h = np.array(settings.h_values)
+    for mode in dict.fromkeys(e.correlation for e in estimators):
+        methods = [e.time_sampling for e in estimators if e.correlation == mode]
+        for metric, ylabel, logy in (("rmse", "RMSE (measurement units)", True), ("psnr_db", "PSNR (dB)", False)):
+            curves = {m: _curve(summary, metric, time_sampling=m, correlation=mode) for m in methods}
+            name = metric.split("_")[0]
+            written.append(viz.plot_curves(
+                folder / f"{name}_vs_h_{mode}.png", h, curves, xlabel="heterodyne ratio h (cycles per exposure)",
+                ylabel=ylabel, logy=logy, title=f"{scene.label}: correlation {mode}, {settings.spp} spp, mean over {len(settings.phases_rad)} ψ",
+            ))  # fmt: skip
+    return written
+
+
+def run_shifts(scene: ExperimentScene, folder, methods: Sequence[str], shifts: Sequence[float], correlation: str, settings: SweepSettings, cache: ReferenceCache, echo: Echo) -> list[Path]:
+    """Fig. 15: antithetic estimators' error over the shift a (units of T) and h.
+
+    Writes ``results.csv``, ``summary.csv``, ``metadata.json`` and per method
+    ``rmse_<method>_shift_h.png`` (RMSE averaged over ψ as an image over a × h) and
+    ``rmse_vs_shift_<method>.png`` (one curve per h). Returns the paths written.
+    """
+    for method in methods:
+        if method not in ("antithetic", "antithetic_mirror"):
+            raise ValueError(f"the shift experiment needs an antithetic time sampling (antithetic, antithetic_mirror), got {method!r}")
+    estimators = [Estimator(method, correlation, shift) for method in methods for shift in shifts]
+    folder = Path(folder)
+    rows, _ = _sweep(scene, estimators, settings, cache, echo)
+    metadata = _metadata(scene, settings, estimators, cache, "shifts")
+    metadata["shifts"] = list(shifts)
+    written = _write_tables(folder, rows, metadata)
+    summary = mean_over(rows, SUMMARY_GROUP, METRICS)
+    h = np.array(settings.h_values)
+    shift_axis = np.array(shifts)
+    for method in methods:
+        grid = np.array([_curve(summary, "rmse", time_sampling=method, shift=s)[0] for s in shifts])  # (shift, h)
+        written.append(_heatmap(folder / f"rmse_{method}_shift_h.png", h, shift_axis, grid, f"{scene.label}: {method}/{correlation}, RMSE mean over ψ"))
+        curves = {f"h = {hv:g}": grid[:, j] for j, hv in enumerate(h)}
+        written.append(viz.plot_curves(
+            folder / f"rmse_vs_shift_{method}.png", shift_axis, curves, xlabel="antithetic shift a (units of T)",
+            ylabel="RMSE (measurement units)", logy=True, title=f"{scene.label}: {method}/{correlation}, {settings.spp} spp",
+        ))  # fmt: skip
+    return written
+
+
+def _heatmap(path: Path, x, y, values, title: str) -> Path:
+    """``values[i, j]`` at (x_j, y_i) as a log-coloured image with a colourbar (no pyplot)."""
+    import matplotlib.colors
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    positive = values[np.isfinite(values) & (values > 0)]
+    norm = matplotlib.colors.LogNorm(positive.min(), positive.max()) if positive.size and positive.min() < positive.max() else None
+    figure = Figure(figsize=(6.4, 4.8), layout="constrained")
+    axes = figure.add_subplot()
+    mesh = axes.pcolormesh(x, y, values, norm=norm, cmap="viridis", shading="nearest")
+    figure.colorbar(mesh, ax=axes, label="RMSE (measurement units)")
+    axes.set_xlabel("heterodyne ratio h (cycles per exposure)")
+    axes.set_ylabel("antithetic shift a (units of T)")
+    axes.set_title(title)
+    FigureCanvasAgg(figure)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=viz.FIGURE_DPI, format="png")
+    return path

@@ -1,0 +1,145 @@
+"""`dopplertof animate`: frames at their own times, files, GIF, resuming, bad input."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import shutil
+import sys
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dopplertof import animate, cli, io
+
+FPS = 1000.0  # the Cornell box moves during [0, 1.5 ms]: frames 0 and 1 see motion, 2 does not
+CLIP = ["cornell-box", "--frames", "3", "--fps", str(FPS), "--resolution", "16", "--spp", "4", "--quiet"]
+
+
+def run_animate(*args):
+    result = CliRunner().invoke(cli.main, ["animate", *map(str, args)])
+    return result.exit_code, result.output
+
+
+@pytest.fixture(scope="module")
+def clip(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("clip") / "out"
+    code, output = run_animate(*CLIP, "-o", folder)
+    assert code == 0, output
+    return folder, output
+
+
+@pytest.fixture
+def clip_copy(clip, tmp_path):
+    folder = tmp_path / "out"
+    shutil.copytree(clip[0], folder)
+    return folder
+
+
+def frame_lines(output):
+    return [line for line in output.splitlines() if line.startswith("frame ")]
+
+
+def test_every_frame_is_one_exposure_at_its_own_time(clip):
+    folder, output = clip
+    assert len(frame_lines(output)) == 3
+    for i in range(3):
+        frame = folder / f"frame_{i:04d}"
+        meta = json.loads((frame / "metadata.json").read_text())
+        assert meta["settings"]["exposure_start"] == pytest.approx(i / FPS)
+        assert meta["seed"] == i
+        for name in ("intensity.exr", "velocity.exr", "measurement_2_h1_psi0deg.exr", "velocity_reconstructed.exr",
+                     "velocity_reconstructed.png", "velocity_comparison.png", "done.json"):
+            assert (frame / name).is_file(), f"frame {i}: {name}"
+    # frames 0 and 1 overlap the boxes' motion, frame 2 ([2, 3.5] ms) sees them at rest
+    gt = [io.read_exr(folder / f"frame_{i:04d}" / "velocity.exr") for i in range(3)]
+    assert np.nanmax(np.abs(gt[0])) > 5 and np.nanmax(np.abs(gt[1])) > 1
+    assert np.nanmax(np.abs(gt[2])) == 0
+
+
+def test_clip_summary_and_gif(clip):
+    folder, _ = clip
+    with open(folder / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["frame"]) for r in rows] == [0, 1, 2]
+    assert [float(r["time_s"]) for r in rows] == pytest.approx([0.0, 1e-3, 2e-3])
+    assert all(0.0 <= float(r["valid_fraction"]) <= 1.0 for r in rows)
+    gif = iio.imread(folder / "velocity.gif", index=None)
+    assert gif.shape[0] == 3
+    # ground truth | gap | reconstructed, each enlarged to >= 256 px
+    assert gif.shape[1] >= animate.GIF_MIN_PANEL_PX and gif.shape[2] > 2 * gif.shape[1]
+    settings = json.loads((folder / "animation.json").read_text())
+    assert settings["fps"] == FPS and settings["frames"] == 3 and len(settings["cameras"]) == 4
+
+
+def test_an_interrupted_clip_resumes_with_the_unfinished_frame(clip_copy, monkeypatch):
+    folder = clip_copy
+    (folder / "frame_0001" / "done.json").unlink()  # frame 1 never finished
+    kept = {i: (folder / f"frame_{i:04d}" / "intensity.exr").stat().st_mtime_ns for i in (0, 2)}
+
+    render_module = sys.modules["dopplertof.render"]
+    real_render = render_module.render
+
+    def interrupted(*args, **kwargs):  # what render() returns on Ctrl-C: the passes so far
+        return dataclasses.replace(real_render(*args, **kwargs), interrupted=True)
+
+    monkeypatch.setattr(render_module, "render", interrupted)
+    code, output = run_animate(*CLIP, "-o", folder)
+    assert code == 130
+    assert "run the same command again to resume" in output
+    assert not (folder / "frame_0001" / "done.json").exists()
+
+    monkeypatch.setattr(render_module, "render", real_render)
+    code, output = run_animate(*CLIP, "-o", folder)
+    assert code == 0, output
+    lines = frame_lines(output)
+    assert "skipped" in lines[0] and "rendered" in lines[1] and "skipped" in lines[2], output
+    assert (folder / "frame_0001" / "done.json").is_file()
+    for i, mtime in kept.items():
+        assert (folder / f"frame_{i:04d}" / "intensity.exr").stat().st_mtime_ns == mtime
+
+
+def test_other_settings_are_refused_unless_overwritten(clip_copy):
+    folder = clip_copy
+    code, output = run_animate(*CLIP, "-o", folder, "--spp", 8)
+    assert code == 2
+    (line,) = output.strip().splitlines()
+    assert line.startswith("error: ") and "spp: 4 there, 8 now" in line and "--overwrite" in line
+    code, output = run_animate(*CLIP, "--frames", 1, "-o", folder, "--spp", 8, "--overwrite")  # last --frames wins
+    assert code == 0, output
+    assert sorted(p.name for p in folder.glob("frame_*")) == ["frame_0000"]
+    assert json.loads((folder / "animation.json").read_text())["spp"] == 8
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--frames", 0], "frames must be a positive integer, got 0"),
+    (["--frames", -3], "frames must be a positive integer, got -3"),
+    (["--fps", 0], "fps must be a finite number of frames per second > 0, got 0.0"),
+    (["--fps", -24], "fps must be a finite number of frames per second > 0, got -24.0"),
+    (["--fps", "nan"], "fps must be a finite number of frames per second > 0, got nan"),
+    (["--camera", "h=1,psi=0", "--camera", "h=1,psi=90deg"], "same heterodyne ratio"),
+    (["--camera", "h=0,psi=0", "--camera", "h=1,psi=0,f=20e6"], "share one modulation_frequency"),
+])
+def test_bad_input_is_one_line_and_nothing_is_rendered(tmp_path, args, message):
+    code, output = run_animate("cornell-box", "--resolution", 16, "--spp", 4, "-o", tmp_path / "out", *args)
+    assert code == 2
+    (line,) = output.strip().splitlines()
+    assert line.startswith("error: ") and message in line
+    assert not list(tmp_path.glob("out/frame_*"))
+
+
+def test_frame_count_covers_the_motion():
+    assert animate.frame_count(1.5e-3, 30.0) == 1  # the Cornell box: one frame
+    assert animate.frame_count(2.0, 30.0) == 60
+    assert animate.frame_count(0.1, 30.0) == 3  # 0.1 * 30 is 3.0000000000000004 in floating point
+    assert animate.frame_count(0.0, 30.0) == 1
+
+
+def test_frames_and_fps_checks_accept_only_positive_numbers():
+    assert animate.check_frames_and_fps(np.int64(4), 24) == (4, 24.0)
+    for frames, fps in [(2.5, 30), (True, 30), (1, float("inf")), (1, "30")]:
+        with pytest.raises(ValueError):
+            animate.check_frames_and_fps(frames, fps)

@@ -1,0 +1,232 @@
+"""``dopplertof experiment ...``: the quick forms run, write finite tables, and reuse references."""
+
+import csv
+import math
+import shutil
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dopplertof.cli import main
+from dopplertof.experiments import common, sweeps, velocity
+from dopplertof.experiments.common import Estimator, ReferenceCache, image_errors, open_scene
+from dopplertof.timesampling import METHODS
+
+
+def run_cli(*args):
+    return CliRunner().invoke(main, ["experiment", *args], catch_exceptions=False)
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        return reader.fieldnames, list(reader)
+
+
+def finite(rows, columns):
+    return all(math.isfinite(float(row[c])) for row in rows for c in columns)
+
+
+@pytest.fixture
+def cache_dir(tmp_path):
+    return tmp_path / "cache"
+
+
+# ------------------------------------------------------------------------------- commands
+
+
+@pytest.mark.slow
+def test_time_sampling_quick(tmp_path, cache_dir):
+    out = tmp_path / "ts"
+    result = run_cli("time-sampling", "cornell-box", "--quick", "--cache", str(cache_dir), "-o", str(out))
+    assert result.exit_code == 0, result.output
+
+    columns, rows = read_csv(out / "results.csv")
+    assert tuple(columns) == sweeps.RESULT_COLUMNS
+    configs = {(r["time_sampling"], r["correlation"]) for r in rows}
+    assert configs == {(m, c) for m in METHODS for c in ("none", "replay")}
+    assert len(rows) == len(configs) * 3 * 2  # quick: 3 h x 2 psi
+    assert finite(rows, ("h", "psi_deg", "mae", "rmse", "relative_mae", "relative_rmse", "psnr_db", "stderr_rms", "reference_stderr_rms"))
+
+    # the paper's headline: at h = 1, antithetic + replay beats uniform + independent paths
+    def rmse_at_h1(method, mode):
+        return np.mean([float(r["rmse"]) for r in rows if (r["time_sampling"], r["correlation"], r["h"]) == (method, mode, "1")])
+
+    assert rmse_at_h1("antithetic", "replay") < 0.2 * rmse_at_h1("uniform", "none")
+
+    columns, summary = read_csv(out / "summary.csv")
+    assert tuple(columns) == sweeps.SUMMARY_COLUMNS
+    assert len(summary) == len(configs) * 3
+    assert finite(summary, ("rmse_mean", "rmse_std", "psnr_db_mean"))
+    for mode in ("none", "replay"):
+        assert (out / f"rmse_vs_h_{mode}.png").stat().st_size > 0
+        assert (out / f"psnr_vs_h_{mode}.png").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_shifts_quick(tmp_path, cache_dir):
+    out = tmp_path / "shifts"
+    result = run_cli("shifts", "cornell-box", "--quick", "--cache", str(cache_dir), "-o", str(out))
+    assert result.exit_code == 0, result.output
+
+    columns, rows = read_csv(out / "results.csv")
+    assert tuple(columns) == sweeps.RESULT_COLUMNS
+    assert {r["time_sampling"] for r in rows} == {"antithetic", "antithetic_mirror"}
+    assert {float(r["shift"]) for r in rows} == {0.0, 0.5, 1.0}
+    assert finite(rows, ("shift", "h", "mae", "rmse", "psnr_db"))
+
+    # at h = 1 the antithetic shift a = T/2 cancels the static part (paper Fig. 15)
+    def rmse(shift):
+        return np.mean([float(r["rmse"]) for r in rows if r["time_sampling"] == "antithetic" and float(r["shift"]) == shift and r["h"] == "1"])
+
+    assert rmse(0.5) < 0.2 * rmse(0.0)
+    for method in ("antithetic", "antithetic_mirror"):
+        assert (out / f"rmse_{method}_shift_h.png").stat().st_size > 0
+        assert (out / f"rmse_vs_shift_{method}.png").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_velocity_quick(tmp_path, cache_dir):
+    out = tmp_path / "velocity"
+    result = run_cli("velocity", "cornell-box", "--quick", "--cache", str(cache_dir), "-o", str(out))
+    assert result.exit_code == 0, result.output
+
+    columns, rows = read_csv(out / "results.csv")
+    assert tuple(columns) == velocity.COLUMNS
+    estimators = ["reference"] + [e.label.replace("/", "-") for e in velocity.DEFAULT_ESTIMATORS]
+    assert [(r["estimator"], r["noise"]) for r in rows] == [(e, n) for e in estimators for n in ("none", "sensor")]
+    assert finite(rows, velocity.COLUMNS[6:])
+    assert all(int(r["moving_pixels"]) > 10 for r in rows)  # the two boxes at +-10 m/s
+    reference = rows[0]
+    assert float(reference["median_abs_error_m_s"]) < 5.0
+    for name in estimators:
+        assert (out / f"velocity_{name}.png").stat().st_size > 0
+        assert (out / f"velocity_error_{name}.png").stat().st_size > 0
+
+
+def test_rerun_loads_the_reference_from_the_cache(tmp_path, cache_dir, monkeypatch):
+    calls = []
+    real_render = common.render
+
+    def counting_render(*args, **kwargs):
+        calls.append(kwargs["seed"])
+        return real_render(*args, **kwargs)
+
+    monkeypatch.setattr(common, "render", counting_render)
+    args = ["time-sampling", "cornell-box", "--quick", "--time-sampling", "antithetic", "--correlation", "replay", "--cache", str(cache_dir)]
+
+    first = run_cli(*args, "-o", str(tmp_path / "a"))
+    assert first.exit_code == 0, first.output
+    assert "reference: rendering" in first.output
+    assert sorted(calls) == [0, 1]  # the estimator at --seed 0, the reference at seed + 1
+
+    calls.clear()
+    second = run_cli(*args, "-o", str(tmp_path / "b"))
+    assert second.exit_code == 0, second.output
+    assert "reference: loaded from cache" in second.output
+    assert calls == [0]
+    def errors(folder):
+        return [{k: v for k, v in row.items() if k != "render_seconds"} for row in read_csv(tmp_path / folder / "results.csv")[1]]
+
+    assert errors("a") == errors("b")
+
+    calls.clear()
+    third = run_cli(*args, "--seed", "5", "-o", str(tmp_path / "c"))
+    assert "reference: rendering" in third.output
+    assert sorted(calls) == [5, 6]
+
+
+def test_cache_key_covers_scene_and_parameters(tmp_path, data_dir):
+    def key(scene, spp=16, seed=1, h=(0.0, 1.0), estimator=common.REFERENCE_ESTIMATOR):
+        cameras = common.camera_grid(scene.base_camera, h, (0.0,))
+        return ReferenceCache.key(scene, cameras, spp, seed, 3, estimator)
+
+    small, large = open_scene("cornell-box", 8), open_scene("cornell-box", 10)
+    base = key(small)
+    assert key(open_scene("cornell-box", 8)) == base
+    assert len({base, key(large), key(small, spp=32), key(small, seed=2), key(small, h=(0.0, 0.5)), key(small, estimator=Estimator("antithetic", "pixel"))}) == 6
+
+    xml = tmp_path / "scene.xml"
+    shutil.copy(data_dir / "original_cornell.xml", xml)
+    before = key(open_scene(str(xml), None))
+    xml.write_text(xml.read_text() + "\n<!-- edited -->\n")
+    assert key(open_scene(str(xml), None)) != before
+
+
+def test_cache_round_trip(tmp_path):
+    scene = open_scene("cornell-box", 8)
+    cameras = common.camera_grid(scene.base_camera, (0.0, 1.0), (0.0,))
+    result, _ = common.timed_render(scene, cameras, common.REFERENCE_ESTIMATOR, 4, 3, 2)
+    cache = ReferenceCache(tmp_path)
+    assert cache.load("missing", cameras) is None
+    cache.store("k", result)
+    loaded = cache.load("k", cameras)
+    for name in ("intensity", "measurements", "measurement_stderr", "velocity", "depth"):
+        np.testing.assert_array_equal(getattr(loaded, name), getattr(result, name))
+    assert (loaded.spp, loaded.seed, loaded.settings) == (result.spp, result.seed, result.settings)
+
+
+def test_default_cache_dir_follows_the_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv("DOPPLERTOF_CACHE", str(tmp_path / "mine"))
+    assert common.default_cache_dir() == tmp_path / "mine"
+    monkeypatch.delenv("DOPPLERTOF_CACHE")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert common.default_cache_dir() == tmp_path / "xdg" / "dopplertof" / "references"
+
+
+# --------------------------------------------------------------------------------- errors
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["no-such-experiment", "cornell-box"], "unknown experiment 'no-such-experiment'"),
+        (["time-sampling", "no-such-scene", "--quick"], "no-such-scene"),
+        (["velocity", "no-such-scene.xml", "--quick"], "no-such-scene.xml"),
+        (["time-sampling", "cornell-box", "--quick", "--spp", "3"], "spp must be a positive multiple of 2"),
+        (["velocity", "cornell-box", "--quick", "--reference-spp", "0"], "reference spp"),
+        (["time-sampling", "cornell-box", "--quick", "--time-sampling", "bogus"], "unknown time sampling 'bogus'"),
+        (["time-sampling", "cornell-box", "--quick", "--correlation", "bogus"], "unknown correlation 'bogus'"),
+        (["time-sampling", "cornell-box", "--quick", "--h-steps", "1"], "--h-steps"),
+        (["shifts", "cornell-box", "--quick", "--time-sampling", "uniform"], "antithetic"),
+        (["velocity", "cornell-box", "--quick", "--signal-electrons", "-1"], "signal electrons"),
+    ],
+)
+def test_bad_input_is_one_error_line(tmp_path, args, words):
+    result = run_cli(*args, "--cache", str(tmp_path / "cache"), "-o", str(tmp_path / "out")) if args[0] != "no-such-experiment" else run_cli(*args)
+    assert result.exit_code == 2
+    lines = [line for line in result.output.splitlines() if line.startswith("error:")]
+    assert len(lines) == 1 and words in lines[0], result.output
+    assert "Traceback" not in result.output
+
+
+# ---------------------------------------------------------------------------------- metrics
+
+
+def test_image_errors_of_a_known_offset():
+    reference = np.array([[0.0, 1.0], [2.0, -1.0]])
+    errors = image_errors(reference + 0.1, reference)
+    assert errors["mae"] == pytest.approx(0.1)
+    assert errors["rmse"] == pytest.approx(0.1)
+    assert errors["relative_rmse"] == pytest.approx(0.1 / 1.0)
+    assert errors["psnr_db"] == pytest.approx(20 * math.log10(3.0 / 0.1))
+    assert image_errors(reference, reference)["psnr_db"] == math.inf
+    assert math.isnan(image_errors(np.ones(3), np.zeros(3))["relative_mae"])
+
+
+def test_velocity_errors_on_moving_and_static_pixels():
+    truth = np.array([10.0, -10.0, 0.0, 0.0, np.nan])
+    estimate = np.array([11.0, np.nan, 0.5, -0.5, 3.0])
+    stats = velocity.velocity_errors(estimate, truth)
+    assert stats["moving_pixels"] == 2 and stats["static_pixels"] == 2
+    assert stats["valid_fraction"] == 0.5
+    assert stats["mae_m_s"] == stats["rmse_m_s"] == stats["bias_m_s"] == 1.0
+    assert stats["relative_mae"] == pytest.approx(0.1)
+    assert stats["static_rmse_m_s"] == pytest.approx(0.5)
+
+
+def test_phase_offsets_cover_half_a_period():
+    assert sweeps.phase_offsets(4) == pytest.approx((0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4))
+    with pytest.raises(ValueError, match="phases"):
+        sweeps.phase_offsets(0)
