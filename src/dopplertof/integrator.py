@@ -111,6 +111,40 @@ def _aperture_point(sensor, ray):
     return mi.Vector3d(ray.o) - mi.Vector3d(ray.d) * mi.Float64(back)
 
 
+def hit_distance64(scene, poses64, hit, x_prev, direction):
+    """Float64 distance from ``x_prev`` (mi.Vector3d) along ``direction`` to ``hit``, and the point.
+
+    Recomputed against the hit primitive's plane in the body's frame, so two correlated
+    paths hitting the same primitive at different times differ by the motion alone.
+    """
+    pose64 = scene.select_pose(poses64, hit.body)
+    d64 = dr.normalize(mi.Vector3d(direction))
+    o_local = pose64.point_to_local(x_prev)
+    d_local = pose64.vector_to_local(d64)
+    n_local = mi.Vector3d(hit.n_local)
+    t64 = dr.dot(n_local, mi.Vector3d(hit.plane_local) - o_local) / dr.dot(n_local, d_local)
+    t64 = dr.select(dr.isfinite(t64) & (t64 > 0), t64, mi.Float64(hit.si.t))
+    return t64, x_prev + d64 * t64
+
+
+def radial_velocities(scene, hit, direction, time_s, poses):
+    """(ray-fixed d/dt of the hit distance, v·d̂ of the hit point), m/s, for unit ``direction``."""
+    si = hit.si
+    v_surface = scene.surface_velocity(si.p, hit.body, time_s, poses=poses) if scene.bodies else mi.Vector3f(0)
+    ray_fixed_rate = dr.dot(si.n, v_surface) / dr.dot(si.n, direction)
+    return dr.select(dr.isfinite(ray_fixed_rate), ray_fixed_rate, 0.0), dr.dot(v_surface, direction)
+
+
+def camera_ray(sensor, setup, pixel, time_s, next_1d, next_2d):
+    """The camera ray of ``pixel`` (film jitter, aperture and wavelength from the draws)."""
+    pixel_xy = mi.Point2f(mi.Float(pixel % setup.width), mi.Float(pixel // setup.width))
+    jitter = next_2d()
+    aperture = next_2d()
+    wavelength_sample = next_1d()
+    film_pos = (pixel_xy + jitter) / mi.ScalarVector2f(setup.width, setup.height)
+    return sensor.sample_ray(mi.Float(time_s), wavelength_sample, film_pos, aperture)
+
+
 def _mis_weight(pdf_a, pdf_b):
     """Power heuristic (β = 2) for pdf_a against pdf_b; 0 where both vanish."""
     a2 = dr.square(pdf_a)
@@ -164,12 +198,9 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
     sensor = scene.sensor
     grouped = setup.n_times > 1  # a lone time has no partner to correlate with
     corr_pixel = grouped and correlation.correlates_pixel()
-    pixel_xy = mi.Point2f(mi.Float(pixel % setup.width), mi.Float(pixel // setup.width))
-    jitter = _next_2d(rng_shared, rng_own, corr_pixel)
-    aperture = _next_2d(rng_shared, rng_own, corr_pixel)
-    wavelength_sample = _next_1d(rng_shared, rng_own, corr_pixel)
-    film_pos = (pixel_xy + jitter) / mi.ScalarVector2f(setup.width, setup.height)
-    ray, ray_weight = sensor.sample_ray(mi.Float(time_s), wavelength_sample, film_pos, aperture)
+    ray, ray_weight = camera_ray(
+        sensor, setup, pixel, time_s, lambda: _next_1d(rng_shared, rng_own, corr_pixel), lambda: _next_2d(rng_shared, rng_own, corr_pixel)
+    )
 
     bank = modulation.CameraBank(cameras, u)
     track_length = bool(cameras)  # Float64 path lengths only where a camera needs them
@@ -202,14 +233,7 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
 
         # ---------------------------------------------------- Float64 path length
         if dr.hint(track_length, mode="scalar"):
-            pose64 = scene.select_pose(poses64, hit.body)
-            d64 = dr.normalize(mi.Vector3d(ray.d))
-            o_local = pose64.point_to_local(x_prev)
-            d_local = pose64.vector_to_local(d64)
-            n_local = mi.Vector3d(hit.n_local)
-            t64 = dr.dot(n_local, mi.Vector3d(hit.plane_local) - o_local) / dr.dot(n_local, d_local)
-            t64 = dr.select(dr.isfinite(t64) & (t64 > 0), t64, mi.Float64(si.t))
-            x_hit = x_prev + d64 * t64
+            t64, x_hit = hit_distance64(scene, poses64, hit, x_prev, ray.d)
         else:  # intensity only: float32 is plenty for the depth
             t64 = mi.Float64(dr.norm(si.p - mi.Point3f(x_prev)))
             x_hit = mi.Vector3d(si.p)
@@ -217,11 +241,10 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
 
         # ---------------------------------------------------- ground truth at the camera ray
         at_camera = valid & (depth == 0)
-        v_surface = scene.surface_velocity(si.p, hit.body, time_s, poses=poses) if scene.bodies else mi.Vector3f(0)
-        ray_fixed_rate = dr.dot(si.n, v_surface) / dr.dot(si.n, ray.d)
+        ray_velocity, point_velocity = radial_velocities(scene, hit, ray.d, time_s, poses)
         first_depth = dr.select(at_camera, mi.Float(t64), first_depth)
-        first_velocity = dr.select(at_camera, dr.select(dr.isfinite(ray_fixed_rate), ray_fixed_rate, 0.0), first_velocity)
-        first_point_velocity = dr.select(at_camera, dr.dot(v_surface, ray.d), first_point_velocity)
+        first_velocity = dr.select(at_camera, ray_velocity, first_velocity)
+        first_point_velocity = dr.select(at_camera, point_velocity, first_point_velocity)
         first_hit |= at_camera
 
         # ---------------------------------------------------- emitter hit
