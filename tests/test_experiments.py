@@ -154,6 +154,39 @@ def test_cache_key_covers_scene_and_parameters(tmp_path, data_dir):
     assert key(open_scene(str(xml), None)) != before
 
 
+def test_cache_key_covers_the_rendering_source(monkeypatch):
+    """A stale reference must not survive a change of the integrator without a version bump."""
+    scene = open_scene("cornell-box", 8)
+    cameras = common.camera_grid(scene.base_camera, (0.0, 1.0), (0.0,))
+
+    def key():
+        return ReferenceCache.key(scene, cameras, 16, 1, 3, common.REFERENCE_ESTIMATOR)
+
+    before = key()
+    monkeypatch.setattr(common, "rendering_source_digest", lambda: "0" * 64)
+    assert key() != before
+
+
+def test_rendering_source_digest_follows_the_renderer_only(tmp_path):
+    package = tmp_path / "dopplertof"
+    shutil.copytree(common.PACKAGE_DIR, package, ignore=shutil.ignore_patterns("__pycache__"))
+    names = {p.relative_to(package).as_posix() for p in common.rendering_source_files(package)}
+    assert {"integrator.py", "render.py", "scene.py", "motion.py", "loader.py", "scenes.py"} <= names
+    assert not names & {"cli.py", "viz.py", "io.py", "render_folder.py"}
+    assert not any(name.startswith("experiments/") for name in names)
+
+    before = common.rendering_source_digest(package)
+    with open(package / "cli.py", "a") as f:
+        f.write("\n# not rendering\n")
+    assert common.rendering_source_digest(package) == before
+    with open(package / "integrator.py", "a") as f:
+        f.write("\n# rendering\n")
+    changed = common.rendering_source_digest(package)
+    assert changed != before
+    (package / "paired.py").write_text("# a new integrator module\n")
+    assert common.rendering_source_digest(package) != changed
+
+
 def test_cache_round_trip(tmp_path):
     scene = open_scene("cornell-box", 8)
     cameras = common.camera_grid(scene.base_camera, (0.0, 1.0), (0.0,))

@@ -124,14 +124,71 @@ def test_ratio_per_phase_maps():
     np.testing.assert_allclose(per.homodyne_amplitude, np.abs(m[[1, 2]]))
 
 
-def test_ratio_fusion_weights_by_homodyne_amplitude():
-    """r̄ = Σ r_i |H_i| / Σ |H_i|, checked on inconsistent (noisy-like) data."""
+def test_ratio_fusion_is_least_squares_slope_of_e_against_h():
+    """r̄ = Σ E_i H_i / Σ H_i², checked on inconsistent (noisy-like) data."""
     cams = ratio_set(30e6, [0.0, 0.5 * np.pi])
     m = np.array([[2.0], [0.02], [-0.5], [-0.0025]])  # r_0 = 0.01, r_1 = 0.005
     res = rc.velocity(m, cams, method="ratio")
-    r_bar = (0.01 * 2.0 + 0.005 * 0.5) / 2.5
+    r_bar = (0.01 * 2.0**2 + 0.005 * 0.5**2) / (2.0**2 + 0.5**2)
     expected = C * r_bar / (2 * 30e6 * T * (1 - r_bar))
     assert res.velocity[0] == pytest.approx(expected, rel=1e-12)
+
+
+def linear_radiance_measurements(amplitude_mid, slope, depth_mid, v, cams):
+    """Closed-form measurements when the radiance changes linearly during the exposure.
+
+    A(t) = A_mid (1 + β (t/T − ½)), β = ``slope`` (relative change over the exposure), so
+    m = (g1/2) Re{A_mid e^{i θ} ∫_0^1 (1 + β (s − ½)) e^{i x s} ds} with x = 2π h + a and
+    θ = ψ + k L(0); the integral is (1 − β/2) (e^{ix} − 1)/(ix) + β ∫_0^1 s e^{ixs} ds,
+    ∫_0^1 s e^{ixs} ds = e^{ix}/(ix) + (e^{ix} − 1)/x² (x ≠ 0).
+    """
+    out = []
+    for cam in cams:
+        k = 2 * np.pi * cam.modulation_frequency / C
+        a = k * 2 * v * cam.exposure
+        x = 2 * np.pi * cam.heterodyne + a
+        e = np.exp(1j * x)
+        integral = (1 - slope / 2) * (e - 1) / (1j * x) + slope * (e / (1j * x) + (e - 1) / x**2)
+        path_start = 2 * depth_mid - v * cam.exposure
+        out.append(0.5 * cam.g1 * np.real(amplitude_mid * np.exp(1j * (cam.phase + k * path_start)) * integral))
+    return np.array(out)
+
+
+def test_linear_radiance_closed_form_matches_numerical_integral():
+    cams = ratio_set(30e6, [0.0, 0.5 * np.pi])
+    got = linear_radiance_measurements(1.3, 0.2, 2.345, -3.0, cams)
+    for cam, value in zip(cams, got):
+        t = np.linspace(0.0, T, 200_001)
+        k = 2 * np.pi * cam.modulation_frequency / C
+        path = 2 * (2.345 - 3.0 * (t - T / 2))
+        radiance = 1.3 * (1 + 0.2 * (t / T - 0.5))
+        integrand = 0.5 * cam.g1 * radiance * np.cos(2 * np.pi * cam.heterodyne * t / T + cam.phase + k * path)
+        assert value == pytest.approx(np.trapezoid(integrand, t) / T, abs=1e-9)
+
+
+def test_ratio_fusion_ignores_a_linear_brightness_change():
+    """A surface that approaches brightens (1/d²): 0.5 % over the exposure, as the short box
+    of the Cornell box. The E/H ratio of each phase then carries β tan θ_i / 2π besides the
+    Doppler term, which the |H|-weighted fusion of the original code keeps; Σ E_i H_i / Σ H_i²
+    cancels it for quadrature phases and leaves a relative error of β²/12."""
+    f, slope = 30e6, 0.005
+    amp, dist = scene(VELOCITIES.size, seed=5)
+    cams = ratio_set(f, [0.0, 0.5 * np.pi])
+    brightening = -np.sign(VELOCITIES) * slope
+    m = linear_radiance_measurements(amp, brightening, dist, VELOCITIES, cams)
+
+    res = rc.velocity(m, cams, method="ratio")
+    assert res.valid.all()
+    np.testing.assert_allclose(res.velocity, VELOCITIES, rtol=slope**2)
+    fit = rc.velocity(m, cams, method="fit")
+    np.testing.assert_allclose(fit.velocity, VELOCITIES, rtol=slope**2)
+
+    # the original fusion, r̄ = Σ r_i |H_i| / Σ |H_i| over the pairs valid alone
+    per = rc.ratio_velocity_per_phase(m, cams)
+    weight = np.where(per.valid, per.homodyne_amplitude, 0.0)
+    r_old = np.sum(weight * np.nan_to_num(per.ratio), axis=0) / np.sum(weight, axis=0)
+    v_old = C * r_old / (2 * f * T * (1 - r_old))
+    assert np.median(np.abs(v_old / VELOCITIES - 1)) > 0.1
 
 
 def test_ratio_masks_ill_conditioned_pixels():
@@ -154,14 +211,18 @@ def test_ratio_masks_ill_conditioned_pixels():
     assert abs(C * (m[1, 2] / m[0, 2]) / (2 * f * T * (1 - m[1, 2] / m[0, 2])) - 5.0) > 1.0
 
 
-def test_ratio_phase_with_r_above_one_is_left_out_of_the_fusion():
+def test_ratio_fusion_keeps_pairs_that_are_invalid_alone():
+    """A pair is invalid on its own when r ≥ 1 or |H| is small, but the fusion divides by no
+    single H: selecting pairs by their own ratio would select on noise."""
     cams = ratio_set(30e6, [0.0, 0.5 * np.pi])
-    good = rc.model_measurements(1.0, 1.0, 4.0, cams[2:])
-    m = np.array([[1.0], [1.2], [good[0]], [good[1]]])  # phase 0: r = 1.2
+    # pixel 0: phase 0 has r = 1.2; pixel 1: phase 0 has |H| = 1e-6, below the threshold
+    m = np.array([[0.5, 1e-6], [0.6, 0.3], [2.0, -1.0], [0.02, -0.01]])
     per = rc.ratio_velocity_per_phase(m, cams)
-    assert per.valid[:, 0].tolist() == [False, True]
+    assert per.valid.tolist() == [[False, False], [True, True]]
     res = rc.velocity(m, cams)
-    assert res.valid[0] and res.velocity[0] == pytest.approx(4.0, rel=1e-6)
+    assert res.valid.tolist() == [True, True]
+    r_bar = np.sum(m[1::2] * m[::2], axis=0) / np.sum(m[::2] ** 2, axis=0)
+    np.testing.assert_allclose(res.velocity, C * r_bar / (2 * 30e6 * T * (1 - r_bar)), rtol=1e-12)
 
 
 def test_ratio_second_phase_rescues_quadrature_pixel():

@@ -13,16 +13,23 @@ mode            meaning
 ``pixel``       same pixel sample, independent paths: k = 1
 ``replay``      random replay: the same random numbers for every bounce (k = ∞), or
                 for the first ``correlation_depth − 1`` bounces
+``reconnection`` paired tracing (:mod:`dopplertof.paired`): the partner aims at the
+                primal's next vertex re-timed to its own time, wherever both current
+                vertices have no delta lobe (replay there)
+``adaptive``    paired tracing, reconnecting only where both current surfaces are rougher
+                than ``threshold`` (mean GGX/Beckmann α; diffuse = ∞), replay elsewhere
 ==============  =====================================================================
 
-Each lane is an ordinary path sample at its own time, so every mode is unbiased.
+In ``none``, ``pixel`` and ``replay`` each lane is an ordinary path sample at its own
+time; the paired modes weight primal and partner by MIS. Every mode is unbiased.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-MODES = ("none", "pixel", "replay")
+MODES = ("none", "pixel", "replay", "reconnection", "adaptive")
+PAIRED = ("reconnection", "adaptive")
 UNBOUNDED = 1 << 30
 
 
@@ -32,12 +39,22 @@ class Correlation:
 
     mode: str = "replay"
     depth: int | None = None
+    threshold: float = 0.5  # adaptive: roughness (α) above which a bounce reconnects
 
     def __post_init__(self):
         if self.mode not in MODES:
             raise ValueError(f"unknown correlation {self.mode!r}; choose one of {', '.join(MODES)}")
         if self.depth is not None and (not isinstance(self.depth, int) or self.depth < 0):
             raise ValueError(f"correlation_depth must be a non-negative integer, got {self.depth!r}")
+        if self.depth is not None and self.paired:
+            raise ValueError(f"correlation_depth applies to replay; {self.mode} correlates every bounce")
+        if isinstance(self.threshold, bool) or not isinstance(self.threshold, (int, float)) or not self.threshold >= 0:
+            raise ValueError(f"reconnection threshold must be a roughness >= 0, got {self.threshold!r}")
+
+    @property
+    def paired(self) -> bool:
+        """Traced as primal + partner in one lane (:mod:`dopplertof.paired`)."""
+        return self.mode in PAIRED
 
     @property
     def effective_depth(self) -> int:

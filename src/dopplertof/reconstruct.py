@@ -22,8 +22,19 @@ Two estimators:
     sinusoid E/H = a/(a + 2π) *exactly* (the exposure-average of cos over the beat cancels
     the phase), so a = 2π r/(1 − r) with r = E/H, i.e. v = c r / (2 f_g T (1 − r)), the
     original formula; no small-r approximation (c is the exact ``SPEED_OF_LIGHT_M_S``
-    here, where the original used 3e8). Several phases are fused as
-    r̄ = Σ r_i |H_i| / Σ |H_i|. Other waveforms are accepted but the ratio is then only
+    here, where the original used 3e8). Several phases are fused by the least-squares
+    slope of E against H, r̄ = Σ E_i H_i / Σ H_i², then inverted exactly as above.
+
+    Why not the original r̄ = Σ r_i |H_i| / Σ |H_i|: it assumes the radiance is constant
+    during the exposure. If it changes linearly, A(t) = A₀ (1 + β (t/T − ½)) (a surface
+    that moves closer brightens as 1/d²), every heterodyne image gains
+    β A₀ (g1/2) sin θ_i / 2π at a = 0, so r_i gains β tan θ_i / 2π, which the |H|-weighted
+    mean keeps, while Σ E_i H_i gains ∝ β Σ sin 2θ_i, zero as soon as Σ e^{2iψ_i} = 0
+    (ψ = 0, π/2; or 0, π/2, π, 3π/2). What is left is second order: the velocity is
+    scaled by ≈ 1 − β²/12. (ψ = 0 alone, or 0 and π, cannot tell a brightness change
+    from a Doppler shift.) The slope divides by no single H_i, so every pair enters it:
+    leaving out pairs by their own r_i (small |H_i|, r_i ≥ 1) would select on noise and
+    undo the cancellation. Other waveforms are accepted but the ratio is then only
     approximately a/(a + 2π).
 ``"fit"``
     any set of ≥ 3 measurements with known (h_i, ψ_i), sinusoid only: for a fixed Doppler
@@ -51,7 +62,8 @@ name                   unit    default                      meaning
                                                             ``phase`` (rad), ``waveform``,
                                                             ``g1``; all must share f_g and T
 ``min_amplitude``      meas.   1e-3 × 99th percentile       pixels whose signal amplitude
-                               of the image's amplitude     (|H_i| per phase for the ratio,
+                               of the image's amplitude     (max_i |H_i| for the ratio,
+                                                            |H_i| for a per-phase ratio,
                                                             (g1/2)|Z| for the fit and depth)
                                                             is not above it are invalid
 ``method``             –       ``"auto"``                   ``"ratio"``, ``"fit"`` or ``"auto"``
@@ -136,7 +148,7 @@ class RatioPhaseResult:
     valid : ndarray of bool, shape (n_pairs, ...)
         |H| above ``min_amplitude``, r < 1 and finite.
     homodyne_amplitude : ndarray, shape (n_pairs, ...)
-        |H| (measurement units), the fusion weight.
+        |H| (measurement units); :func:`velocity` fuses the pairs with weights ∝ H².
     """
 
     phase: np.ndarray
@@ -575,7 +587,8 @@ def _doppler_to_velocity(doppler_phase, cams: _CameraSet):
 
 
 def _ratio_per_phase(m, cams: _CameraSet, pairs, min_amplitude):
-    """Per-pair ratio r, validity, |H| (all shaped (n_pairs, N))."""
+    """Per pair: H and E with g1/2 divided out, r = E/H, validity and |H| (measurement
+    units), all shaped (n_pairs, N), and the |H| threshold."""
     hom = np.stack([m[i] / cams.half_g1[i] for i, _ in pairs])
     het = np.stack([m[j] / cams.half_g1[j] for _, j in pairs])
     hom_amp = np.stack([np.abs(m[i]) for i, _ in pairs])
@@ -583,7 +596,8 @@ def _ratio_per_phase(m, cams: _CameraSet, pairs, min_amplitude):
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = het / hom
     valid = (hom_amp > threshold) & np.isfinite(ratio) & (ratio < 1.0)
-    return ratio, valid, hom_amp
+    return {"homodyne": hom, "heterodyne": het, "ratio": ratio, "valid": valid,
+            "homodyne_amplitude": hom_amp, "threshold": threshold}
 
 
 def _ratio_to_doppler_phase(ratio):
@@ -618,8 +632,9 @@ def ratio_velocity_per_phase(measurements, cameras: Sequence, *, min_amplitude=N
     _check_min_amplitude(min_amplitude)
     pairs = _require_pairs(cams)
     flat, shape, finite = _flatten(m)
-    ratio, valid, hom_amp = _ratio_per_phase(flat, cams, pairs, min_amplitude)
-    valid &= finite
+    per_pair = _ratio_per_phase(flat, cams, pairs, min_amplitude)
+    ratio, hom_amp = per_pair["ratio"], per_pair["homodyne_amplitude"]
+    valid = per_pair["valid"] & finite
     doppler_phase = _ratio_to_doppler_phase(np.where(valid, ratio, 0.0))
     vel, dopp = _doppler_to_velocity(doppler_phase, cams)
 
@@ -649,12 +664,15 @@ def _require_pairs(cams: _CameraSet):
 
 def _velocity_ratio(flat, cams, min_amplitude):
     pairs = _require_pairs(cams)
-    ratio, valid, hom_amp = _ratio_per_phase(flat, cams, pairs, min_amplitude)
-    weight = np.where(valid, hom_amp, 0.0)
-    total = np.sum(weight, axis=0)
+    per_pair = _ratio_per_phase(flat, cams, pairs, min_amplitude)
+    # The least-squares slope of E against H over all pairs, blind to a linear brightness
+    # change (module docstring); a pair with H ≈ 0 adds ≈ 0 to both sums.
+    hom, het = per_pair["homodyne"], per_pair["heterodyne"]
+    total = np.sum(hom * hom, axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        fused = np.sum(weight * np.where(valid, ratio, 0.0), axis=0) / total
-    ok = (total > 0) & np.isfinite(fused) & (fused < 1.0)
+        fused = np.sum(het * hom, axis=0) / total
+    signal = np.max(per_pair["homodyne_amplitude"], axis=0) > per_pair["threshold"]
+    ok = signal & (total > 0) & np.isfinite(fused) & (fused < 1.0)
     doppler_phase = _ratio_to_doppler_phase(np.where(ok, fused, 0.0))
     return doppler_phase, ok
 
@@ -705,10 +723,10 @@ def velocity(
         Sharing f_g (Hz) and T (s). See the module docstring.
     min_amplitude : float, optional
         Signal amplitude (measurement units) at or below which a pixel is invalid:
-        |H_i| per phase for the ratio, (g1/2)|Z| for the fit (g1/2 averaged over the
-        cameras). Default: 1e-3 × the 99th percentile over the image of |H_i| (ratio) or
-        of the data amplitude sqrt(2 mean_i m_i²) (fit; unlike the fitted amplitude it
-        cannot be inflated by ill-conditioned pixels).
+        the largest |H_i| over the phases for the ratio, (g1/2)|Z| for the fit (g1/2
+        averaged over the cameras). Default: 1e-3 × the 99th percentile over the image of
+        |H_i| (ratio) or of the data amplitude sqrt(2 mean_i m_i²) (fit; unlike the fitted
+        amplitude it cannot be inflated by ill-conditioned pixels).
     method : {"auto", "ratio", "fit"}
         ``"auto"`` uses the ratio when the cameras are matched h=0/h=1 pairs, else the fit.
     max_doppler_hz : float, optional

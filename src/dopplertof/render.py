@@ -120,6 +120,7 @@ def render(
     exposure=None,
     exposure_start=0.0,
     hide_emitters=False,
+    reconnection_threshold=0.5,
     lanes_per_pass=DEFAULT_LANES_PER_PASS,
     progress=False,
 ) -> RenderResult:
@@ -134,8 +135,13 @@ def render(
     max_depth, rr_depth : int. Path depth (Mitsuba semantics) and Russian-roulette start.
     time_sampling : str or :class:`TimeSampling`. ``uniform``, ``stratified``,
         ``antithetic`` (default) or ``antithetic_mirror``.
-    correlation : str or :class:`Correlation`. ``none``, ``pixel`` or ``replay`` (default).
+    correlation : str or :class:`Correlation`. ``none``, ``pixel``, ``replay`` (default),
+        ``reconnection`` or ``adaptive`` (the last two trace primal and partner together,
+        :mod:`dopplertof.paired`; they need pairs of times, ``n_times = 2``, and use no
+        Russian roulette).
     correlation_depth : int, optional. Replay cut-off (see :mod:`dopplertof.correlation`).
+    reconnection_threshold : float. ``adaptive``: reconnect where both surfaces are rougher
+        than this GGX/Beckmann α (diffuse counts as ∞). Default 0.5.
     n_times, antithetic_shift, stratify_intervals : see :class:`TimeSampling`.
     exposure : float, s. Exposure T when no camera is given (default 1.5 ms).
     exposure_start : float, s. Scene time at which the exposure opens (default 0).
@@ -167,13 +173,15 @@ def render(
     exposure = DEFAULT_EXPOSURE_S if exposure is None else exposure
     if not isinstance(exposure, (int, float)) or not math.isfinite(exposure) or exposure <= 0:
         raise ValueError(f"exposure must be > 0 seconds, got {exposure!r}")
-    if isinstance(time_sampling, str):
-        if time_sampling == "uniform" and n_times == 2:
-            n_times = 1
-        time_sampling = TimeSampling(time_sampling, n_times, antithetic_shift, stratify_intervals)
     if isinstance(correlation, str):
-        correlation = Correlation(correlation, correlation_depth)
+        correlation = Correlation(correlation, correlation_depth, reconnection_threshold)
+    if isinstance(time_sampling, str):
+        if time_sampling == "uniform" and n_times == 2 and not correlation.paired:
+            n_times = 1  # independent times need no grouping
+        time_sampling = TimeSampling(time_sampling, n_times, antithetic_shift, stratify_intervals)
     n = time_sampling.n_times
+    if correlation.paired and n != 2:
+        raise ValueError(f"correlation={correlation.mode!r} pairs two times (n_times=2), got n_times={n}")
     if spp % n:
         raise ValueError(f"spp={spp} must be a multiple of the {n} correlated times per group ({time_sampling.method})")
 
@@ -183,6 +191,11 @@ def render(
     spp_pass = max(n, min(spp, (lanes_per_pass // n_pixels) // n * n))
     channels = 3 if _is_rgb() else 1
     acc = _Accumulator(n_pixels, len(cameras), channels)
+    roughness = None
+    if correlation.paired:
+        from .paired import roughness_table, trace_pair
+
+        roughness = roughness_table(scene)
 
     bar = None
     if progress:
@@ -206,8 +219,12 @@ def render(
                 exposure_s=float(exposure),
                 seed=int(seed),
             )
-            out = trace(scene, setup, cameras, time_sampling, correlation, max_depth, rr_depth, hide_emitters)
-            _accumulate_pass(acc, out, n, this_pass, channels)
+            if correlation.paired:  # one lane per pair, holding the pair's mean
+                out = trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth, hide_emitters, roughness)
+                _accumulate_pass(acc, out, 1, this_pass // n, this_pass, channels)
+            else:
+                out = trace(scene, setup, cameras, time_sampling, correlation, max_depth, rr_depth, hide_emitters)
+                _accumulate_pass(acc, out, n, this_pass, this_pass, channels)
             done += this_pass
             if bar is not None:
                 bar.update(this_pass)
@@ -226,6 +243,9 @@ def render(
         stratify_intervals=time_sampling.stratify_intervals,
         correlation=correlation.mode,
         correlation_depth=correlation.depth,
+        reconnection_threshold=correlation.threshold,
+        rr_depth=rr_depth,
+        hide_emitters=hide_emitters,
         exposure=exposure,
         exposure_start=exposure_start,
     )
@@ -238,10 +258,11 @@ def _is_rgb():
     return mi.is_rgb
 
 
-def _accumulate_pass(acc, out, n, this_pass, channels):
+def _accumulate_pass(acc, out, n, lanes_per_pixel, samples_per_pixel, channels):
+    """Add one pass: ``n`` consecutive lanes form an independent unit (their mean)."""
     import drjit as dr
 
-    per_pixel = this_pass // n
+    per_pixel = lanes_per_pixel // n
     # One kernel traces every output; the block reductions below would otherwise each
     # re-run the whole path tracer for their own input (DESIGN §3.3).
     dr.eval(out["intensity"], out["measurements"], out["hit"], out["depth"], out["velocity"], out["point_velocity"])
@@ -252,7 +273,7 @@ def _accumulate_pass(acc, out, n, this_pass, channels):
     for m in out["measurements"]:
         parts.extend(_block_moments(m, n, per_pixel))
     hit = out["hit"]
-    gts = [dr.block_sum(hit, this_pass)] + [dr.block_sum(out[k] * hit, this_pass) for k in ("depth", "velocity", "point_velocity")]
+    gts = [dr.block_sum(hit, lanes_per_pixel)] + [dr.block_sum(out[k] * hit, lanes_per_pixel) for k in ("depth", "velocity", "point_velocity")]
     parts.extend(gts)
     dr.eval(parts)
     arrays = [np.asarray(p.numpy(), dtype=np.float64) for p in parts]
@@ -268,7 +289,7 @@ def _accumulate_pass(acc, out, n, this_pass, channels):
     for j in range(4):
         acc.gt[j] += arrays[k + j]
     acc.units += per_pixel
-    acc.samples += this_pass
+    acc.samples += samples_per_pixel
 
 
 def _mean_and_stderr(total, total_sq, units):

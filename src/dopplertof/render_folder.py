@@ -19,15 +19,13 @@ file                              content
 
 Reconstruction method
 ---------------------
-``method=None`` (the default) uses ``"fit"`` when every camera is sinusoidal (it also
-takes a single homodyne/heterodyne pair), else ``"auto"``. The fit is preferred over the
-homodyne/heterodyne ratio because the ratio's |H|-weighted multi-phase fusion assumes the
-path radiance is constant during the exposure: a box moving 1.5 cm closer in the Cornell
-box brightens by ε ≈ 0.5 % (1/d²), which shifts the heterodyne image by ~ε sin θ / 2π, a
-quarter of the Doppler signal, and the reconstructed short box reads ~22 % slow even on
-direct light. The fit (like a ratio of
-the two quadratures, Σ E_i H_i / Σ H_i²) sees that change as orthogonal to the Doppler
-term and recovers the box to 0.1 %.
+``method=None`` (the default) is ``"auto"`` of :func:`dopplertof.reconstruct.velocity`:
+the homodyne/heterodyne ratio when the cameras are matched h = 0 / h = 1 pairs, else the
+per-pixel fit. With phases in quadrature (ψ = 0 and 90°, or four phases) both are
+insensitive, to first order, to a radiance that changes during the exposure (a box
+moving 1.5 cm closer in the Cornell box brightens by ≈ 0.5 %, 1/d²): the ratio fuses the
+phases as Σ E_i H_i / Σ H_i², to which a linear brightness change is orthogonal (see
+:mod:`dopplertof.reconstruct`).
 """
 
 from __future__ import annotations
@@ -55,12 +53,12 @@ def resolve_method(cameras, method: str | None = None) -> str:
     ----------
     cameras : sequence of :class:`Camera`
     method : {None, "auto", "ratio", "fit"}
-        None: ``"fit"`` if all cameras are sinusoidal, else ``"auto"`` (module docstring).
+        None is ``"auto"`` (module docstring).
 
     Returns
     -------
     str
-        The method to pass to :func:`dopplertof.reconstruct.velocity`.
+        ``"ratio"`` or ``"fit"``: the method :func:`dopplertof.reconstruct.velocity` uses.
 
     Raises
     ------
@@ -72,13 +70,10 @@ def resolve_method(cameras, method: str | None = None) -> str:
     cameras = list(cameras)
     if not cameras:
         raise ValueError("no cameras: velocity reconstruction needs D-ToF measurements (e.g. h=0 and h=1 at psi=0 and 90deg)")
-    if method is None:
-        method = "fit" if all(c.waveform == "sinusoidal" for c in cameras) else "auto"
     # The estimators check the camera set before they look at the data: zeros find every
     # set that cannot work without spending a render on it.
     with np.errstate(all="ignore"):
-        rc.velocity(np.zeros((len(cameras), 1, 1)), cameras, method=method)
-    return method
+        return rc.velocity(np.zeros((len(cameras), 1, 1)), cameras, method=method or "auto").method
 
 
 def reconstruct(measurements, cameras, method: str | None = None) -> rc.VelocityResult:
@@ -251,7 +246,7 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
 @click.argument("folder")
 @click.option("-o", "--output", default=None, help="Output folder (default: FOLDER).")
 @click.option("--method", type=click.Choice(["auto", "ratio", "fit"]), default=None,
-              help="Estimator (default: fit for sinusoidal cameras, else auto).")
+              help="Estimator (default: auto, the ratio for matched h=0/h=1 pairs, else the fit).")
 def reconstruct_command(folder, output, method):
     """Reconstruct radial velocity (and depth) from the measurements in FOLDER, the output of 'dopplertof render'."""
     from .cli import _fail

@@ -33,7 +33,7 @@ TIME_QUANTUM = 2.0**-23
 def validate(method: str, n_times: int, shift: float) -> None:
     """Raise ValueError for an unknown method or inconsistent parameters."""
     if method not in METHODS:
-        raise ValueError(f"unknown time sampling {method!r}; choose one of {', '.join(METHODS)} (or 'analytic')")
+        raise ValueError(f"unknown time sampling {method!r}; choose one of {', '.join(METHODS)}")
     if not isinstance(n_times, int) or n_times < 1:
         raise ValueError(f"n_times must be a positive integer, got {n_times!r}")
     if method == "antithetic_mirror" and n_times != 2:

@@ -3,8 +3,10 @@
 A *reference* is a high-spp render with the best estimator (antithetic times, replayed
 paths). It is stored in a cache folder under a key that hashes everything that determines
 its pixels: the scene (built-in name and builder arguments, or the XML file's bytes), the
-film size, the cameras, spp, seed, every render setting, the Mitsuba variant and the package
-version. A rerun with the same key loads it instead of rendering it again.
+film size, the cameras, spp, seed, every render setting, the Mitsuba variant, the package
+version and a hash of the package's rendering source files (:func:`rendering_source_digest`:
+the renderer changes between versions too). A rerun with the same key loads it instead of
+rendering it again.
 """
 
 from __future__ import annotations
@@ -172,6 +174,35 @@ def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int
 # ---------------------------------------------------------------------------------- cache
 
 
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
+"""The ``dopplertof`` package folder."""
+
+_NOT_RENDERING = {"cli.py", "animate.py", "render_folder.py", "viz.py", "io.py", "reconstruct.py", "sensor.py"}
+"""Package modules that only read, post-process or show renders; with the ``experiments``
+subpackage they cannot change a render's pixels. Everything else (integrator, render, scene,
+motion, modulation, time sampling, correlation, loader, scenes, and any new module) can."""
+
+
+def rendering_source_files(package_dir: Path = PACKAGE_DIR) -> list[Path]:
+    """The package's ``*.py`` files that can change a render, sorted by relative path."""
+    package_dir = Path(package_dir)
+    relative = {path: path.relative_to(package_dir) for path in package_dir.rglob("*.py")}
+    kept = [path for path, rel in relative.items() if rel.as_posix() not in _NOT_RENDERING and rel.parts[0] != "experiments"]
+    return sorted(kept, key=lambda path: relative[path].as_posix())
+
+
+def rendering_source_digest(package_dir: Path = PACKAGE_DIR) -> str:
+    """SHA-256 (hex) over the relative paths and bytes of :func:`rendering_source_files`."""
+    digest = hashlib.sha256()
+    for path in rendering_source_files(package_dir):
+        name = path.relative_to(package_dir).as_posix().encode()
+        content = path.read_bytes()
+        # lengths first: no two file sets hash the same concatenation
+        digest.update(b"%d:%s%d:" % (len(name), name, len(content)))
+        digest.update(content)
+    return digest.hexdigest()
+
+
 def default_cache_dir() -> Path:
     """``$DOPPLERTOF_CACHE``, else ``$XDG_CACHE_HOME/dopplertof/references`` (``~/.cache``)."""
     if os.environ.get(CACHE_ENV_VAR):
@@ -206,6 +237,7 @@ class ReferenceCache:
             "correlation": dataclasses.asdict(settings["correlation"]),
             "variant": mi.variant(),
             "version": __version__,
+            "source": rendering_source_digest(),
         }
         return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()
 
