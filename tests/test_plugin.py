@@ -53,8 +53,8 @@ def test_unknown_or_mistyped_parameter_is_a_clear_error():
         mi.load_dict({"type": "dopplertofpath", "max_depth": 2.5})
     with pytest.raises(ValueError, match=r"scene.xml: 'low_frequency_component_only' must be a boolean, got 'yes'"):
         render_settings({"low_frequency_component_only": "yes"}, "scene.xml")
-    with pytest.raises(ValueError, match=r"^integrator: unknown time sampling 'analytic'"):
-        render_settings({"time_sampling_method": "analytic"})
+    with pytest.raises(ValueError, match=r"^integrator: unknown time sampling 'mirror'"):
+        render_settings({"time_sampling_method": "mirror"})
     with pytest.raises(ValueError, match=r"give either 'exposure' or 'time', not both"):
         render_settings({"time": 1e-3, "exposure": 1e-3})
 

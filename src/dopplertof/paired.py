@@ -28,6 +28,14 @@ path ends at ``max_depth``. Sphere emitters, which Mitsuba samples by solid angl
 one case where a shared light sample does not map to the same light point.
 
 The pair's sum of weighted contributions is one unbiased unit of the exposure average.
+
+**Analytic mode** (``time_sampling="analytic"``, the original's M06 mode, biased): P1 at
+the start of the exposure and its partner (replay or reconnection) at the end, no role
+swap. Each emitter contribution X and path length L are taken as linear in time between
+the two, and the low-pass sinusoid is integrated in closed form,
+(g₁/2)∫₀¹ cos(2πhu + ψ + kL(u))·X(u) du, with ψ included (the original omits it). Where
+the partner has no matching contribution, X is held constant. Only for low-pass sinusoid
+cameras. Biased wherever L or X are not linear in time (occlusion changes, rotations).
 """
 
 from __future__ import annotations
@@ -38,6 +46,7 @@ import drjit as dr
 import mitsuba as mi
 
 from . import modulation, timesampling
+from .modulation import TWO_PI
 from .integrator import (
     _STREAM_OWN,
     _STREAM_PERM,
@@ -111,6 +120,19 @@ def _light_geometry(si, ds):
     return dr.select(ds.delta | ~dr.isfinite(g) | (g <= 0), 1.0, g)
 
 
+def _analytic_integral(cam, length1_m, length2_m, x1, x2):
+    """(g₁/2)∫₀¹ cos(a u + b)(x1 + (x2 − x1)u) du, a = 2πh + k(L2 − L1), b = ψ + kL1 (Float64)."""
+    a = TWO_PI * cam.heterodyne + cam.wavenumber * (length2_m - length1_m)
+    b = modulation.wrap_phase(cam.phase + cam.wavenumber * length1_m)
+    sin_b, cos_b = dr.sincos(b)
+    sin_ab, cos_ab = dr.sincos(a + b)
+    small = dr.abs(a) < 1e-4
+    a_safe = dr.select(small, 1.0, a)
+    constant = dr.select(small, cos_b - 0.5 * a * sin_b, (sin_ab - sin_b) / a_safe)  # ∫cos
+    linear = dr.select(small, 0.5 * cos_b - a * sin_b / 3.0, sin_ab / a_safe + (cos_ab - cos_b) / dr.square(a_safe))  # ∫u cos
+    return 0.5 * cam.g1 * (x1 * constant + (x2 - x1) * linear)
+
+
 @dr.syntax
 def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, hide_emitters=False, roughness=None):
     """Trace one pass of pairs; same outputs as :func:`dopplertof.integrator.trace`, one
@@ -130,10 +152,13 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
         perm_seed = mi.sample_tea_32(seed ^ _STREAM_PERM, pixel * 2 + member, 4)[0]
         n_groups = max(setup.spp_total // 2, 1)
         args = (r_time_shared, r_own, group, mi.UInt32(member), n_groups, 2, time_sampling.shift, time_sampling.stratify_intervals, perm_seed)
-        times.append(timesampling.sample_times(time_sampling.method, *args))
+        times.append(timesampling.sample_times(time_sampling.method if time_sampling.method in timesampling.METHODS else "uniform", *args))
     swap = rng.next_float32() < 0.5  # which member is primal: a fair coin (module docstring)
     u1 = dr.select(swap, times[1], times[0])
     u2 = dr.select(swap, times[0], times[1])
+    analytic = time_sampling.method == timesampling.ANALYTIC
+    if analytic:  # the exposure's ends, P1 first
+        u1, u2 = mi.Float64(0.0), mi.Float64(1.0)
     time1 = mi.Float64(setup.exposure_start_s) + u1 * setup.exposure_s
     time2 = mi.Float64(setup.exposure_start_s) + u2 * setup.exposure_s
     poses1, poses2 = scene.poses(time1), scene.poses(time2)
@@ -153,7 +178,7 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
 
     if roughness is None:
         roughness = roughness_table(scene)
-    threshold = mi.Float(0.0 if correlation.mode == "reconnection" else correlation.threshold)
+    threshold = mi.Float({"reconnection": 0.0, "adaptive": correlation.threshold}.get(correlation.mode, math.inf))
     dr.make_opaque(threshold)
     bsdf_ctx = mi.BSDFContext()
     static = scene.static
@@ -174,6 +199,11 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
     prev_delta1, prev_delta2 = mi.Bool(True), mi.Bool(True)
     radiance = mi.Spectrum(0)
     measurements = [mi.Float(0) for _ in cameras]
+    # Which techniques a member's estimate combines: both roles (MIS), or in analytic mode
+    # P1 as primal only and P2 as shifted only (two estimates at the exposure's ends).
+    own_coef = (1.0, 0.0) if analytic else (1.0, 1.0)
+    shift_coef = (0.0, 1.0) if analytic else (1.0, 1.0)
+    lanes_ops = [modulation._OpaqueCamera(c) for c in cameras] if analytic else []
     active1 = mi.Bool(True)  # P1's ray was traced: its hit (or escape) is to be shaded
     active2 = mi.Bool(True)  # the same for P2, which also needs P1 alive
 
@@ -181,7 +211,7 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
         active1,
         label="dopplertof paired path",
         max_iterations=-1,
-        exclude=[scene, correlation, bank1, bank2, poses1, poses2, poses1_64, poses2_64, static, bsdf_ctx, roughness, threshold, cameras],
+        exclude=[scene, correlation, bank1, bank2, poses1, poses2, poses1_64, poses2_64, static, bsdf_ctx, roughness, threshold, cameras, analytic, own_coef, shift_coef, lanes_ops],
     ):
         active2 &= active1
         valid1 = active1 & si1.is_valid()
@@ -189,10 +219,10 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
 
         # ---------------------------------------------------- emitter hit
         contributions = []
-        for si, act, prev_p, prev_pdf, prev_shift, prev_r, prev_delta, beta, length in (
+        for member, (si, act, prev_p, prev_pdf, prev_shift, prev_r, prev_delta, beta, length) in enumerate((
             (si1, active1, prev_p1, prev_pdf1, prev_shift1, prev_r1, prev_delta1, beta1, length1),
             (si2, active2, prev_p2, prev_pdf2, prev_shift2, prev_r2, prev_delta2, beta2, length2),
-        ):
+        )):
             emitter = si.emitter(static)
             visible = act & (emitter != None)  # noqa: E711 - Dr.Jit pointer test
             if dr.hint(hide_emitters, mode="scalar"):
@@ -201,7 +231,7 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
             prev_it.p = prev_p
             ds = mi.DirectionSample3f(static, si, prev_it)
             light_pdf = dr.select(prev_delta | (depth == 0), 0.0, static.pdf_emitter_direction(prev_it, ds, ~prev_delta))
-            denominator = (prev_pdf + light_pdf) + prev_r * (prev_shift + light_pdf)
+            denominator = own_coef[member] * (prev_pdf + light_pdf) + shift_coef[member] * prev_r * (prev_shift + light_pdf)
             le = emitter.eval(si, visible)
             weight = dr.select(denominator > 0, prev_pdf / denominator, 0.0)
             contributions.append((beta * le * weight, dr.select(si.is_valid(), length, length + 1e6), visible))
@@ -228,17 +258,30 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
         (ds1, emw1, val1, pdf1, g1, act_em1, xe1), (ds2, emw2, val2, pdf2, g2, act_em2, xe2) = nee
         shift_pdf1 = dr.select(reconnect, pdf2 * g2 / g1, pdf1)
         shift_pdf2 = dr.select(reconnect, pdf1 * g1 / g2, pdf2)
-        for (ds, emw, val, pdf, shift_pdf, r, beta, length, x, act) in (
+        for member, (ds, emw, val, pdf, shift_pdf, r, beta, length, x, act) in enumerate((
             (ds1, emw1, val1, pdf1, shift_pdf1, r1_here, beta1, length1, xe1, act_em1),
             (ds2, emw2, val2, pdf2, shift_pdf2, r2, beta2, length2, xe2, act_em2 & valid2),
-        ):
+        )):
             light_pdf = dr.select(ds.delta, 1.0, ds.pdf)
-            denominator = (light_pdf + pdf) + r * (light_pdf + shift_pdf)
+            denominator = own_coef[member] * (light_pdf + pdf) + shift_coef[member] * r * (light_pdf + shift_pdf)
             weight = dr.select(denominator > 0, light_pdf / denominator, 0.0)
             contributions.append((beta * val * emw * weight, length + dr.norm(mi.Vector3d(ds.p) - x), act))
 
-        # ---------------------------------------------------- accumulate (each member at its own time)
-        for k, (contrib, length, mask) in enumerate(contributions):
+        # ---------------------------------------------------- accumulate
+        if dr.hint(analytic, mode="scalar"):  # pairs (P1, P2): emitter hits, then NEE
+            for k in (0, 2):
+                (x1c, l1c, m1c), (x2c, l2c, m2c) = contributions[k], contributions[k + 1]
+                both = m1c & m2c
+                x2c = dr.select(both, x2c, x1c)  # no partner value: hold X constant
+                l2c = dr.select(both, l2c, l1c)
+                radiance = dr.select(m1c, radiance + 0.5 * (x1c + x2c), radiance)
+                lum1 = mi.luminance(x1c) if mi.is_rgb else x1c[0]
+                lum2 = mi.luminance(x2c) if mi.is_rgb else x2c[0]
+                for i in range(len(lanes_ops)):
+                    w = _analytic_integral(lanes_ops[i], l1c, l2c, mi.Float64(lum1), mi.Float64(lum2))
+                    measurements[i] = dr.select(m1c, measurements[i] + mi.Float(w), measurements[i])
+            contributions = []
+        for k, (contrib, length, mask) in enumerate(contributions):  # each member at its own time
             radiance = dr.select(mask, radiance + contrib, radiance)
             if dr.hint(len(cameras) > 0, mode="scalar"):
                 lum = mi.luminance(contrib) if mi.is_rgb else contrib[0]

@@ -134,7 +134,9 @@ def render(
     seed : int. Same seed, same image, whatever the pass split.
     max_depth, rr_depth : int. Path depth (Mitsuba semantics) and Russian-roulette start.
     time_sampling : str or :class:`TimeSampling`. ``uniform``, ``stratified``,
-        ``antithetic`` (default) or ``antithetic_mirror``.
+        ``antithetic`` (default), ``antithetic_mirror``, or ``analytic`` (biased closed-form
+        integration between the exposure's ends, low-pass sinusoid only; see
+        :mod:`dopplertof.paired`).
     correlation : str or :class:`Correlation`. ``none``, ``pixel``, ``replay`` (default),
         ``reconnection`` or ``adaptive`` (the last two trace primal and partner together,
         :mod:`dopplertof.paired`; they need pairs of times, ``n_times = 2``, and use no
@@ -180,6 +182,13 @@ def render(
             n_times = 1  # independent times need no grouping
         time_sampling = TimeSampling(time_sampling, n_times, antithetic_shift, stratify_intervals)
     n = time_sampling.n_times
+    paired = correlation.paired or time_sampling.method == "analytic"
+    if time_sampling.method == "analytic":
+        if correlation.mode not in ("replay", "reconnection", "adaptive") or correlation.depth is not None:
+            raise ValueError(f"analytic time integration needs a fully correlated partner (replay, reconnection or adaptive), got {correlation.mode!r}")
+        bad = [c.label() for c in cameras if not (c.low_pass and c.waveform == "sinusoidal")]
+        if bad:
+            raise ValueError(f"analytic time integration is implemented for the low-pass sinusoid only; cameras {', '.join(bad)} are not")
     if correlation.paired and n != 2:
         raise ValueError(f"correlation={correlation.mode!r} pairs two times (n_times=2), got n_times={n}")
     if spp % n:
@@ -192,7 +201,7 @@ def render(
     channels = 3 if _is_rgb() else 1
     acc = _Accumulator(n_pixels, len(cameras), channels)
     roughness = None
-    if correlation.paired:
+    if paired:
         from .paired import roughness_table, trace_pair
 
         roughness = roughness_table(scene)
@@ -219,7 +228,7 @@ def render(
                 exposure_s=float(exposure),
                 seed=int(seed),
             )
-            if correlation.paired:  # one lane per pair, holding the pair's mean
+            if paired:  # one lane per pair, holding the pair's mean
                 out = trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth, hide_emitters, roughness)
                 _accumulate_pass(acc, out, 1, this_pass // n, this_pass, channels)
             else:

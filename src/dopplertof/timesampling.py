@@ -19,6 +19,8 @@ name                   times of the members of a group
                        frac(r + m/N) for N > 2; r = (g + r_shared)/G with
                        ``stratify_intervals`` else r_shared
 ``antithetic_mirror``  N = 2: u_0 = r, u_1 = frac(1 − r + a)
+``analytic``           N = 2: u_0 = 0, u_1 = 1, integrated in closed form between them
+                       (:mod:`dopplertof.paired`; biased)
 =====================  ==============================================================
 
 Times are rounded down to multiples of 2⁻²³ so that u + ½ is exact (DESIGN §3.5).
@@ -27,18 +29,19 @@ Times are rounded down to multiples of 2⁻²³ so that u + ½ is exact (DESIGN 
 from __future__ import annotations
 
 METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
+ANALYTIC = "analytic"  # not a sampling method: the biased closed-form mode
 TIME_QUANTUM = 2.0**-23
 
 
 def validate(method: str, n_times: int, shift: float) -> None:
     """Raise ValueError for an unknown method or inconsistent parameters."""
-    if method not in METHODS:
-        raise ValueError(f"unknown time sampling {method!r}; choose one of {', '.join(METHODS)}")
+    if method not in METHODS + (ANALYTIC,):
+        raise ValueError(f"unknown time sampling {method!r}; choose one of {', '.join(METHODS + (ANALYTIC,))}")
     if not isinstance(n_times, int) or n_times < 1:
         raise ValueError(f"n_times must be a positive integer, got {n_times!r}")
-    if method == "antithetic_mirror" and n_times != 2:
-        raise ValueError(f"antithetic_mirror pairs exactly 2 times, got n_times={n_times}")
-    if method in ("antithetic", "antithetic_mirror") and n_times < 2:
+    if method in ("antithetic_mirror", ANALYTIC) and n_times != 2:
+        raise ValueError(f"{method} pairs exactly 2 times, got n_times={n_times}")
+    if method in ("antithetic", "antithetic_mirror", ANALYTIC) and n_times < 2:
         raise ValueError(f"{method} needs n_times >= 2, got {n_times}")
     if not (0.0 <= shift <= 1.0):
         raise ValueError(f"antithetic shift must be in [0, 1] (units of T), got {shift!r}")
