@@ -299,17 +299,21 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
         bs2, bsdf_weight2 = bsdf2.sample(bsdf_ctx, si2, sample_1, sample_2, valid2 & go_on)
 
         # ---------------------------------------------------- P2 by reconnection to P1's next vertex
-        reconnect &= next1 & hit1n.si.is_valid()
+        # An escaped P1 is reconnected at infinity: P2 leaves in the same world direction
+        # (Jacobian 1), so the shift stays its own inverse for paths that leave the scene.
+        reconnect &= next1
+        at_infinity = reconnect & ~hit1n.si.is_valid()
         pose2_target = scene.select_pose(poses2, hit1n.body)
         target2 = pose2_target.point_to_world(hit1n.p_local)
         origin2 = si2.spawn_ray_to(target2).o  # aim from the offset origin the ray will use
-        d2 = dr.normalize(target2 - origin2)
+        d2 = dr.select(at_infinity, ray1_next.d, dr.normalize(target2 - origin2))
         value_r, pdf_r = bsdf2.eval_pdf(bsdf_ctx, si2, si2.to_local(d2), reconnect)
-        ray2_next = dr.select(reconnect, mi.Ray3f(origin2, d2), si2.spawn_ray(si2.to_world(bs2.wo)))
+        ray2_next = dr.select(reconnect & ~at_infinity, mi.Ray3f(origin2, d2), si2.spawn_ray(dr.select(reconnect, d2, si2.to_world(bs2.wo))))
         next2 = valid2 & go_on & dr.select(reconnect, pdf_r > 0, bs2.pdf > 0)
         hit2n = scene.intersect(ray2_next, time2, next2, poses=poses2)
         expected = dr.norm(target2 - ray2_next.o)
         landed = hit2n.si.is_valid() & (hit2n.body == hit1n.body) & (dr.abs(hit2n.si.t - expected) <= 1e-4 * expected + 1e-5)
+        landed = dr.select(at_infinity, ~hit2n.si.is_valid(), landed)
         next2 &= ~reconnect | landed
 
         # ---------------------------------------------------- Float64 vertices and Jacobians
@@ -319,12 +323,13 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
         p_local64 = mi.Vector3d(hit1n.p_local)
         x1r = scene.select_pose(poses1_64, hit1n.body).point_to_world(p_local64)
         x2r = scene.select_pose(poses2_64, hit1n.body).point_to_world(p_local64)
-        x1n = dr.select(reconnect, x1r, x1n)
-        x2n = dr.select(reconnect, x2r, x2n)
-        t1n = dr.select(reconnect, dr.norm(x1r - x1), t1n)
-        t2n = dr.select(reconnect, dr.norm(x2r - x2), t2n)
-        g1n = _geometry_term(si1.p, hit1n.si.p, hit1n.si.n)
-        g2n = _geometry_term(si2.p, hit2n.si.p, hit2n.si.n)
+        at_point = reconnect & ~at_infinity
+        x1n = dr.select(at_point, x1r, x1n)
+        x2n = dr.select(at_point, x2r, x2n)
+        t1n = dr.select(at_point, dr.norm(x1r - x1), t1n)
+        t2n = dr.select(at_point, dr.norm(x2r - x2), t2n)
+        g1n = dr.select(at_infinity, 1.0, _geometry_term(si1.p, hit1n.si.p, hit1n.si.n))
+        g2n = dr.select(at_infinity, 1.0, _geometry_term(si2.p, hit2n.si.p, hit2n.si.n))
         own_pdf2 = dr.select(reconnect, pdf_r, bs2.pdf)
         shift_n1 = dr.select(next2, dr.select(reconnect, pdf_r * g2n / g1n, bs1.pdf), 0.0)
         shift_n2 = dr.select(reconnect, bs1.pdf * g1n / g2n, bs2.pdf)
