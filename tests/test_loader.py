@@ -323,3 +323,71 @@ def test_relative_paths_do_not_depend_on_the_working_directory(data_dir, monkeyp
     monkeypatch.chdir(os.path.dirname(data_dir))
     scene = dt.load_scene(os.path.join("data", "original_cornell.xml"), res=8)
     assert scene.resolution == (8, 8)
+
+
+def test_dict_shapes_sharing_a_motion_form_one_body():
+    keys = [(0.0, T().translate([0, 0, 0])), (1e-3, T().translate([0, 0, 1]))]
+    same_keys = [(0.0, np.eye(4)), (1e-3, translate(z=1))]  # the same keys in another form
+    spin = {"type": "parametric", "angular_velocity": [0, 50, 0], "pivot": [0, 0, 0]}
+    scene = dt.load_scene(
+        dict_scene(
+            a={"type": "sphere", "motion": {"type": "keyframes", "keys": keys}},
+            b={"type": "cube", "motion": {"type": "keyframes", "keys": same_keys}},
+            c={"type": "sphere", "motion": {"type": "keyframes", "keys": keys[:1]}},
+            d={"type": "sphere", "to_world": T().translate([1, 0, 0]), "motion": dict(spin)},
+            e={"type": "cube", "to_world": T().translate([-1, 0, 0]).scale(0.2), "motion": dict(spin)},
+            f={"type": "sphere", "center": [0, 1, 0], "motion": dict(spin)},
+            g={"type": "sphere", "motion": {**spin, "pivot": [0, 0, 1]}},
+        )
+    )
+    assert [b.name for b in scene.bodies] == ["a, b", "c", "d, e, f", "g"]
+    assert [len(b.scene.shapes()) for b in scene.bodies] == [2, 1, 3, 1]
+
+
+def test_rotating_scene_is_one_body():
+    """The merry-go-round's platform and riders share one spin: one body."""
+    scene = dt.scenes.rotating(resolution=8)
+    assert len(scene.bodies) == 1
+    assert len(scene.bodies[0].scene.shapes()) == 6
+
+
+def test_shapes_placed_differently_move_together_as_placed():
+    """Shapes sharing a parametric motion but not their to_world keep it in the body's
+    frame: each is where its own to_world and the motion put it, as if loaded alone."""
+    spin = {"type": "parametric", "linear_velocity": [0.0, 0.0, 300.0], "angular_velocity": [0, 900.0, 0], "pivot": [0.2, 0, 0]}
+    placements = {
+        "left": T().translate([-0.8, 0, 0]) @ T().rotate([1, 1, 0], 30) @ T().scale([0.3, 0.5, 0.3]),
+        "right": T().translate([0.8, 0.1, 0]) @ T().scale(0.4),
+    }
+    as_given = {"left": placements["left"], "right": np.array(placements["right"].matrix)}  # both forms of to_world
+    grouped = dt.load_scene(dict_scene(**{k: {"type": "cube", "to_world": m, "motion": dict(spin)} for k, m in as_given.items()}))
+    assert len(grouped.bodies) == 1
+    grouped.set_time_window(0.0, 2e-3)
+    motion = dt.load_scene(dict_scene(x={"type": "cube", "motion": dict(spin)})).bodies[0].motion
+    rng = np.random.default_rng(9)
+    n = 3000
+    origins = np.stack([rng.uniform(-1.5, 1.5, n), rng.uniform(-0.8, 0.8, n), np.full(n, 4.0)], axis=1).astype(np.float32)
+    times = rng.choice([0.0, 0.7e-3, 1.3e-3, 2e-3], n)
+    hit = grouped.intersect(mi.Ray3f(mi.Point3f(*origins.T), mi.Vector3f(0, 0, -1)), mi.Float64(times))
+    t_ours = np.asarray(hit.si.t, dtype=np.float64)
+    t_ref = np.empty(n)
+    for t in np.unique(times):  # the shapes alone in stock scenes, baked at M(t) · to_world
+        at = times == t
+        baked = mi.load_dict({"type": "scene", **{k: {"type": "cube", "to_world": T(motion.matrix(t).tolist()) @ m} for k, m in placements.items()}})
+        ref = baked.ray_intersect(mi.Ray3f(mi.Point3f(*origins[at].T), mi.Vector3f(0, 0, -1)))
+        t_ref[at] = np.asarray(ref.t)
+    assert 0.2 < np.isfinite(t_ref).mean() < 0.8
+    np.testing.assert_array_equal(np.isfinite(t_ours), np.isfinite(t_ref))
+    hit_both = np.isfinite(t_ref)
+    np.testing.assert_allclose(t_ours[hit_both], t_ref[hit_both], atol=1e-4)
+
+
+def test_a_sheared_to_world_stays_with_the_shape():
+    """A parametric motion's base must be rigid·scale; a sheared to_world (fine for a
+    Mitsuba shape) stays on the shape, the motion acting on top of it."""
+    shear = np.eye(4)
+    shear[0, 1] = 0.5
+    scene = dt.load_scene(dict_scene(box={"type": "cube", "to_world": shear, "motion": {"type": "parametric", "linear_velocity": [0, 0, 1]}}))
+    (body,) = scene.bodies
+    np.testing.assert_array_equal(body.motion.base, np.eye(4))
+    np.testing.assert_allclose(body.bounds_local[1], [1.5, 1.0, 1.0], atol=1e-6)  # x + 0.5 y at the corner

@@ -165,6 +165,58 @@ def test_keyframed_pose_matches_the_reference_per_lane(three_keys, keyframed, pr
         np.testing.assert_allclose(xl[i], apply(np.linalg.inv(m), p_world[i]), rtol=rtol, atol=10 * atol, err_msg=f"t={t}")
 
 
+def test_keyframed_pose_with_many_unevenly_spaced_keys_matches_the_reference():
+    """The key interval is found per lane among 50 keys: every interval, the keys
+    themselves and times outside the key range."""
+    rng = np.random.default_rng(11)
+    n = 50
+    times = np.cumsum(rng.uniform(0.01e-3, 1.0e-3, n)) + 0.5e-3  # gaps vary 100-fold
+    rotations = [rodrigues([0, 0, 1], 0.2)]
+    for _ in range(n - 1):  # < π per interval: slerp and the reference take the same arc
+        rotations.append(rodrigues(rng.normal(size=3), rng.uniform(0.1, 2.5)) @ rotations[-1])
+    ref = RefKeys(times, rng.uniform(-1, 1, (n, 3)), rotations, rng.uniform(0.5, 2.0, (n, 3)))
+    motion = Keyframed(ref.times, ref.matrices())
+    lane_times = np.concatenate(
+        [times, 0.5 * (times[1:] + times[:-1]), rng.uniform(times[0] - 1e-3, times[-1] + 1e-3, 200), [times[0] - 1.0, times[-1] + 1.0]]
+    )
+    x_local = rng.uniform(-1, 1, (len(lane_times), 3))
+    for precise, tol in [(True, 1e-9), (False, 2e-5)]:
+        xw, _, _ = pose_arrays(motion.pose(mi.Float64(lane_times), precise), x_local, x_local, precise)
+        expected = np.array([apply(ref.matrix(t), x) for t, x in zip(lane_times, x_local)])
+        np.testing.assert_allclose(xw, expected, rtol=tol, atol=tol, err_msg=f"precise={precise}")
+    # Velocity: the rate of the interval holding each lane's time, zero outside the keys.
+    mid = 0.5 * (times[1:] + times[:-1])
+    p_world = rng.uniform(-2, 2, (len(mid), 3))
+    _, _, vel = pose_arrays(motion.pose(mi.Float64(mid), True), p_world, p_world, True)
+    h = 1e-3 * np.diff(times).min()
+    expected = np.array([fd_velocity(ref.matrix, t, p, h) for t, p in zip(mid, p_world)])
+    np.testing.assert_allclose(vel, expected, rtol=1e-5, atol=1e-3 * np.abs(expected).max())
+
+
+def test_key_values_of_many_keys_do_not_change_the_kernel():
+    """Only the number of keys is part of the kernel: the search over other key times and
+    transforms launches the same kernel."""
+    rng = np.random.default_rng(12)
+    lane_times = mi.Float64(rng.uniform(-0.1, 1.1, 64))
+
+    def kernel_of(times):
+        mats = [trs(rng.uniform(-1, 1, 3), rodrigues(rng.normal(size=3), rng.uniform(0, 1)), rng.uniform(0.5, 2, 3)) for _ in times]
+        x = Keyframed(times, mats).pose(lane_times, True).point_to_world(mi.Point3d(0.1, 0.2, 0.3))
+        dr.kernel_history()  # clear
+        dr.eval(x)
+        return [k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
+
+    was = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        first = kernel_of(np.linspace(0.0, 1.0, 20))
+        assert first
+        assert kernel_of(np.sort(rng.uniform(0.0, 1.0, 20))) == first
+        assert kernel_of(np.linspace(0.0, 1.0, 21)) != first  # the check can tell kernels apart
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, was)
+
+
 def test_keyframed_velocity_equals_finite_differences_inside_segments(three_keys, keyframed):
     times = np.array([0.1e-3, 0.5e-3, 0.93e-3, 1.2e-3, 1.9e-3, 2.4e-3])
     rng = np.random.default_rng(1)
@@ -299,3 +351,28 @@ def test_parametric_rejects_bad_vectors():
         Parametric([0, 0, 0], [0, float("inf"), 0])
     assert Parametric().is_static()
     assert not Parametric([0, 0, 1e-3]).is_static()
+
+
+def test_swept_bounds_reach_the_extremes_at_keys_between_samples():
+    """A box that goes out and comes back turns at a key time that no uniform sample
+    hits: the bounds must still reach it there."""
+    turn = 0.37  # not a multiple of 1/64
+    at_x = [trs([x, 0, 0], np.eye(3), [1, 1, 1]) for x in (0.0, 1.0, 0.0)]
+    out_and_back = Keyframed([0.0, turn, 1.0], at_x)
+    bmin, bmax = out_and_back.swept_bounds([-0.5, -0.5, -0.5], [0.5, 0.5, 0.5], 0.0, 1.0, samples=65)
+    assert bmax[0] >= 1.5 and bmin[0] <= -0.5
+    assert bmax[0] < 1.5 + 1e-4 and np.all(np.abs(bmax[1:] - 0.5) < 1e-4), "and stay tight"
+
+
+@pytest.mark.parametrize("t0, t1", [(0.2e-3, 0.9e-3), (0.9e-3, 2.1e-3), (-0.5e-3, 0.1e-3)])
+def test_swept_bounds_over_part_of_the_key_range(three_keys, keyframed, t0, t1):
+    """Bounds over a window (crossing a key or not) contain the box at every time in it,
+    and are smaller than over the whole key range."""
+    lo, hi = np.array([-1.0, -1, -1]), np.array([1.0, 1, 1])
+    bmin, bmax = keyframed.swept_bounds(lo, hi, t0, t1)
+    full_min, full_max = keyframed.swept_bounds(lo, hi, 0.0, 2.5e-3)
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+    for t in np.linspace(t0, t1, 401):
+        pts = apply(three_keys.matrix(t), corners)
+        assert np.all(pts >= bmin) and np.all(pts <= bmax), f"t={t}"
+    assert np.prod(bmax - bmin) < 0.9 * np.prod(full_max - full_min)

@@ -677,3 +677,20 @@ def test_bad_light_kind():
     with pytest.raises(ValueError, match="light must be 'point' or 'area'") as info:
         dt.scenes.cornell_box(resolution=4, light="laser")
     _one_line(info)
+
+
+def test_another_exposure_window_reuses_the_kernels():
+    """Animation frames differ only in exposure_start: no recompilation per frame."""
+    scene = dt.scenes.cornell_box(resolution=8)
+    was = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        for correlation in ("replay", "adaptive"):
+            hashes = []
+            for start in (0.0, 1e-3, 2.5e-3):
+                dr.kernel_history()
+                dt.render(scene, [dt.Camera()], spp=4, correlation=correlation, exposure_start=start)
+                hashes.append([k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT])
+            assert hashes[1] and hashes[1] == hashes[2]
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, was)

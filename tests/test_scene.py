@@ -203,3 +203,93 @@ def test_poses_one_per_body(dyn):
         x = _np3(pose.point_to_world(mi.Point3d(0.1, 0.2, 0.3)))
         for i, t in enumerate([0.0, 1e-3]):
             np.testing.assert_allclose(x[i], _m(body.motion.matrix(t), np.array([[0.1, 0.2, 0.3]]))[0], atol=1e-10)
+
+
+# ----------------------------------------------------------------------------------------
+# Swept bounds fitted to the exposure window
+
+
+def _travelling_cube_scene(key_times):
+    """A half-metre cube at the origin that creeps 1 cm over the first key interval, then
+    travels to x = 10 m by the last key; a wall behind."""
+    start, creep, far = (T().translate([x, 0, 0]) @ T().scale(0.5) for x in (0.0, 0.01, 10.0))
+    keys = list(zip(key_times, (start, creep, far)))
+    return dt.load_scene(
+        {
+            "type": "scene",
+            "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 4, "height": 4}},
+            "wall": {"type": "rectangle", "to_world": T().translate([0, 0, -3]).scale(20)},
+            "cube": {"type": "cube", "motion": {"type": "keyframes", "keys": keys}},
+        }
+    )
+
+
+def _down_ray(x):
+    """Rays from z = 5 straight down −z at each of the x positions (m)."""
+    x = np.asarray(x, dtype=np.float32)
+    return mi.Ray3f(mi.Point3f(x, np.zeros_like(x), np.full_like(x, 5.0)), mi.Vector3f(0, 0, -1))
+
+
+def _box_hit(scene, ray):
+    body = scene.bodies[0]
+    return np.asarray(scene._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, mi.Float(np.inf)))
+
+
+def test_a_body_far_from_the_ray_during_the_window_is_skipped():
+    scene = _travelling_cube_scene((0.0, 1.0e-3, 1.0))
+    far = _down_ray([5.0])  # where the cube passes half a second later
+    # Without a window the bounds cover the whole key range: the far ray may meet the cube.
+    assert _box_hit(scene, far)[0]
+    assert np.asarray(scene.intersect(far, mi.Float64([0.5])).body)[0] == 1
+
+    scene.set_time_window(0.0, 1.0e-3)
+    assert not _box_hit(scene, far)[0], "the cube stays within 1 cm of the origin in the window"
+    assert _box_hit(scene, _down_ray([0.0]))[0]
+    # The far ray now skips the body: even at a time outside the window, when the cube is
+    # there, it sees the wall (rays' times must lie in the window).
+    assert np.asarray(scene.intersect(far, mi.Float64([0.5])).body)[0] == 0
+
+
+def test_the_time_window_leaves_hits_inside_it_unchanged():
+    scene = _travelling_cube_scene((0.0, 1.0e-3, 1.0))
+    rng = np.random.default_rng(8)
+    n = 2000
+    ray = _down_ray(rng.uniform(-0.7, 0.7, n))
+    ray.o.y = mi.Float(rng.uniform(-0.7, 0.7, n).astype(np.float32))
+    times = mi.Float64(rng.uniform(0.0, 1.0e-3, n))
+
+    def hits():
+        hit = scene.intersect(ray, times)
+        dr.eval(hit.si.t, hit.body)
+        return np.asarray(hit.si.t), np.asarray(hit.body)
+
+    whole_range = hits()
+    scene.set_time_window(0.0, 1.0e-3)
+    windowed = hits()
+    assert 0.2 < (whole_range[1] == 1).mean() < 0.9  # both the cube and the wall are hit
+    np.testing.assert_array_equal(windowed[0], whole_range[0])
+    np.testing.assert_array_equal(windowed[1], whole_range[1])
+
+
+@pytest.mark.parametrize("window, pose_x", [((0.0, 1.0e-3), 0.0), ((3.0, 3.001), 10.0)])
+def test_a_window_outside_the_keys_bounds_the_held_pose(window, pose_x):
+    """Before the first key the body holds its first pose, after the last its last: the
+    bounds are that pose's box, and rays in the window still hit the body there."""
+    scene = _travelling_cube_scene((1.0, 1.5, 2.0))
+    scene.set_time_window(*window)
+    body = scene.bodies[0]
+    lo = np.array([body.swept_min.x[0], body.swept_min.y[0], body.swept_min.z[0]])
+    hi = np.array([body.swept_max.x[0], body.swept_max.y[0], body.swept_max.z[0]])
+    np.testing.assert_allclose(lo, [pose_x - 0.5, -0.5, -0.5], atol=1e-4)
+    np.testing.assert_allclose(hi, [pose_x + 0.5, 0.5, 0.5], atol=1e-4)
+    ray = _down_ray([pose_x + 0.3])
+    hit = scene.intersect(ray, mi.Float64([window[1]]))
+    assert np.asarray(hit.body)[0] == 1
+    assert np.asarray(hit.si.t)[0] == pytest.approx(4.5, abs=1e-5)
+
+
+@pytest.mark.parametrize("window", [(1.0, 0.5), (0.0, float("inf")), (float("nan"), 1.0)])
+def test_bad_time_window(window):
+    scene = _travelling_cube_scene((0.0, 1.0e-3, 1.0))
+    with pytest.raises(ValueError, match="time window"):
+        scene.set_time_window(*window)

@@ -61,6 +61,15 @@ def _opaque_u32(v):
     return a
 
 
+def lane_times(setup, u):
+    """Scene times (s, Float64) of normalised times ``u``; the exposure is opaque data, so
+    another exposure window (an animation's next frame) reuses the kernel."""
+    start = mi.Float64(setup.exposure_start_s)
+    length = mi.Float64(setup.exposure_s)
+    dr.make_opaque(start, length)
+    return start + u * length
+
+
 def _next_1d(rng_shared, rng_own, correlated):
     """One uniform: the group's stream where ``correlated``, else the lane's own.
 
@@ -190,7 +199,7 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
         time_sampling.stratify_intervals,
         perm_seed,
     )
-    time_s = mi.Float64(setup.exposure_start_s) + u * setup.exposure_s
+    time_s = lane_times(setup, u)
     poses = scene.poses(time_s)
     poses64 = scene.poses(time_s, precise=True)
 

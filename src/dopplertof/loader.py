@@ -380,16 +380,19 @@ def _shared_placement_as_base(motion: Motion, members):
     shapes' own, where their geometry is smallest and Float32 hit points most precise.
     Returns ``(motion, [(key, shape dict)])``.
     """
+    import mitsuba as mi
+
     placements = [placement for _, _, placement in members]
     shared = placements[0] is not None and all(p is not None and np.array_equal(p, placements[0]) for p in placements)
     if isinstance(motion, Parametric) and shared:
         try:
             based = Parametric(motion.linear_velocity, motion.angular_velocity, motion.pivot, base=placements[0])
         except ValueError:  # sheared: a shape's to_world may be, a rigid motion's base may not
-            based = None
-        if based is not None:
+            pass
+        else:
             return based, [(key, {k: v for k, v in shape.items() if k != "to_world"}) for key, shape, _ in members]
-    return motion, [(key, shape) for key, shape, _ in members]
+    # Mitsuba takes a transform object, not the 4x4 arrays a motion's base may be given as.
+    return motion, [(key, shape if p is None else {**shape, "to_world": mi.ScalarTransform4d(p)}) for key, shape, p in members]
 
 
 def _load_dict(scene_dict: dict) -> DynamicScene:

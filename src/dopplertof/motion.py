@@ -208,16 +208,30 @@ class Motion:
     def is_static(self) -> bool:
         return False
 
+    def breakpoints(self, t0: float, t1: float) -> np.ndarray:
+        """Times (s) strictly inside (t0, t1) where the motion's velocity may jump."""
+        return np.empty(0)
+
     def swept_bounds(self, bbox_min, bbox_max, t0: float, t1: float, samples: int = 65):
-        """World-space AABB covering a local box over [t0, t1], padded for rotation."""
+        """World-space AABB covering a local box at every time in [t0, t1] s.
+
+        The box's corners are taken at ``samples`` times and at the breakpoints between
+        (where a keyframed path has corners, and its extremes). Between two of those times
+        a corner's path is smooth; its largest gap from the chord of the half interval,
+        measured at every midpoint, pads the box: about four times the gap left after
+        adding those midpoints (exactly so for the arc of a rotation).
+        """
         lo = np.asarray(bbox_min, dtype=np.float64)
         hi = np.asarray(bbox_max, dtype=np.float64)
         corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-        times = np.linspace(t0, t1, samples)
-        pts = np.concatenate([(self.matrix(t) @ corners.T).T[:, :3] for t in times])
-        # Between samples a rotating corner leaves the chord by at most r·(1 − cos(Δθ/2)):
-        # pad by the box diagonal times a generous fraction.
-        pad = 1e-3 * np.linalg.norm(hi - lo) + 1e-6 * (1 + np.abs(pts).max())
+        times = np.union1d(np.linspace(t0, t1, samples), self.breakpoints(t0, t1))
+        mids = 0.5 * (times[1:] + times[:-1])
+        at_times = np.array([(self.matrix(t) @ corners.T).T[:, :3] for t in times])  # (times, 8, 3)
+        at_mids = np.array([(self.matrix(t) @ corners.T).T[:, :3] for t in mids]).reshape(-1, 8, 3)
+        chord_gap = np.abs(at_mids - 0.5 * (at_times[1:] + at_times[:-1])).max(initial=0.0)
+        pts = np.concatenate([at_times, at_mids]).reshape(-1, 3)
+        # Float32 poses and ray tests round within a few ulps of the coordinates.
+        pad = chord_gap + 1e-6 * (1 + np.abs(pts).max())
         return pts.min(axis=0) - pad, pts.max(axis=0) + pad
 
 
@@ -259,6 +273,7 @@ class Keyframed(Motion):
             quats.append(p[1] if np.dot(p[1], quats[-1]) >= 0 else -p[1])
         self.quaternions = np.array(quats)
         self.scales = np.array([p[2] for p in parts])
+        self._axes, self._angles, self._durations = self._segments()
         self._upload()
 
     def _segments(self):
@@ -275,7 +290,7 @@ class Keyframed(Motion):
         return np.array(axes), np.array(angles), np.array(durations)
 
     def _upload(self):
-        axes, angles, durations = self._segments()
+        axes, angles, durations = self._axes, self._angles, self._durations
         n = len(self.times)
         nxt = np.minimum(np.arange(n) + 1, n - 1)
         self._key_times = _opaque_f64(self.times)
@@ -294,6 +309,9 @@ class Keyframed(Motion):
     def time_range(self):
         return float(self.times[0]), float(self.times[-1])
 
+    def breakpoints(self, t0, t1):
+        return self.times[(self.times > t0) & (self.times < t1)]
+
     def is_static(self):
         return len(self.times) == 1 or (
             np.allclose(self.translations, self.translations[0], atol=0)
@@ -309,9 +327,8 @@ class Keyframed(Motion):
             return compose(self.translations[-1], self.quaternions[-1], self.scales[-1])
         i = int(np.searchsorted(self.times, time_s, side="right") - 1)
         alpha = (time_s - self.times[i]) / (self.times[i + 1] - self.times[i])
-        axes, angles, _ = self._segments()
-        half = 0.5 * alpha * angles[i]
-        q = _quat_mul(np.array([np.cos(half), *(np.sin(half) * axes[i])]), self.quaternions[i])
+        half = 0.5 * alpha * self._angles[i]
+        q = _quat_mul(np.array([np.cos(half), *(np.sin(half) * self._axes[i])]), self.quaternions[i])
         b = (1 - alpha) * self.translations[i] + alpha * self.translations[i + 1]
         s = (1 - alpha) * self.scales[i] + alpha * self.scales[i + 1]
         return compose(b, q, s)
@@ -323,10 +340,14 @@ class Keyframed(Motion):
         d = self._data
         n = len(self.times)
         t = mi.Float64(time_s)
-        # Index of the segment holding t (clamped); the unrolled loop is over keys, not lanes.
-        idx = mi.UInt32(0)
-        for k in range(1, n - 1):
-            idx = dr.select(t >= dr.gather(mi.Float64, d["t"], k), mi.UInt32(k), idx)
+        # Segment holding t, clamped to [0, n − 2]: the first key after t, found by a
+        # branch-free binary search over the opaque key times (⌈log2 n⌉ gathers per lane;
+        # only n is baked into the kernel), minus one.
+        if n > 1:
+            after = dr.binary_search(1, n - 1, lambda k: dr.gather(mi.Float64, d["t"], k) <= t)
+            idx = mi.UInt32(after) - 1
+        else:
+            idx = mi.UInt32(0)
         t0 = dr.gather(mi.Float64, d["t"], idx)
         duration = dr.gather(mi.Float64, d["duration"], idx)
         inside = (t >= dr.gather(mi.Float64, d["t"], 0)) & (t < dr.gather(mi.Float64, d["t"], n - 1))

@@ -56,6 +56,7 @@ from .integrator import (
     _seeded_pcg,
     camera_ray,
     hit_distance64,
+    lane_times,
     radial_velocities,
 )
 
@@ -159,8 +160,7 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
     analytic = time_sampling.method == timesampling.ANALYTIC
     if analytic:  # the exposure's ends, P1 first
         u1, u2 = mi.Float64(0.0), mi.Float64(1.0)
-    time1 = mi.Float64(setup.exposure_start_s) + u1 * setup.exposure_s
-    time2 = mi.Float64(setup.exposure_start_s) + u2 * setup.exposure_s
+    time1, time2 = lane_times(setup, u1), lane_times(setup, u2)
     poses1, poses2 = scene.poses(time1), scene.poses(time2)
     poses1_64, poses2_64 = scene.poses(time1, precise=True), scene.poses(time2, precise=True)
     bank1, bank2 = modulation.CameraBank(cameras, u1), modulation.CameraBank(cameras, u2)

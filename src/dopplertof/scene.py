@@ -75,20 +75,29 @@ class DynamicScene:
             self._prepare_body(body)
 
     # ------------------------------------------------------------------------------------
-    def _prepare_body(self, body: Body, t0: float = 0.0, t1: float = 1.0):
+    def _prepare_body(self, body: Body, t0: float | None = None, t1: float | None = None):
+        """Swept bounds of ``body`` over the times [t0, t1] s; without a window, over its
+        whole key range ([0, 1] s for an unbounded motion)."""
         import drjit as dr
         import mitsuba as mi
 
         lo, hi = body.motion.time_range()
-        a = lo if np.isfinite(lo) else t0
-        b = hi if np.isfinite(hi) else t1
-        smin, smax = body.motion.swept_bounds(*body.bounds_local, a, b)
+        if t0 is None or t1 is None:
+            t0 = lo if np.isfinite(lo) else 0.0
+            t1 = hi if np.isfinite(hi) else 1.0
+        # Outside [lo, hi] the pose is held: over the window the body takes the poses of
+        # the window clamped into that range (a single end pose where they do not overlap).
+        a, b = np.clip([t0, t1], lo, hi)
+        smin, smax = body.motion.swept_bounds(*body.bounds_local, float(a), float(b))
         body.swept_min = mi.Point3f(*[float(v) for v in smin])
         body.swept_max = mi.Point3f(*[float(v) for v in smax])
         dr.make_opaque(body.swept_min, body.swept_max)
 
     def set_time_window(self, t0: float, t1: float):
-        """Recompute swept bounds of unbounded (parametric) motions for times [t0, t1] s."""
+        """Fit every body's swept bounds to the times [t0, t1] s (the exposure): rays
+        whose times lie outside the window may then miss bodies that are there."""
+        if not (np.isfinite(t0) and np.isfinite(t1) and t0 <= t1):
+            raise ValueError(f"time window must be finite with t0 <= t1, got [{t0!r}, {t1!r}] s")
         for body in self.bodies:
             self._prepare_body(body, t0, t1)
 
