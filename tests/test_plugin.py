@@ -112,8 +112,8 @@ def test_defaults_are_the_originals():
     )
     assert {k: v for k, v in s.items() if k != "cameras"} == dict(
         time_sampling="antithetic", n_times=2, antithetic_shift=0.5, stratify_intervals=True,
-        correlation="none", correlation_depth=None, max_depth=-1, rr_depth=5, hide_emitters=False,
-        exposure_start=0.0,
+        correlation="none", correlation_depth=None, reconnection_threshold=0.5, max_depth=-1, rr_depth=5,
+        hide_emitters=False, exposure_start=0.0,
     )
 
 
@@ -156,12 +156,27 @@ def test_camera_parameters(params, field, expected):
         ({"correlation": "replay"}, dict(correlation="replay", correlation_depth=None)),
         ({"max_depth": 8, "rr_depth": 3, "hide_emitters": True}, dict(max_depth=8, rr_depth=3, hide_emitters=True)),
         ({"time_sampling": "uniform", "n_times": 1, "exposure_start": 0.5}, dict(time_sampling="uniform", n_times=1, exposure_start=0.5)),
+        ({"m_reconnection_threshold": 0.2}, dict(reconnection_threshold=0.2)),  # M06's key (§8.1)
+        ({"correlation": "adaptive", "reconnection_threshold": 1}, dict(correlation="adaptive", reconnection_threshold=1.0)),
         ({"is_doppler_integrator": True, "samples_per_pass": 4}, dict(time_sampling="antithetic")),  # accepted, no effect
     ],
 )
 def test_render_parameters(params, expected):
     s = render_settings(params)
     assert {k: s[k] for k in expected} == expected
+
+
+@pytest.mark.parametrize(
+    "params, message",
+    [
+        ({"m_reconnection_threshold": -0.1}, "threshold must be a roughness >= 0, got -0.1"),
+        ({"m_reconnection_threshold": 0.5, "reconnection_threshold": 0.5}, "give either 'reconnection_threshold' or 'm_reconnection_threshold'"),
+        ({"reconnection_threshold": "rough"}, "'reconnection_threshold' must be a finite number"),
+    ],
+)
+def test_bad_reconnection_threshold_is_a_clear_error(params, message):
+    with pytest.raises(ValueError, match=f"^scene.xml: .*{message}"):
+        render_settings(params, "scene.xml")
 
 
 def test_another_integrators_block_gives_only_its_depths():

@@ -274,13 +274,16 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
               help="A camera as in 'dopplertof render' (repeatable; default h=0 and h=1 at psi=0 and 90deg).")
 @click.option("--max-depth", type=int, default=None, help="Path depth (default: the scene's, else 5).")
 @click.option("--time-sampling", default=None, help="uniform | stratified | antithetic | antithetic_mirror (default antithetic).")
-@click.option("--correlation", default=None, help="none | pixel | replay (default replay).")
+@click.option("--correlation", default=None,
+              help="none | pixel | replay | reconnection | adaptive (default replay; the last two need pairs of times).")
+@click.option("--reconnection-threshold", type=float, default=None,
+              help="adaptive: reconnect where both surfaces are rougher than this GGX/Beckmann alpha (default 0.5).")
 @click.option("--method", type=click.Choice(["auto", "ratio", "fit"]), default=None,
-              help="Velocity reconstruction (default: fit for sinusoidal cameras, else auto).")
+              help="Velocity reconstruction (default: auto, the ratio for matched h=0/h=1 pairs, else the fit).")
 @click.option("--overwrite", is_flag=True, help="Replace a clip with other settings in the output folder.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def animate_command(scene, frames, fps, spp, resolution, output, seed, camera_specs, max_depth, time_sampling,
-                    correlation, method, overwrite, quiet):
+                    correlation, reconnection_threshold, method, overwrite, quiet):
     """Render SCENE as a clip: one D-ToF exposure per frame, with reconstructed velocity and a GIF.
 
     An interrupted run resumes where it stopped when run again with the same options.
@@ -301,6 +304,8 @@ def animate_command(scene, frames, fps, spp, resolution, output, seed, camera_sp
             kwargs.pop("antithetic_shift", None)  # the file's default suited its own method
         kwargs["time_sampling"] = time_sampling or kwargs.get("time_sampling", "antithetic")
         kwargs["correlation"] = correlation or kwargs.get("correlation", "replay")
+        if reconnection_threshold is not None:
+            kwargs["reconnection_threshold"] = reconnection_threshold
         if frames is None:
             duration = scenes.clip_duration(scene) if scene in scenes.SCENES else motion_duration(dyn)
             if duration is None:

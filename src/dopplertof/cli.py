@@ -105,12 +105,16 @@ def scenes():
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--max-depth", type=int, default=None, help="Path depth (default: the scene's, else 5).")
 @click.option("--time-sampling", default=None, help="uniform | stratified | antithetic | antithetic_mirror (default antithetic).")
-@click.option("--correlation", default=None, help="none | pixel | replay (default replay).")
+@click.option("--correlation", default=None,
+              help="none | pixel | replay | reconnection | adaptive (default replay; the last two need pairs of times).")
 @click.option("--correlation-depth", type=int, default=None, help="Replay cut-off in bounces + 1 (default: all).")
+@click.option("--reconnection-threshold", type=float, default=None,
+              help="adaptive: reconnect where both surfaces are rougher than this GGX/Beckmann alpha (default 0.5).")
 @click.option("--exposure", type=float, default=None, help="Exposure T in seconds (default 1.5e-3).")
 @click.option("--resolution", type=int, default=None, help="Film size of a built-in scene (pixels).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def render(scene, spp, output, camera_specs, seed, max_depth, time_sampling, correlation, correlation_depth, exposure, resolution, quiet):
+def render(scene, spp, output, camera_specs, seed, max_depth, time_sampling, correlation, correlation_depth,
+           reconnection_threshold, exposure, resolution, quiet):
     """Render SCENE (an XML file or a built-in scene name) into OUTPUT."""
     import dataclasses
 
@@ -134,8 +138,12 @@ def render(scene, spp, output, camera_specs, seed, max_depth, time_sampling, cor
                 settings.pop("antithetic_shift", None)
         settings.setdefault("time_sampling", "antithetic" if cameras else "uniform")
         settings["correlation"] = correlation or settings.get("correlation", "replay")
+        if correlation is not None and "correlation_depth" not in dyn.integrator_params:
+            settings.pop("correlation_depth", None)  # the file's path_correlation_depth chose its own mode
         if correlation_depth is not None:
             settings["correlation_depth"] = correlation_depth
+        if reconnection_threshold is not None:
+            settings["reconnection_threshold"] = reconnection_threshold
         settings["max_depth"] = max_depth if max_depth is not None else settings.get("max_depth", 5)
         spp = spp if spp is not None else (dyn.spp_hint or 64)
         result = run_render(dyn, spp=spp, seed=seed, exposure=None if cameras else exposure, progress=not quiet, **settings)

@@ -215,7 +215,7 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
     ):
         active2 &= active1
         valid1 = active1 & si1.is_valid()
-        valid2 = active2 & si2.is_valid()
+        valid2 = active2 & valid1 & si2.is_valid()  # a shifted vertex needs its primal vertex
 
         # ---------------------------------------------------- emitter hit
         contributions = []

@@ -16,35 +16,38 @@ turns into render settings through the same :func:`render_settings`.
 Parameters: the original M3 integrator's names and defaults (reference §8.2). The SI name
 may replace the original one; giving both is an error.
 
-=============================================  ========================  ======  ==========  =========================================
-original name                                  SI name                   type    default     meaning
-=============================================  ========================  ======  ==========  =========================================
-``time``                                       ``exposure``              float   0.0015      exposure T, s
-``w_g``                                        ``modulation_frequency``  float   30          light modulation f_g (``w_g`` MHz, SI Hz)
-``w_s``                                        –                         float   ``w_g``     sensor frequency, MHz: h = (w_s − w_g)·T
-                                                                                             when ``hetero_frequency`` is absent
-``hetero_frequency``                           ``heterodyne``            float   0           h, beat cycles per exposure
-``sensor_phase_offset``                        ``phase``                 float   0           ψ, rad
-``hetero_offset``                              ``phase``                 float   –           ψ = 2π·value (wins over the above)
-``g_1`` / ``g_0``                              ``g1`` / ``g0``           float   0.5 / 0.5   light amplitude / DC offset
-``wave_function_type``                         ``waveform``              string  sinusoidal  sinusoidal, rectangular, triangular,
-                                                                                             trapezoidal
-``low_frequency_component_only``               ``low_pass``              bool    true        low-pass correlation model
-``time_sampling_method``                       ``time_sampling``         string  antithetic  uniform, stratified, antithetic,
-                                                                                             antithetic_mirror
-``antithetic_shift``                           (same)                    float   0.5 or 0    a, units of T (0.5 for antithetic)
-``use_stratified_sampling_for_each_interval``  ``stratify_intervals``    bool    true        stratify each interval over the groups
-``path_correlation_depth``                     ``correlation``,          int     0           0 → ``none``, 1 → ``pixel``, k ≥ 2 →
-                                               ``correlation_depth``                         ``replay`` with depth k
-``max_depth``                                  (same)                    int     −1          path depth, Mitsuba semantics (−1: ∞)
-``rr_depth``                                   (same)                    int     5           Russian-roulette start depth
-``hide_emitters``                              (same)                    bool    false       hide directly visible emitters
-–                                              ``n_times``               int     2           correlated times per group
-–                                              ``exposure_start``        float   0           scene time the exposure opens at, s
-``is_doppler_integrator``,                     –                                             accepted for old files; no effect
+=============================================  ==========================  ======  ==========  =========================================
+original name                                  SI name                     type    default     meaning
+=============================================  ==========================  ======  ==========  =========================================
+``time``                                       ``exposure``                float   0.0015      exposure T, s
+``w_g``                                        ``modulation_frequency``    float   30          light modulation f_g (``w_g`` MHz, SI Hz)
+``w_s``                                        –                           float   ``w_g``     sensor frequency, MHz: h = (w_s − w_g)·T
+                                                                                               when ``hetero_frequency`` is absent
+``hetero_frequency``                           ``heterodyne``              float   0           h, beat cycles per exposure
+``sensor_phase_offset``                        ``phase``                   float   0           ψ, rad
+``hetero_offset``                              ``phase``                   float   –           ψ = 2π·value (wins over the above)
+``g_1`` / ``g_0``                              ``g1`` / ``g0``             float   0.5 / 0.5   light amplitude / DC offset
+``wave_function_type``                         ``waveform``                string  sinusoidal  sinusoidal, rectangular, triangular,
+                                                                                               trapezoidal
+``low_frequency_component_only``               ``low_pass``                bool    true        low-pass correlation model
+``time_sampling_method``                       ``time_sampling``           string  antithetic  uniform, stratified, antithetic,
+                                                                                               antithetic_mirror
+``antithetic_shift``                           (same)                      float   0.5 or 0    a, units of T (0.5 for antithetic)
+``use_stratified_sampling_for_each_interval``  ``stratify_intervals``      bool    true        stratify each interval over the groups
+``path_correlation_depth``                     ``correlation``,            int     0           0 → ``none``, 1 → ``pixel``, k ≥ 2 →
+                                               ``correlation_depth``                           ``replay`` with depth k
+``max_depth``                                  (same)                      int     −1          path depth, Mitsuba semantics (−1: ∞)
+``rr_depth``                                   (same)                      int     5           Russian-roulette start depth
+``hide_emitters``                              (same)                      bool    false       hide directly visible emitters
+``m_reconnection_threshold``                   ``reconnection_threshold``  float   0.5         ``adaptive``: reconnect where both
+                                                                                               surfaces are rougher than this α
+                                                                                               (the original M06 key, §8.1)
+–                                              ``n_times``                 int     2           correlated times per group
+–                                              ``exposure_start``          float   0           scene time the exposure opens at, s
+``is_doppler_integrator``,                     –                                               accepted for old files; no effect
 ``samples_per_pass``,
 ``block_size``, ``timeout``
-=============================================  ========================  ======  ==========  =========================================
+=============================================  ==========================  ======  ==========  =========================================
 
 These are the original's defaults, not :func:`dopplertof.render`'s: no path correlation,
 unbounded depth, homodyne. Any other key, or a value of the wrong type, raises
@@ -92,6 +95,7 @@ _ORIGINAL_KEYS = {
     "max_depth": "int",
     "rr_depth": "int",
     "hide_emitters": "bool",
+    "m_reconnection_threshold": "float",  # M06 (reference §8.1); the prefix is the original's
 }
 # Keys of the original's (or Mitsuba's) integrator that change nothing here.
 _IGNORED_KEYS = {"is_doppler_integrator": "bool", "samples_per_pass": "int", "block_size": "int", "timeout": "float"}
@@ -111,11 +115,13 @@ _SI_KEYS = {
     "correlation_depth": ("int", ("path_correlation_depth",)),
     "n_times": ("int", ()),
     "exposure_start": ("float", ()),
+    "reconnection_threshold": ("float", ("m_reconnection_threshold",)),
 }
 _CAMERA_SI_KEYS = ("exposure", "modulation_frequency", "heterodyne", "phase", "g1", "g0", "waveform", "low_pass")
 # Settings any Mitsuba integrator may carry: taken from a scene's foreign <integrator> too.
 _GENERIC_KEYS = ("max_depth", "rr_depth", "hide_emitters")
 ORIGINAL_DEFAULT_MAX_DEPTH = -1
+DEFAULT_RECONNECTION_THRESHOLD = Correlation.threshold  # M06's default too (0.5)
 
 
 # ----------------------------------------------------------------------------------------
@@ -197,7 +203,8 @@ def render_settings(params: dict, where: str = "integrator") -> dict:
     -------
     dict with ``cameras`` (one :class:`Camera`), ``time_sampling``, ``n_times``,
     ``antithetic_shift``, ``stratify_intervals``, ``correlation``, ``correlation_depth``,
-    ``max_depth``, ``rr_depth``, ``hide_emitters`` and ``exposure_start``.
+    ``reconnection_threshold``, ``max_depth``, ``rr_depth``, ``hide_emitters`` and
+    ``exposure_start``.
 
     Raises
     ------
@@ -230,9 +237,10 @@ def render_settings(params: dict, where: str = "integrator") -> dict:
     shift = p.get("antithetic_shift", 0.5 if method == "antithetic" else 0.0)
     n_times = p.get("n_times", 2)
     correlation, correlation_depth = _correlation(p, where)
+    threshold = p.get("reconnection_threshold", p.get("m_reconnection_threshold", DEFAULT_RECONNECTION_THRESHOLD))
     try:
         validate_time_sampling(method, n_times, shift)
-        Correlation(correlation, correlation_depth)
+        Correlation(correlation, correlation_depth, threshold)
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
     return {
@@ -243,6 +251,7 @@ def render_settings(params: dict, where: str = "integrator") -> dict:
         "stratify_intervals": p.get("stratify_intervals", p.get("use_stratified_sampling_for_each_interval", True)),
         "correlation": correlation,
         "correlation_depth": correlation_depth,
+        "reconnection_threshold": threshold,
         **_depths(p, where, ORIGINAL_DEFAULT_MAX_DEPTH),
         "exposure_start": p.get("exposure_start", 0.0),
     }
