@@ -694,3 +694,22 @@ def test_another_exposure_window_reuses_the_kernels():
             assert hashes[1] and hashes[1] == hashes[2]
     finally:
         dr.set_flag(dr.JitFlag.KernelHistory, was)
+
+
+@pytest.mark.parametrize("correlation", ["replay", "adaptive"])
+def test_hidden_emitters_are_passed_through_as_in_stock_path(correlation):
+    """With hide_emitters, a camera ray passes through a visible area light (stock `path`):
+    the pixel shows what lies behind it, not the light's own reflection."""
+    scene_dict = {
+        "type": "scene",
+        "sensor": _camera("perspective", 8, fov=40.0),
+        "light": {"type": "rectangle", "to_world": T().translate([0, 0, -3]), "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [5.0] * 3}}, "bsdf": _grey(0.5)},
+        "wall": {"type": "rectangle", "to_world": T().translate([0, 0, -4]).scale(3), "bsdf": _grey(0.5)},
+        "env": {"type": "constant", "radiance": {"type": "rgb", "value": [0.5] * 3}},
+    }
+    stock = np.array(mi.render(mi.load_dict(scene_dict), integrator=mi.load_dict({"type": "path", "max_depth": 3, "hide_emitters": True}), spp=512, seed=1))[..., :3]
+    ours = dt.render(dt.load_scene(scene_dict), cameras=[dt.Camera()], spp=512, max_depth=3, correlation=correlation, hide_emitters=True, seed=2)
+    centre = (slice(3, 5), slice(3, 5))
+    diff = ours.intensity[centre].astype(np.float64).mean() - stock[centre].mean()
+    assert abs(diff) < 4 * ours.stderr[centre].astype(np.float64).mean() + 0.02 * stock[centre].mean()
+    assert stock[centre].mean() < 1.0  # the light itself (radiance 5) is not what is seen

@@ -21,7 +21,8 @@ parameter              default   meaning
 ``max_depth``          5         longest path (Mitsuba semantics: 1 = emitters only,
                                  2 = direct light); -1 = unbounded
 ``rr_depth``           5         depth at which Russian roulette starts
-``hide_emitters``      False     hide directly visible emitters
+``hide_emitters``      False     hide directly visible emitters (camera rays pass
+                                 through their surfaces, as in stock ``path``)
 =====================  ========  ==========================================================
 """
 
@@ -248,8 +249,15 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
             x_hit = mi.Vector3d(si.p)
         path_length = dr.select(valid, path_length + t64 * mi.Float64(eta), path_length)
 
+        # ---------------------------------------------------- hidden emitters
+        # As stock `path`: a camera ray passes through a hidden emitter's surface.
+        emitter = si.emitter(static)
+        pass_through = mi.Bool(False)
+        if dr.hint(hide_emitters, mode="scalar"):
+            pass_through = valid & (depth == 0) & (emitter != None)  # noqa: E711 - Dr.Jit pointer test
+
         # ---------------------------------------------------- ground truth at the camera ray
-        at_camera = valid & (depth == 0)
+        at_camera = valid & (depth == 0) & ~pass_through
         ray_velocity, point_velocity = radial_velocities(scene, hit, ray.d, time_s, poses)
         first_depth = dr.select(at_camera, mi.Float(t64), first_depth)
         first_velocity = dr.select(at_camera, ray_velocity, first_velocity)
@@ -257,10 +265,7 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
         first_hit |= at_camera
 
         # ---------------------------------------------------- emitter hit
-        emitter = si.emitter(static)
-        visible_emitter = active & (emitter != None)  # noqa: E711 - Dr.Jit pointer test
-        if dr.hint(hide_emitters, mode="scalar"):
-            visible_emitter &= depth > 0
+        visible_emitter = active & (emitter != None) & ~pass_through  # noqa: E711 - Dr.Jit pointer test
         ds = mi.DirectionSample3f(static, si, prev_si)
         em_pdf = dr.select(prev_bsdf_delta, 0.0, static.pdf_emitter_direction(prev_si, ds, ~prev_bsdf_delta))
         mis_bsdf = _mis_weight(prev_bsdf_pdf, em_pdf)
@@ -269,7 +274,7 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
         radiance, measurements = _accumulate(radiance, measurements, bank, beta * mis_bsdf * le, length_hit, visible_emitter)
 
         # ---------------------------------------------------- continue?
-        active_next = valid & ((depth + 1) < max_depth_u)
+        active_next = valid & ~pass_through & ((depth + 1) < max_depth_u)
         bsdf = si.bsdf(ray)
         corr_bounce = grouped and correlation.correlates_bounce(depth)
 
@@ -292,12 +297,12 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
         bs, bsdf_weight = bsdf.sample(bsdf_ctx, si, sample_1, sample_2, active_next)
 
         # ---------------------------------------------------- update
-        beta *= bsdf_weight
-        eta *= bs.eta
-        prev_si = dr.detach(si, True)
-        prev_bsdf_pdf = bs.pdf
-        prev_bsdf_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
-        ray = si.spawn_ray(si.to_world(bs.wo))
+        beta = dr.select(pass_through, beta, beta * bsdf_weight)
+        eta = dr.select(pass_through, eta, eta * bs.eta)
+        prev_si = dr.select(pass_through, prev_si, dr.detach(si, True))
+        prev_bsdf_pdf = dr.select(pass_through, prev_bsdf_pdf, bs.pdf)
+        prev_bsdf_delta = dr.select(pass_through, prev_bsdf_delta, mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta))
+        ray = si.spawn_ray(dr.select(pass_through, ray.d, si.to_world(bs.wo)))
         x_prev = x_hit
 
         # ---------------------------------------------------- Russian roulette
@@ -309,8 +314,8 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
         beta = dr.select(rr_active & survive, beta * dr.rcp(q), beta)
         active_next &= survive & (beta_max != 0) & (bs.pdf > 0)
 
-        depth = dr.select(active, depth + 1, depth)
-        active = active_next
+        depth = dr.select(active & ~pass_through, depth + 1, depth)
+        active = active_next | pass_through
 
     return {
         "intensity": radiance,

@@ -115,6 +115,20 @@ def _ground_truth(scene, ray, members):
     return sums[1] * per_hit, sums[2] * per_hit, sums[3] * per_hit, sums[0]
 
 
+HIDDEN_EMITTER_LAYERS = 4  # hidden emitter surfaces a camera ray may pass through
+
+
+def _camera_hit(scene, ray, time_s, poses, hide_emitters):
+    """First hit of the camera ray; with ``hide_emitters`` it passes through emitter
+    surfaces (as stock ``path``; at most ``HIDDEN_EMITTER_LAYERS`` of them)."""
+    hit = scene.intersect(ray, time_s, True, poses=poses)
+    for _ in range(HIDDEN_EMITTER_LAYERS if hide_emitters else 0):
+        hidden = hit.si.is_valid() & (hit.si.emitter(scene.static) != None)  # noqa: E711 - Dr.Jit pointer test
+        beyond = scene.intersect(hit.si.spawn_ray(ray.d), time_s, hidden, poses=poses)
+        hit = dr.select(hidden, beyond, hit)
+    return hit
+
+
 def _light_geometry(si, ds):
     """G at the light point for a shared light sample; 1 for delta and infinite emitters."""
     g = _geometry_term(si.p, ds.p, ds.n)
@@ -169,8 +183,8 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
     sensor = scene.sensor
     ray, ray_weight = camera_ray(sensor, setup, pixel, time1, rng.next_float32, lambda: mi.Point2f(rng.next_float32(), rng.next_float32()))
     x0 = _aperture_point(sensor, ray)
-    hit1 = scene.intersect(ray, time1, True, poses=poses1)
-    hit2 = scene.intersect(ray, time2, True, poses=poses2)
+    hit1 = _camera_hit(scene, ray, time1, poses1, hide_emitters)
+    hit2 = _camera_hit(scene, ray, time2, poses2, hide_emitters)
     t1_64, x1 = hit_distance64(scene, poses1_64, hit1, x0, ray.d)
     t2_64, x2 = hit_distance64(scene, poses2_64, hit2, x0, ray.d)
 
@@ -225,8 +239,6 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
         )):
             emitter = si.emitter(static)
             visible = act & (emitter != None)  # noqa: E711 - Dr.Jit pointer test
-            if dr.hint(hide_emitters, mode="scalar"):
-                visible &= depth > 0
             prev_it = dr.zeros(mi.Interaction3f)
             prev_it.p = prev_p
             ds = mi.DirectionSample3f(static, si, prev_it)
