@@ -391,3 +391,16 @@ def test_a_sheared_to_world_stays_with_the_shape():
     (body,) = scene.bodies
     np.testing.assert_array_equal(body.motion.base, np.eye(4))
     np.testing.assert_allclose(body.bounds_local[1], [1.5, 1.0, 1.0], atol=1e-6)  # x + 0.5 y at the corner
+
+
+def test_rotate_axis_is_normalised_like_mitsuba(tmp_path):
+    """<rotate y="2" angle="90"/> is a rotation about y in Mitsuba's XML, not a shear."""
+    xml = tmp_path / "s.xml"
+    xml.write_text(
+        '<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm"><integer name="width" value="4"/>'
+        '<integer name="height" value="4"/></film></sensor><shape type="sphere"><animation name="to_world">'
+        '<transform time="0"><rotate y="2" angle="0"/></transform><transform time="1"><rotate y="2" angle="90"/></transform>'
+        "</animation></shape></scene>"
+    )
+    motion = dt.load_scene(str(xml)).bodies[0].motion
+    np.testing.assert_allclose(motion.matrix(1.0)[:3, :3], [[0, 0, 1], [0, 1, 0], [-1, 0, 0]], atol=1e-12)

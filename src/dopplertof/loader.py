@@ -127,7 +127,10 @@ def _transform_ops(element, where: str) -> np.ndarray:
             angle = _floats(op.attrib.get("angle", "nan"), here)[0]
             if not np.isfinite(angle):
                 raise SceneError(f"{here}: rotate needs angle=\"degrees\"")
-            m = mi.ScalarTransform4d().rotate(axis, angle) @ m
+            norm = float(np.linalg.norm(axis))
+            if norm == 0:
+                raise SceneError(f"{here}: rotate needs a non-zero axis (x, y, z)")
+            m = mi.ScalarTransform4d().rotate([a / norm for a in axis], angle) @ m  # Mitsuba's XML normalises it too
         elif op.tag == "matrix":
             vals = _floats(op.attrib.get("value", ""), here)
             if len(vals) not in (9, 16):
