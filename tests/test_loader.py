@@ -404,3 +404,8 @@ def test_rotate_axis_is_normalised_like_mitsuba(tmp_path):
     )
     motion = dt.load_scene(str(xml)).bodies[0].motion
     np.testing.assert_allclose(motion.matrix(1.0)[:3, :3], [[0, 0, 1], [0, 1, 0], [-1, 0, 0]], atol=1e-12)
+
+
+def test_unknown_plugin_type_is_named_as_such():
+    with pytest.raises(dt.SceneError, match=r"spherez.*\(unknown plugin type\)$"):
+        dt.load_scene({"type": "scene", "a": {"type": "spherez"}})

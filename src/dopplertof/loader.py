@@ -34,6 +34,8 @@ each body costs a sub-scene intersection per ray.
 
 from __future__ import annotations
 
+import re
+
 import copy
 import os
 import xml.etree.ElementTree as ET
@@ -82,6 +84,8 @@ def _mitsuba_error(where: str, exc: Exception) -> SceneError:
             text = text[text.find(marker):]
     if "unreferenced" in text.lower():
         hint = " (unknown parameter)"
+    elif re.search(r'Plugin "[^"]*" not found', text):
+        hint = " (unknown plugin type)"
     elif "not found" in text.lower() or "does not exist" in text.lower():
         hint = " (missing file)"
     else:
