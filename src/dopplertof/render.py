@@ -186,7 +186,7 @@ def render(
     if time_sampling.method == "analytic":
         if correlation.mode not in ("replay", "reconnection", "adaptive") or correlation.depth is not None:
             raise ValueError(f"analytic time integration needs a fully correlated partner (replay, reconnection or adaptive), got {correlation.mode!r}")
-        bad = [c.label() for c in cameras if not (c.low_pass and c.waveform == "sinusoidal")]
+        bad = [f"{c.label()} ({c.waveform}{'' if c.low_pass else ', full waveform'})" for c in cameras if not (c.low_pass and c.waveform == "sinusoidal")]
         if bad:
             raise ValueError(f"analytic time integration is implemented for the low-pass sinusoid only; cameras {', '.join(bad)} are not")
     if correlation.paired and n != 2:
