@@ -29,23 +29,19 @@ ratios to stock ``path`` on the same scene. All medians, minima and maxima go to
 
 from __future__ import annotations
 
-import argparse
-import csv
 import math
-import os
-import platform
 import statistics
 import sys
 import time
 
 import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets the libLLVM path)
+from dopplertof.scenes import WHITE
+
+import _common
+from _common import diffuse, transform
 
 EXPOSURE_S = 1.5e-3
 DISPLACEMENT_M = 0.015
-
-WHITE = [0.725, 0.71, 0.68]
-RED = [0.63, 0.065, 0.05]
-GREEN = [0.14, 0.45, 0.091]
 
 CONFIGS = ("stock", "ours", "dtof1", "dtof4")
 CONFIG_LABELS = {
@@ -61,44 +57,11 @@ SCENE_NAMES = ("static", "2-moving", "8-moving")
 # Scenes
 
 
-def _xf(translate=(0, 0, 0), rotate_y_deg=0.0, scale=(1, 1, 1), rotate_x_deg=0.0):
-    import mitsuba as mi
-
-    t = mi.ScalarTransform4f().translate(list(translate))
-    t = t @ mi.ScalarTransform4f().rotate([0, 1, 0], rotate_y_deg) @ mi.ScalarTransform4f().rotate([1, 0, 0], rotate_x_deg)
-    return t @ mi.ScalarTransform4f().scale(list(scale))
-
-
-def _diffuse(rgb):
-    return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(rgb)}}
-
-
-def _room(resolution):
-    """Walls, camera and point light of the box (no bodies)."""
-    import mitsuba as mi
-
-    return {
-        "type": "scene",
-        "sensor": {
-            "type": "perspective",
-            "fov": 19.5,
-            "to_world": mi.ScalarTransform4f().look_at(origin=[0, 1, 6.8], target=[0, 1, 0], up=[0, 1, 0]),
-            "film": {"type": "hdrfilm", "width": resolution, "height": resolution, "rfilter": {"type": "box"}},
-        },
-        "floor": {"type": "rectangle", "to_world": _xf((0, 0, 0), rotate_x_deg=-90), "bsdf": _diffuse(WHITE)},
-        "ceiling": {"type": "rectangle", "to_world": _xf((0, 2, 0), rotate_x_deg=90), "bsdf": _diffuse(WHITE)},
-        "back": {"type": "rectangle", "to_world": _xf((0, 1, -1)), "bsdf": _diffuse(WHITE)},
-        "red-wall": {"type": "rectangle", "to_world": _xf((-1, 1, 0), rotate_y_deg=90), "bsdf": _diffuse(RED)},
-        "green-wall": {"type": "rectangle", "to_world": _xf((1, 1, 0), rotate_y_deg=-90), "bsdf": _diffuse(GREEN)},
-        "light": {"type": "point", "position": [0.0, 1.0, 6.8], "intensity": {"type": "rgb", "value": [100.0] * 3}},
-    }
-
-
 def _bodies(name):
     """[(key, M0 at t=0, displacement over the exposure)] of the scene's bodies."""
     two = [
-        ("short-box", _xf((0.33, 0.3, 0.37), rotate_y_deg=-17, scale=(0.3, 0.3, 0.3)), (0, 0, DISPLACEMENT_M)),
-        ("tall-box", _xf((-0.33, 0.6, -0.29), rotate_y_deg=17, scale=(0.3, 0.6, 0.3)), (0, 0, -DISPLACEMENT_M)),
+        ("short-box", transform((0.33, 0.3, 0.37), rotate_y_deg=-17, scale=(0.3, 0.3, 0.3)), (0, 0, DISPLACEMENT_M)),
+        ("tall-box", transform((-0.33, 0.6, -0.29), rotate_y_deg=17, scale=(0.3, 0.6, 0.3)), (0, 0, -DISPLACEMENT_M)),
     ]
     if name in ("static", "2-moving"):
         return two
@@ -111,7 +74,7 @@ def _bodies(name):
             x = -0.6 + 0.4 * (i % 4)
             z = -0.45 if i < 4 else 0.35
             y = 0.1 + 0.15 * (i % 3)  # some on the floor, some floating
-            m0 = _xf((x, y, z), rotate_y_deg=11.0 * i, scale=(0.1, 0.1, 0.1))
+            m0 = transform((x, y, z), rotate_y_deg=11.0 * i, scale=(0.1, 0.1, 0.1))
             cubes.append((f"cube-{i}", m0, tuple(d * c for c in direction)))
         return cubes
     raise ValueError(f"unknown scene {name!r}")
@@ -121,59 +84,21 @@ def scene_dicts(name, resolution, max_depth):
     """(dopplertof dict, stock Mitsuba dict) of the named benchmark scene."""
     import mitsuba as mi
 
-    ours = _room(resolution)
-    stock = _room(resolution)
+    ours = _common.cornell_room(resolution)
+    stock = _common.cornell_room(resolution)
     stock["integrator"] = {"type": "path", "max_depth": max_depth}
     for key, m0, disp in _bodies(name):
-        stock[key] = {"type": "cube", "bsdf": _diffuse(WHITE), "to_world": m0}
+        stock[key] = {"type": "cube", "bsdf": diffuse(WHITE), "to_world": m0}
         if name == "static":
-            ours[key] = {"type": "cube", "bsdf": _diffuse(WHITE), "to_world": m0}
+            ours[key] = {"type": "cube", "bsdf": diffuse(WHITE), "to_world": m0}
         else:
             m1 = mi.ScalarTransform4f().translate(list(disp)) @ m0
             ours[key] = {
                 "type": "cube",
-                "bsdf": _diffuse(WHITE),
+                "bsdf": diffuse(WHITE),
                 "motion": {"type": "keyframes", "keys": [(0.0, m0), (EXPOSURE_S, m1)]},
             }
     return ours, stock
-
-
-# ----------------------------------------------------------------------------------------
-# Machine
-
-
-def cpu_model():
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.lower().startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
-def machine_line(variant):
-    import drjit as dr
-    import mitsuba as mi
-
-    try:
-        threads = dr.thread_count()
-    except Exception:  # noqa: BLE001
-        threads = "?"
-    llvm = os.environ.get("DRJIT_LIBLLVM_PATH", "?")
-    return (
-        f"machine: {cpu_model()} | {os.cpu_count()} cores (Dr.Jit threads: {threads}) | "
-        f"Mitsuba {mi.__version__} | Dr.Jit {dr.__version__} | variant {variant} | "
-        f"dopplertof {dopplertof.__version__} | Python {platform.python_version()} | libLLVM {os.path.basename(llvm)}"
-    )
-
-
-def loadavg():
-    try:
-        return "%.2f %.2f %.2f" % os.getloadavg()
-    except OSError:
-        return "?"
 
 
 # ----------------------------------------------------------------------------------------
@@ -288,17 +213,6 @@ CSV_FIELDS = [
 ]
 
 
-def write_csv(path, all_rows, meta):
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with open(path, "w", newline="") as f:
-        f.write(f"# {meta}\n")
-        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
-        w.writeheader()
-        for rows in all_rows:
-            for row in rows.values():
-                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
-
-
 def markdown_table(all_rows):
     def cell(rows, c):
         if c not in rows:
@@ -324,18 +238,15 @@ def markdown_table(all_rows):
 
 
 def parse_args(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _common.argument_parser(__doc__)
     p.add_argument("--resolution", type=int, default=None, help="square film side, pixels (default 256; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel (even; default 32; --full 64; quick 8)")
     p.add_argument("--max-depth", type=int, default=None, help="path depth, Mitsuba semantics (default 5)")
     p.add_argument("--reps", type=int, default=None, help="timed repetitions per configuration (default 3; --full 5; quick 2)")
     p.add_argument("--scenes", nargs="+", choices=SCENE_NAMES, default=list(SCENE_NAMES))
     p.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
-    p.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
-    p.add_argument("--csv", default=None, help="CSV output (default benchmarks/results/throughput.csv; quick: throughput_quick.csv)")
-    p.add_argument("--quick", action="store_true", help="tiny smoke-test run (32x32, 8 spp, 2 reps; < 40 s)")
     p.add_argument("--full", action="store_true", help="256x256, 64 spp, 5 reps (about 9 min on 2 idle cores)")
-    p.add_argument("--quiet", action="store_true", help="only print the machine line and the table")
+    _common.add_output_options(p, "throughput", quick_help="tiny smoke-test run (32x32, 8 spp, 2 reps; < 40 s)", plot=False, quiet_help="only print the machine line and the table")
     args = p.parse_args(argv)
     if args.quick and args.full:
         p.error("--quick and --full exclude each other")
@@ -345,12 +256,8 @@ def parse_args(argv=None):
         defaults = dict(resolution=256, spp=64, max_depth=5, reps=5)
     else:  # fits ~4 min on 2 idle cores; spp 32 at 256x256 = one 2M-lane pass of dopplertof.render
         defaults = dict(resolution=256, spp=32, max_depth=5, reps=3)
-    for k, v in defaults.items():
-        if getattr(args, k) is None:
-            setattr(args, k, v)
-    if args.csv is None:
-        here = os.path.dirname(os.path.abspath(__file__))
-        args.csv = os.path.join(here, "results", "throughput_quick.csv" if args.quick else "throughput.csv")
+    _common.fill_defaults(args, defaults)
+    _common.default_output_paths(args, "throughput")
     if args.resolution <= 0 or args.spp <= 0 or args.reps <= 0:
         p.error("--resolution, --spp and --reps must be positive")
     if args.spp % 2 and any(c.startswith("dtof") for c in args.configs):
@@ -362,25 +269,15 @@ def parse_args(argv=None):
 
 def main(argv=None):
     args = parse_args(argv)
-    variant = dopplertof.set_variant(args.variant or "llvm_ad_rgb")
-
-    def log(msg):
-        if not args.quiet:
-            print(msg, flush=True)
-
-    mline = machine_line(variant)
-    print(mline, flush=True)
     settings = (
         f"settings: {args.resolution}x{args.resolution}, spp {args.spp}, max_depth {args.max_depth}, "
-        f"{args.reps} interleaved reps after 1 warm-up per config; timer time.perf_counter; load avg at start {loadavg()}"
+        f"{args.reps} interleaved reps after 1 warm-up per config; timer time.perf_counter; load avg at start {_common.loadavg()}"
     )
-    print(settings, flush=True)
-    t_all = time.perf_counter()
+    run = _common.Run("throughput", args, argv, settings)
     all_rows = []
     for name in args.scenes:
-        warm, times, cpu = bench_scene(name, args, log)
+        warm, times, cpu = bench_scene(name, args, run.log)
         all_rows.append(summarise(name, warm, times, cpu, args))
-    elapsed = time.perf_counter() - t_all
     print()
     print(markdown_table(all_rows))
     print()
@@ -397,10 +294,8 @@ def main(argv=None):
             for rows in all_rows
         )
     )
-    print(f"total {elapsed:.1f} s; load avg at end {loadavg()}")
-    write_csv(args.csv, all_rows, f"{mline} || {settings}")
-    print(f"CSV: {args.csv}")
-    return 0
+    rows = [row for scene_rows in all_rows for row in scene_rows.values()]
+    return run.finish(rows, CSV_FIELDS, total_note=f"; load avg at end {_common.loadavg()}", extrasaction="ignore")
 
 
 if __name__ == "__main__":

@@ -45,23 +45,20 @@ PNG of the MSE ratios against h, next to it; the tables are printed.
 
 from __future__ import annotations
 
-import argparse
-import csv
 import itertools
 import math
-import os
-import platform
 import statistics
 import sys
 import time
 
 import numpy as np
 
-import dopplertof
+import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets the libLLVM path)
 
-HERE = os.path.dirname(os.path.abspath(__file__))
+import _common
+from _common import CAMERA_GRID, diffuse, transform
+
 SCENE_NAMES = ("cornell-box", "rotating")
-CAMERA_GRID = [(h, psi) for h in (0.0, 0.5, 1.0) for psi in (0.0, math.pi / 2)]
 HETERODYNES = (0.0, 0.5, 1.0)
 REGIONS = ("all", "moving")
 MOVING_THRESHOLD_M_S = 1e-3
@@ -84,37 +81,13 @@ def rotating_body_scene(resolution=64, exposure=1.5e-3):
     ``TURNTABLE_RATE_RAD_S`` (20 rad/s: the boxes' centres move at 9 m/s, 0.03 rad turn
     during the exposure), so the left box approaches the camera and the right one recedes.
     """
-    import mitsuba as mi
-
-    from dopplertof.scenes import GREEN, RED, WHITE
-
-    def xf(translate, rotate_y_deg=0.0, rotate_x_deg=0.0, scale=(1, 1, 1)):
-        t = mi.ScalarTransform4f().translate(list(translate))
-        t = t @ mi.ScalarTransform4f().rotate([0, 1, 0], rotate_y_deg) @ mi.ScalarTransform4f().rotate([1, 0, 0], rotate_x_deg)
-        return t @ mi.ScalarTransform4f().scale(list(scale))
-
-    def diffuse(rgb):
-        return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(rgb)}}
+    from dopplertof.scenes import WHITE
 
     turning = {"type": "parametric", "angular_velocity": [0.0, TURNTABLE_RATE_RAD_S, 0.0], "pivot": [0.0, 0.0, 0.0]}
-    scene = {
-        "type": "scene",
-        "sensor": {
-            "type": "perspective",
-            "fov": 19.5,
-            "to_world": mi.ScalarTransform4f().look_at(origin=[0, 1, 6.8], target=[0, 1, 0], up=[0, 1, 0]),
-            "film": {"type": "hdrfilm", "width": resolution, "height": resolution, "rfilter": {"type": "box"}},
-        },
-        "floor": {"type": "rectangle", "to_world": xf((0, 0, 0), rotate_x_deg=-90), "bsdf": diffuse(WHITE)},
-        "ceiling": {"type": "rectangle", "to_world": xf((0, 2, 0), rotate_x_deg=90), "bsdf": diffuse(WHITE)},
-        "back": {"type": "rectangle", "to_world": xf((0, 1, -1)), "bsdf": diffuse(WHITE)},
-        "red-wall": {"type": "rectangle", "to_world": xf((-1, 1, 0), rotate_y_deg=90), "bsdf": diffuse(RED)},
-        "green-wall": {"type": "rectangle", "to_world": xf((1, 1, 0), rotate_y_deg=-90), "bsdf": diffuse(GREEN)},
-        "light": {"type": "point", "position": [0.0, 1.0, 6.8], "intensity": {"type": "rgb", "value": [100.0] * 3}},
-        "platform": {"type": "cube", "bsdf": diffuse(WHITE), "to_world": xf((0, 0.04, 0), rotate_y_deg=30, scale=(0.6, 0.04, 0.6)), "motion": turning},
-        "left-box": {"type": "cube", "bsdf": diffuse(WHITE), "to_world": xf((-0.45, 0.33, 0), rotate_y_deg=20, scale=(0.15, 0.25, 0.15)), "motion": turning},
-        "right-box": {"type": "cube", "bsdf": diffuse(WHITE), "to_world": xf((0.45, 0.28, 0), rotate_y_deg=-25, scale=(0.15, 0.2, 0.15)), "motion": turning},
-    }
+    scene = _common.cornell_room(resolution)
+    scene["platform"] = {"type": "cube", "bsdf": diffuse(WHITE), "to_world": transform((0, 0.04, 0), rotate_y_deg=30, scale=(0.6, 0.04, 0.6)), "motion": turning}
+    scene["left-box"] = {"type": "cube", "bsdf": diffuse(WHITE), "to_world": transform((-0.45, 0.33, 0), rotate_y_deg=20, scale=(0.15, 0.25, 0.15)), "motion": turning}
+    scene["right-box"] = {"type": "cube", "bsdf": diffuse(WHITE), "to_world": transform((0.45, 0.28, 0), rotate_y_deg=-25, scale=(0.15, 0.2, 0.15)), "motion": turning}
     return dopplertof.load_scene(scene)
 
 
@@ -320,10 +293,7 @@ def plot(path, sums, scenes, methods, correlations):
             axes.set_ylabel("MSE(uniform x none) / MSE")
             axes.set_xticks(HETERODYNES)
             axes.grid(True, which="both", alpha=0.3)
-    handles, labels = grid[0][0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="outside right center", fontsize=8)
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    figure.savefig(path, dpi=110)
+    _common.save_figure(figure, grid[0][0], path)
 
 
 CSV_FIELDS = [
@@ -333,80 +303,35 @@ CSV_FIELDS = [
 ]
 
 
-def write_csv(path, rows, meta):
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with open(path, "w", newline="") as f:
-        f.write(f"# {meta}\n")
-        w = csv.DictWriter(f, fieldnames=CSV_FIELDS)
-        w.writeheader()
-        for row in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
-
-
 def parse_args(argv=None):
-    from dopplertof.correlation import MODES
-    from dopplertof.timesampling import METHODS
-
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _common.argument_parser(__doc__)
     p.add_argument("--resolution", type=int, default=None, help="square film side, pixels (default 64; quick 16)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel of each test render (even; default 64; quick 16)")
     p.add_argument("--repeats", type=int, default=None, help="test renders (seeds) per configuration (default 8; quick 2)")
-    p.add_argument("--ref-spp", type=int, default=None, help="paths per pixel of the reference (default 32768; quick 2048)")
-    p.add_argument("--max-depth", type=int, default=4, help="path depth, Mitsuba semantics (default 4, as the paper's Cornell box)")
-    p.add_argument("--scenes", nargs="+", choices=SCENE_NAMES, default=list(SCENE_NAMES))
-    p.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS), help="time samplings (default: all of METHODS)")
-    p.add_argument("--correlations", nargs="+", choices=MODES, default=list(MODES), help="correlations (default: all of MODES)")
-    p.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
-    p.add_argument("--csv", default=None, help="CSV output (default benchmarks/results/variance.csv; quick: variance_quick.csv)")
-    p.add_argument("--plot", default=None, help="PNG output (default: the CSV path with .png)")
-    p.add_argument("--quick", action="store_true", help="smoke test: 16x16, 16 spp x 2, reference 2048 spp (< 1 min)")
-    p.add_argument("--quiet", action="store_true", help="only print the machine line and the tables")
+    _common.add_sweep_options(p, SCENE_NAMES, ref_spp_help="default 32768; quick 2048")
+    _common.add_output_options(p, "variance", quick_help="smoke test: 16x16, 16 spp x 2, reference 2048 spp (< 1 min)")
     args = p.parse_args(argv)
-    defaults = dict(resolution=16, spp=16, repeats=2, ref_spp=2048) if args.quick else dict(resolution=64, spp=64, repeats=8, ref_spp=32768)
-    for k, v in defaults.items():
-        if getattr(args, k) is None:
-            setattr(args, k, v)
-    for name in ("resolution", "spp", "repeats", "ref_spp", "max_depth"):
-        if getattr(args, name) <= 0:
-            p.error(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name)}")
+    _common.fill_defaults(args, dict(resolution=16, spp=16, repeats=2, ref_spp=2048) if args.quick else dict(resolution=64, spp=64, repeats=8, ref_spp=32768))
+    _common.require_positive(p, args, ("resolution", "spp", "repeats", "ref_spp", "max_depth"))
     if args.spp % 2 or args.ref_spp % 2:
         p.error(f"--spp and --ref-spp must be even (pairs of times), got {args.spp} and {args.ref_spp}")
     if "uniform" not in args.methods or "none" not in args.correlations:
         p.error("the baseline uniform x none must be part of the run (keep 'uniform' in --methods and 'none' in --correlations)")
-    if args.csv is None:
-        args.csv = os.path.join(HERE, "results", "variance_quick.csv" if args.quick else "variance.csv")
-    if args.plot is None:
-        args.plot = os.path.splitext(args.csv)[0] + ".png"
+    _common.default_output_paths(args, "variance")
     return args
 
 
 def main(argv=None):
-    args = parse_args(argv)
-    variant = dopplertof.set_variant(args.variant or "llvm_ad_rgb")
     from dopplertof.correlation import MODES
 
-    def log(msg):
-        if not args.quiet:
-            print(msg, flush=True)
-
-    import drjit as dr
-    import mitsuba as mi
-
-    machine = (
-        f"machine: {platform.processor() or platform.machine()} | {os.cpu_count()} cores | Mitsuba {mi.__version__} | "
-        f"Dr.Jit {dr.__version__} | variant {variant} | dopplertof {dopplertof.__version__} | correlation MODES: {', '.join(MODES)}"
-    )
+    args = parse_args(argv)
     settings = (
         f"settings: {args.resolution}x{args.resolution}, {args.spp} spp x {args.repeats} seeds per configuration, "
         f"reference {REFERENCE[0]} + {REFERENCE[1]} {args.ref_spp} spp (seed {REFERENCE_SEED}, variance subtracted), "
         f"max_depth {args.max_depth}, pairs of times (shift 0.5, stratified intervals)"
     )
-    print(machine, flush=True)
-    print(settings, flush=True)
-    t_all = time.perf_counter()
-    rows = []
-    for name in args.scenes:
-        rows.extend(bench_scene(name, args, log))
+    run = _common.Run("variance", args, argv, settings, f"correlation MODES: {', '.join(MODES)}")
+    rows = [row for name in args.scenes for row in bench_scene(name, args, run.log)]
     add_ratios(rows)
     sums = per_h(rows)
     scenes = [s for s in args.scenes if any(r["scene"] == s for r in rows)]
@@ -427,12 +352,7 @@ def main(argv=None):
     )
     worst_z = max(rows, key=lambda r: abs(r["bias_z"]))
     print(f"largest |z| of a region-sum difference to the reference: {worst_z['bias_z']:.1f} ({worst_z['scene']}, {worst_z['method']} x {worst_z['correlation']}, h={worst_z['h']:g}, psi={worst_z['psi']:.3g}, {worst_z['region']})")
-    print(f"total {time.perf_counter() - t_all:.1f} s")
-    command = "python benchmarks/variance.py " + " ".join(sys.argv[1:] if argv is None else argv)
-    write_csv(args.csv, rows, f"{command.strip()} || {machine} || {settings}")
-    plot(args.plot, sums, scenes, args.methods, args.correlations)
-    print(f"CSV: {args.csv}\nplot: {args.plot}")
-    return 0
+    return run.finish(rows, CSV_FIELDS, plot=lambda path: plot(path, sums, scenes, args.methods, args.correlations))
 
 
 if __name__ == "__main__":

@@ -58,11 +58,8 @@ setting), next to it; the tables are printed.
 
 from __future__ import annotations
 
-import argparse
-import csv
 import itertools
 import math
-import os
 import statistics
 import sys
 import time
@@ -71,7 +68,8 @@ import numpy as np
 
 import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets the libLLVM path)
 
-HERE = os.path.dirname(os.path.abspath(__file__))
+import _common
+
 SCENE_NAMES = ("cornell-box", "rotating")
 DEFAULT_METHODS = ("uniform", "stratified", "antithetic")
 DEFAULT_CORRELATIONS = ("replay", "adaptive")
@@ -413,10 +411,7 @@ def plot(path, rows, scenes, estimators):
         axes.set_xlabel("render wall time (s)")
         axes.set_ylabel("velocity RMSE, moving pixels (m/s)")
         axes.grid(True, which="both", alpha=0.3)
-    handles, labels = grid[0][0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="outside right center", fontsize=8)
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    figure.savefig(path, dpi=110)
+    _common.save_figure(figure, grid[0][0], path)
 
 
 CSV_FIELDS = [
@@ -425,51 +420,26 @@ CSV_FIELDS = [
 ]  # fmt: skip
 
 
-def write_csv(path, rows, meta):
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with open(path, "w", newline="") as f:
-        f.write(f"# {meta}\n")
-        w = csv.DictWriter(f, fieldnames=CSV_FIELDS)
-        w.writeheader()
-        for row in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
-
-
 # ----------------------------------------------------------------------------------------
 # Command line
 
 
 def parse_args(argv=None):
-    from dopplertof.correlation import MODES
-    from dopplertof.timesampling import METHODS
-
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _common.argument_parser(__doc__)
     p.add_argument("--resolution", type=int, default=None, help="square film side, pixels (default 64; quick 32)")
     p.add_argument("--spp", type=int, nargs="+", default=None, help="spp sweep, even values (default 4 16 64 256 1024; quick 4 32)")
     p.add_argument("--seeds", type=int, default=None, help="renders per (estimator, spp), the first one untimed warm-up (default 5; quick 2)")
-    p.add_argument("--ref-spp", type=int, default=None, help="paths per pixel of the reference (default 4096; quick 256)")
-    p.add_argument("--max-depth", type=int, default=4, help="path depth, Mitsuba semantics (default 4)")
-    p.add_argument("--scenes", nargs="+", choices=SCENE_NAMES, default=list(SCENE_NAMES))
-    p.add_argument("--methods", nargs="+", choices=METHODS, default=list(DEFAULT_METHODS), help="time samplings (default uniform stratified antithetic)")
-    p.add_argument("--correlations", nargs="+", choices=MODES, default=list(DEFAULT_CORRELATIONS), help="correlations (default replay adaptive)")
+    _common.add_sweep_options(p, SCENE_NAMES, ref_spp_help="default 4096; quick 256", methods=DEFAULT_METHODS, correlations=DEFAULT_CORRELATIONS)
     p.add_argument("--full-well", type=float, default=20_000.0, help="sensor full well per tap, e- (default 20000)")
     p.add_argument("--fill", type=float, default=0.5, help="mean tap charge of the 99th-percentile pixel / full well (default 0.5)")
     p.add_argument("--read-noise", type=float, default=3.0, help="read noise per tap, e- rms (default 3)")
     p.add_argument("--noise-seed", type=int, default=0, help="seed of the sensor noise (default 0)")
-    p.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
-    p.add_argument("--csv", default=None, help="CSV output (default benchmarks/results/velocity.csv; quick: velocity_quick.csv)")
-    p.add_argument("--plot", default=None, help="PNG output (default: the CSV path with .png)")
-    p.add_argument("--quick", action="store_true", help="smoke test: 32x32, spp 4 and 32, 2 seeds, reference 256 spp (< 1 min)")
-    p.add_argument("--quiet", action="store_true", help="only print the machine line and the tables")
+    _common.add_output_options(p, "velocity", quick_help="smoke test: 32x32, spp 4 and 32, 2 seeds, reference 256 spp (< 1 min)")
     args = p.parse_args(argv)
     quick = dict(resolution=32, spp=[4, 32], seeds=2, ref_spp=256)
     full = dict(resolution=64, spp=[4, 16, 64, 256, 1024], seeds=5, ref_spp=4096)
-    for k, v in (quick if args.quick else full).items():
-        if getattr(args, k) is None:
-            setattr(args, k, v)
-    for name in ("resolution", "ref_spp", "max_depth"):
-        if getattr(args, name) <= 0:
-            p.error(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name)}")
+    _common.fill_defaults(args, quick if args.quick else full)
+    _common.require_positive(p, args, ("resolution", "ref_spp", "max_depth"))
     if args.seeds < 2:
         p.error(f"--seeds must be at least 2 (the first one is the untimed warm-up), got {args.seeds}")
     bad = [s for s in args.spp if s <= 0 or s % 2] + ([args.ref_spp] if args.ref_spp % 2 else [])
@@ -482,23 +452,12 @@ def parse_args(argv=None):
         p.error(f"--fill must be in (0, 1], got {args.fill}")
     if not (args.read_noise >= 0 and math.isfinite(args.read_noise)):
         p.error(f"--read-noise must be a finite number >= 0, got {args.read_noise}")
-    if args.csv is None:
-        args.csv = os.path.join(HERE, "results", "velocity_quick.csv" if args.quick else "velocity.csv")
-    if args.plot is None:
-        args.plot = os.path.splitext(args.csv)[0] + ".png"
+    _common.default_output_paths(args, "velocity")
     return args
 
 
 def main(argv=None):
     args = parse_args(argv)
-    variant = dopplertof.set_variant(args.variant or "llvm_ad_rgb")
-    from throughput import machine_line  # the sibling benchmark (this script's folder is on sys.path)
-
-    def log(msg):
-        if not args.quiet:
-            print(msg, flush=True)
-
-    machine = machine_line(variant)
     settings = (
         f"settings: {args.resolution}x{args.resolution}, spp {' '.join(map(str, args.spp))}, {args.seeds} seeds per (estimator, spp) "
         f"(the first untimed warm-up), reference {REFERENCE[0]} x {REFERENCE[1]} {args.ref_spp} spp (seed {REFERENCE_SEED}), "
@@ -506,12 +465,8 @@ def main(argv=None):
         f"reconstruct.velocity(method='auto'); sensor: full well {args.full_well:g} e-, fill {args.fill:g} at the 99th-percentile pixel, "
         f"read noise {args.read_noise:g} e-, 12-bit ADC at {args.full_well / ADC_LEVELS_AT_FULL_WELL:g} e-/DN, noise seed {args.noise_seed}"
     )
-    print(machine, flush=True)
-    print(settings, flush=True)
-    t_all = time.perf_counter()
-    rows = []
-    for name in args.scenes:
-        rows.extend(bench_scene(name, args, log))
+    run = _common.Run("velocity", args, argv, settings)
+    rows = [row for name in args.scenes for row in bench_scene(name, args, run.log)]
     estimators = list(itertools.product(args.methods, args.correlations))
     print()
     for scene, noise in itertools.product(args.scenes, NOISE_SETTINGS):
@@ -542,12 +497,7 @@ def main(argv=None):
                 headline.append(f"fastest at equal RMSE ({scene}, no sensor noise, Monte Carlo regime): {best[0][1]} x {best[0][2]}, {best[1]:.3g}x faster than uniform x replay")
         for line in headline:
             print(line)
-    print(f"total {time.perf_counter() - t_all:.1f} s")
-    command = "python benchmarks/velocity.py " + " ".join(sys.argv[1:] if argv is None else argv)
-    write_csv(args.csv, rows, f"{command.strip()} || {machine} || {settings}")
-    plot(args.plot, rows, args.scenes, estimators)
-    print(f"CSV: {args.csv}\nplot: {args.plot}")
-    return 0
+    return run.finish(rows, CSV_FIELDS, plot=lambda path: plot(path, rows, args.scenes, estimators))
 
 
 if __name__ == "__main__":

@@ -28,6 +28,23 @@ def finite(rows, columns):
     return all(math.isfinite(float(row[c])) for row in rows for c in columns)
 
 
+def run_quick(experiment, tmp_path, cache_dir, columns):
+    """Run ``experiment`` on the Cornell box in its quick form; (output folder, rows of its
+    results.csv), after checking that it succeeded and wrote exactly ``columns``."""
+    out = tmp_path / experiment
+    result = run_cli(experiment, "cornell-box", "--quick", "--cache", str(cache_dir), "-o", str(out))
+    assert result.exit_code == 0, result.output
+    found, rows = read_csv(out / "results.csv")
+    assert tuple(found) == columns
+    return out, rows
+
+
+def assert_written(out, *names):
+    """Every named file is in ``out`` and not empty."""
+    for name in names:
+        assert (out / name).stat().st_size > 0, name
+
+
 @pytest.fixture
 def cache_dir(tmp_path):
     return tmp_path / "cache"
@@ -38,12 +55,7 @@ def cache_dir(tmp_path):
 
 @pytest.mark.slow
 def test_time_sampling_quick(tmp_path, cache_dir):
-    out = tmp_path / "ts"
-    result = run_cli("time-sampling", "cornell-box", "--quick", "--cache", str(cache_dir), "-o", str(out))
-    assert result.exit_code == 0, result.output
-
-    columns, rows = read_csv(out / "results.csv")
-    assert tuple(columns) == sweeps.RESULT_COLUMNS
+    out, rows = run_quick("time-sampling", tmp_path, cache_dir, sweeps.RESULT_COLUMNS)
     configs = {(r["time_sampling"], r["correlation"]) for r in rows}
     assert configs == {(m, c) for m in METHODS for c in ("none", "replay")}
     assert len(rows) == len(configs) * 3 * 2  # quick: 3 h x 2 psi
@@ -60,18 +72,12 @@ def test_time_sampling_quick(tmp_path, cache_dir):
     assert len(summary) == len(configs) * 3
     assert finite(summary, ("rmse_mean", "rmse_std", "psnr_db_mean"))
     for mode in ("none", "replay"):
-        assert (out / f"rmse_vs_h_{mode}.png").stat().st_size > 0
-        assert (out / f"psnr_vs_h_{mode}.png").stat().st_size > 0
+        assert_written(out, f"rmse_vs_h_{mode}.png", f"psnr_vs_h_{mode}.png")
 
 
 @pytest.mark.slow
 def test_shifts_quick(tmp_path, cache_dir):
-    out = tmp_path / "shifts"
-    result = run_cli("shifts", "cornell-box", "--quick", "--cache", str(cache_dir), "-o", str(out))
-    assert result.exit_code == 0, result.output
-
-    columns, rows = read_csv(out / "results.csv")
-    assert tuple(columns) == sweeps.RESULT_COLUMNS
+    out, rows = run_quick("shifts", tmp_path, cache_dir, sweeps.RESULT_COLUMNS)
     assert {r["time_sampling"] for r in rows} == {"antithetic", "antithetic_mirror"}
     assert {float(r["shift"]) for r in rows} == {0.0, 0.5, 1.0}
     assert finite(rows, ("shift", "h", "mae", "rmse", "psnr_db"))
@@ -82,18 +88,12 @@ def test_shifts_quick(tmp_path, cache_dir):
 
     assert rmse(0.5) < 0.2 * rmse(0.0)
     for method in ("antithetic", "antithetic_mirror"):
-        assert (out / f"rmse_{method}_shift_h.png").stat().st_size > 0
-        assert (out / f"rmse_vs_shift_{method}.png").stat().st_size > 0
+        assert_written(out, f"rmse_{method}_shift_h.png", f"rmse_vs_shift_{method}.png")
 
 
 @pytest.mark.slow
 def test_velocity_quick(tmp_path, cache_dir):
-    out = tmp_path / "velocity"
-    result = run_cli("velocity", "cornell-box", "--quick", "--cache", str(cache_dir), "-o", str(out))
-    assert result.exit_code == 0, result.output
-
-    columns, rows = read_csv(out / "results.csv")
-    assert tuple(columns) == velocity.COLUMNS
+    out, rows = run_quick("velocity", tmp_path, cache_dir, velocity.COLUMNS)
     estimators = ["reference"] + [e.label.replace("/", "-") for e in velocity.DEFAULT_ESTIMATORS]
     assert [(r["estimator"], r["noise"]) for r in rows] == [(e, n) for e in estimators for n in ("none", "sensor")]
     assert finite(rows, velocity.COLUMNS[6:])
@@ -101,8 +101,7 @@ def test_velocity_quick(tmp_path, cache_dir):
     reference = rows[0]
     assert float(reference["median_abs_error_m_s"]) < 5.0
     for name in estimators:
-        assert (out / f"velocity_{name}.png").stat().st_size > 0
-        assert (out / f"velocity_error_{name}.png").stat().st_size > 0
+        assert_written(out, f"velocity_{name}.png", f"velocity_error_{name}.png")
 
 
 def test_rerun_loads_the_reference_from_the_cache(tmp_path, cache_dir, monkeypatch):
@@ -126,6 +125,7 @@ def test_rerun_loads_the_reference_from_the_cache(tmp_path, cache_dir, monkeypat
     assert second.exit_code == 0, second.output
     assert "reference: loaded from cache" in second.output
     assert calls == [0]
+
     def errors(folder):
         return [{k: v for k, v in row.items() if k != "render_seconds"} for row in read_csv(tmp_path / folder / "results.csv")[1]]
 

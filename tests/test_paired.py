@@ -21,7 +21,6 @@ import json
 import math
 from statistics import NormalDist
 
-import mitsuba as mi
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -30,6 +29,8 @@ import dopplertof as dt
 from dopplertof import cli
 from dopplertof.correlation import MODES, PAIRED
 from dopplertof.timesampling import METHODS
+
+from scene_dicts import T, grey, perspective
 
 MAX_DEPTH = 4
 CAMERAS = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
@@ -199,16 +200,9 @@ def slatted_wall(resolution, speed_m_s=40.0):
     every slat edge one member's camera ray hits the slat while the other's goes to the
     wall or, above and below the wall, out of the scene.
     """
-    T = mi.ScalarTransform4f
-    grey = lambda v: {"type": "diffuse", "reflectance": {"type": "rgb", "value": [v] * 3}}  # noqa: E731
     scene = {
         "type": "scene",
-        "sensor": {
-            "type": "perspective",
-            "fov": 30,
-            "to_world": T().look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
-            "film": {"type": "hdrfilm", "width": resolution, "height": resolution, "rfilter": {"type": "box"}},
-        },
+        "sensor": perspective((0, 0, 5), (0, 0, 0), 30, resolution),
         "wall": {"type": "rectangle", "to_world": T().translate([0, 0, -1]) @ T().scale(1.2), "bsdf": grey(0.8)},
         "box": {"type": "cube", "to_world": T().translate([0.45, -0.3, 0.6]) @ T().rotate([0, 1, 0], 30) @ T().scale(0.25), "bsdf": grey(0.7)},
         "light": {"type": "point", "position": [0, 0, 5], "intensity": {"type": "rgb", "value": [30.0] * 3}},

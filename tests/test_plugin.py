@@ -17,7 +17,7 @@ import dopplertof as dt
 from dopplertof import cli
 from dopplertof.plugin import PLUGIN_NAMES, output_channels, render_image, render_settings
 
-T = mi.ScalarTransform4f
+from scene_dicts import T, grey, perspective
 
 
 # ----------------------------------------------------------------------------------------
@@ -258,16 +258,9 @@ def test_cli_reports_a_bad_integrator_parameter_in_one_line(data_dir, tmp_path):
 def _grey_room(res, integrator=None, spp=64):
     """A static grey room lit by an area light behind the camera (box filter: a pixel is
     the average over its own area, as in dopplertof.render)."""
-    grey = lambda v: {"type": "diffuse", "reflectance": {"type": "rgb", "value": [v] * 3}}  # noqa: E731
     scene = {
         "type": "scene",
-        "sensor": {
-            "type": "perspective",
-            "fov": 30,
-            "to_world": T().look_at(origin=[0, 1, 4.0], target=[0, 1, 0], up=[0, 1, 0]),
-            "film": {"type": "hdrfilm", "width": res, "height": res, "rfilter": {"type": "box"}},
-            "sampler": {"type": "independent", "sample_count": spp},
-        },
+        "sensor": perspective((0, 1, 4.0), (0, 1, 0), 30, res, sampler={"type": "independent", "sample_count": spp}),
         "floor": {"type": "rectangle", "to_world": T().rotate([1, 0, 0], -90), "bsdf": grey(0.7)},
         "back": {"type": "rectangle", "to_world": T().translate([0, 1, -1]), "bsdf": grey(0.8)},
         "left": {"type": "rectangle", "to_world": T().translate([-1, 1, 0]) @ T().rotate([0, 1, 0], 90), "bsdf": grey(0.4)},

@@ -127,6 +127,17 @@ _TIME_SAMPLING_HELP = f"Time sampling to compare; repeatable (default all: {', '
 _CORRELATION_HELP = f"Correlation mode to compare; repeatable (default all: {', '.join(MODES)}; quick: {', '.join(QUICK_CORRELATIONS)})."
 
 
+def _sweep_settings(h_steps, phases, spp, reference_spp, seed, max_depth, quick):
+    """The h grid, ψ offsets and sample counts of a sweep (options, else the defaults)."""
+    from .sweeps import SweepSettings, evenly_spaced, phase_offsets
+
+    return SweepSettings(
+        evenly_spaced(_setting("h_steps", h_steps, quick), "--h-steps"),
+        phase_offsets(_setting("phases", phases, quick)),
+        _setting("spp", spp, quick), _setting("reference_spp", reference_spp, quick), seed, max_depth,
+    )  # fmt: skip
+
+
 @_experiment_command("time-sampling")
 @click.option("--time-sampling", "time_samplings", multiple=True, help=_TIME_SAMPLING_HELP)
 @click.option("--correlation", "correlations", multiple=True, help=_CORRELATION_HELP)
@@ -134,15 +145,11 @@ _CORRELATION_HELP = f"Correlation mode to compare; repeatable (default all: {', 
 @click.option("--phases", type=int, default=None, help=f"Phase offsets ψ = 2πk/N averaged over (default {NORMAL['phases']}, quick {QUICK['phases']}).")
 def time_sampling_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, time_samplings, correlations, h_steps, phases):
     """Error of every time sampling x correlation versus h, averaged over ψ (paper Fig. 12)."""
-    from .sweeps import SweepSettings, evenly_spaced, phase_offsets, run_time_sampling
+    from .sweeps import run_time_sampling
 
     estimators = _estimators(time_samplings, correlations, quick)
     dyn, folder, cache, max_depth = _prepare("time-sampling", scene, output, resolution, quick, cache, max_depth, click.echo)
-    settings = SweepSettings(
-        evenly_spaced(_setting("h_steps", h_steps, quick), "--h-steps"),
-        phase_offsets(_setting("phases", phases, quick)),
-        _setting("spp", spp, quick), _setting("reference_spp", reference_spp, quick), seed, max_depth,
-    )  # fmt: skip
+    settings = _sweep_settings(h_steps, phases, spp, reference_spp, seed, max_depth, quick)
     _report(run_time_sampling(dyn, folder, estimators, settings, cache, click.echo))
 
 
@@ -154,16 +161,12 @@ def time_sampling_command(scene, output, spp, reference_spp, resolution, seed, m
 @click.option("--phases", type=int, default=None, help=f"Phase offsets ψ = 2πk/N averaged over (default {NORMAL['phases']}, quick {QUICK['phases']}).")
 def shifts_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, time_samplings, correlation, shift_steps, h_steps, phases):
     """Error of antithetic sampling versus the shift a and h (paper Fig. 15)."""
-    from .sweeps import SweepSettings, evenly_spaced, phase_offsets, run_shifts
+    from .sweeps import evenly_spaced, run_shifts
 
     methods = list(dict.fromkeys(time_samplings or ("antithetic", "antithetic_mirror")))
     shift_values = evenly_spaced(_setting("shift_steps", shift_steps, quick), "--shift-steps")
     dyn, folder, cache, max_depth = _prepare("shifts", scene, output, resolution, quick, cache, max_depth, click.echo)
-    settings = SweepSettings(
-        evenly_spaced(_setting("h_steps", h_steps, quick), "--h-steps"),
-        phase_offsets(_setting("phases", phases, quick)),
-        _setting("spp", spp, quick), _setting("reference_spp", reference_spp, quick), seed, max_depth,
-    )  # fmt: skip
+    settings = _sweep_settings(h_steps, phases, spp, reference_spp, seed, max_depth, quick)
     _report(run_shifts(dyn, folder, methods, shift_values, correlation, settings, cache, click.echo))
 
 
