@@ -7,9 +7,13 @@ camera configuration, weighted by W(u, L) (:mod:`dopplertof.modulation`) with ``
 optical path length of that light path, so all cameras come from the same paths.
 
 Random numbers are replayable: two PCG32 streams per lane, seeded from
-(seed, pixel, group) and (seed, pixel, sample), both advanced at every draw; a draw takes
-the group's number where it is correlated (:mod:`dopplertof.correlation`), so lanes of a
-group replay each other's paths regardless of how the samples are split into passes.
+(seed, pixel, group) and (seed, pixel, sample); a draw takes the group's number where it
+is correlated (:mod:`dopplertof.correlation`), so lanes of a group replay each other's
+paths regardless of how the samples are split into passes. Where the correlation is the
+same at every depth only the stream in use advances; a replay cut-off advances both.
+
+The paired modes (``reconnection``, ``adaptive``) and analytic time integration trace a
+primal path and its partner in one lane instead: :mod:`dopplertof.paired`.
 
 Path lengths are accumulated in Float64 from Float64 vertices: each hit distance is
 recomputed in Float64 against the hit surface's tangent plane in the body's frame, so the
