@@ -713,3 +713,20 @@ def test_hidden_emitters_are_passed_through_as_in_stock_path(correlation):
     diff = ours.intensity[centre].astype(np.float64).mean() - stock[centre].mean()
     assert abs(diff) < 4 * ours.stderr[centre].astype(np.float64).mean() + 0.02 * stock[centre].mean()
     assert stock[centre].mean() < 1.0  # the light itself (radiance 5) is not what is seen
+
+
+@pytest.mark.parametrize("correlation", ["replay", "adaptive"])
+def test_another_spp_or_shift_reuses_the_kernels(correlation):
+    """spp and the antithetic shift are data: sweeping them launches the same kernels."""
+    scene = dt.scenes.cornell_box(resolution=8)
+    was = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        hashes = []
+        for spp, shift in ((4, 0.5), (8, 0.5), (12, 0.3)):
+            dr.kernel_history()
+            dt.render(scene, [dt.Camera()], spp=spp, correlation=correlation, antithetic_shift=shift)
+            hashes.append([k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT])
+        assert hashes[1] and hashes[0] == hashes[1] == hashes[2]
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, was)

@@ -178,7 +178,7 @@ def trace(scene, setup: LaneSetup, cameras, time_sampling, correlation, max_dept
 
     n_lanes = setup.n_pixels * setup.samples_per_pixel_pass
     lane = dr.arange(mi.UInt32, n_lanes)
-    spp_pass = setup.samples_per_pixel_pass
+    spp_pass = _opaque_u32(setup.samples_per_pixel_pass)  # data, not code: any spp reuses the kernel
     pixel = lane // spp_pass
     sample = lane % spp_pass + _opaque_u32(setup.first_sample)
     group = sample // setup.n_times

@@ -152,8 +152,8 @@ def _analytic_integral(cam, length1_m, length2_m, x1, x2):
 def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, hide_emitters=False, roughness=None):
     """Trace one pass of pairs; same outputs as :func:`dopplertof.integrator.trace`, one
     entry per pair (``hit`` counts the members whose camera ray hit: 0, 1 or 2)."""
-    groups_pass = setup.samples_per_pixel_pass // 2
-    lane = dr.arange(mi.UInt32, setup.n_pixels * groups_pass)
+    lane = dr.arange(mi.UInt32, setup.n_pixels * (setup.samples_per_pixel_pass // 2))
+    groups_pass = _opaque_u32(setup.samples_per_pixel_pass // 2)
     pixel = lane // groups_pass
     group = lane % groups_pass + _opaque_u32(setup.first_sample // 2)
     seed = _opaque_u32(setup.seed)

@@ -64,21 +64,24 @@ def sample_times(method, r_shared, r_own, group, member, n_groups, n_times, shif
 
     F = mi.Float64
     m = F(member)
+    groups = F(n_groups)  # counts and shifts as opaque data: another spp or shift reuses the kernel
+    dr.make_opaque(groups)
     if method == "uniform":
         u = F(r_own)
     elif method == "stratified":
         if stratify_intervals:
-            perm = mi.permute_kensler(group, n_groups, permutation_seed)
-            r = (F(perm) + F(r_own)) / n_groups
+            perm = mi.permute_kensler(group, n_groups, permutation_seed)  # takes a Python int
+            r = (F(perm) + F(r_own)) / groups
         else:
             r = F(r_own)
         u = (m + r) / n_times
     else:
-        r = (F(group) + F(r_shared)) / n_groups if stratify_intervals else F(r_shared)
+        r = (F(group) + F(r_shared)) / groups if stratify_intervals else F(r_shared)
+        step = F(shift if n_times == 2 else 1.0 / n_times)
+        dr.make_opaque(step)
         if method == "antithetic":
-            step = shift if n_times == 2 else 1.0 / n_times
             u = _frac(r + m * step)
         else:  # antithetic_mirror
-            u = dr.select(member == 0, r, _frac(1.0 - r + shift))
+            u = dr.select(member == 0, r, _frac(1.0 - r + step))
     u = dr.floor(u / TIME_QUANTUM) * TIME_QUANTUM
     return dr.minimum(u, 1.0 - TIME_QUANTUM)
