@@ -222,7 +222,7 @@ def full_weight(camera: Camera, u, path_length_m):
 # Per-lane evaluation for the integrator (Dr.Jit)
 
 
-class _OpaqueCamera:
+class OpaqueCamera:
     """A camera whose numeric parameters are opaque Dr.Jit Float64 scalars (no recompiles)."""
 
     def __init__(self, camera: Camera):
@@ -258,7 +258,7 @@ class CameraBank:
         self._terms = []
         wavenumbers = {}  # host k (rad/m) -> opaque Float64, shared by cameras
         for camera in cameras:
-            cam = _OpaqueCamera(camera)
+            cam = OpaqueCamera(camera)
             k_key = camera.wavenumber
             cam.wavenumber = wavenumbers.setdefault(k_key, cam.wavenumber)
             if not camera.low_pass:

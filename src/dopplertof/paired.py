@@ -51,6 +51,7 @@ from .integrator import (
     _STREAM_OWN,
     _STREAM_PERM,
     _STREAM_SHARED,
+    _accumulate,
     _aperture_point,
     _opaque_u32,
     _seeded_pcg,
@@ -148,6 +149,20 @@ def _analytic_integral(cam, length1_m, length2_m, x1, x2):
     return 0.5 * cam.g1 * (x1 * constant + (x2 - x1) * linear)
 
 
+def _pair_times(rng, seed, pixel, group, setup, time_sampling):
+    """(u1, u2): the group's two normalised times, which of them is primal a fair coin."""
+    r_time_shared = rng.next_float32()
+    n_groups = max(setup.spp_total // 2, 1)
+    times = []
+    for member in (0, 1):
+        r_own = _seeded_pcg(seed, _STREAM_OWN, pixel, group * 2 + member).next_float32()
+        perm_seed = mi.sample_tea_32(seed ^ _STREAM_PERM, pixel * 2 + member, 4)[0]
+        args = (r_time_shared, r_own, group, mi.UInt32(member), n_groups, 2, time_sampling.shift, time_sampling.stratify_intervals, perm_seed)
+        times.append(timesampling.sample_times(time_sampling.method, *args))
+    swap = rng.next_float32() < 0.5  # which member is primal (module docstring)
+    return dr.select(swap, times[1], times[0]), dr.select(swap, times[0], times[1])
+
+
 @dr.syntax
 def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, hide_emitters=False, roughness=None):
     """Trace one pass of pairs; same outputs as :func:`dopplertof.integrator.trace`, one
@@ -160,20 +175,11 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
     rng = _seeded_pcg(seed, _STREAM_SHARED, pixel, group)
 
     # ---------------------------------------------------------------- exposure times
-    r_time_shared = rng.next_float32()
-    times = []
-    for member in (0, 1):
-        r_own = _seeded_pcg(seed, _STREAM_OWN, pixel, group * 2 + member).next_float32()
-        perm_seed = mi.sample_tea_32(seed ^ _STREAM_PERM, pixel * 2 + member, 4)[0]
-        n_groups = max(setup.spp_total // 2, 1)
-        args = (r_time_shared, r_own, group, mi.UInt32(member), n_groups, 2, time_sampling.shift, time_sampling.stratify_intervals, perm_seed)
-        times.append(timesampling.sample_times(time_sampling.method if time_sampling.method in timesampling.METHODS else "uniform", *args))
-    swap = rng.next_float32() < 0.5  # which member is primal: a fair coin (module docstring)
-    u1 = dr.select(swap, times[1], times[0])
-    u2 = dr.select(swap, times[0], times[1])
     analytic = time_sampling.method == timesampling.ANALYTIC
-    if analytic:  # the exposure's ends, P1 first
+    if dr.hint(analytic, mode="scalar"):  # the exposure's ends, P1 first
         u1, u2 = mi.Float64(0.0), mi.Float64(1.0)
+    else:
+        u1, u2 = _pair_times(rng, seed, pixel, group, setup, time_sampling)
     time1, time2 = lane_times(setup, u1), lane_times(setup, u2)
     poses1, poses2 = scene.poses(time1), scene.poses(time2)
     poses1_64, poses2_64 = scene.poses(time1, precise=True), scene.poses(time2, precise=True)
@@ -201,7 +207,6 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
     # ---------------------------------------------------------------- loop state
     depth = mi.UInt32(0)
     si1, si2 = hit1.si, hit2.si
-    body1 = hit1.body
     ray1, ray2 = mi.Ray3f(ray), mi.Ray3f(ray)
     beta1, beta2 = mi.Spectrum(ray_weight), mi.Spectrum(ray_weight)
     r1, r2 = mi.Float(1), mi.Float(1)  # p_shift / p_primal of the prefix
@@ -217,7 +222,7 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
     # P1 as primal only and P2 as shifted only (two estimates at the exposure's ends).
     own_coef = (1.0, 0.0) if analytic else (1.0, 1.0)
     shift_coef = (0.0, 1.0) if analytic else (1.0, 1.0)
-    lanes_ops = [modulation._OpaqueCamera(c) for c in cameras] if analytic else []
+    opaque_cameras = [modulation.OpaqueCamera(c) for c in cameras] if analytic else []
     active1 = mi.Bool(True)  # P1's ray was traced: its hit (or escape) is to be shaded
     active2 = mi.Bool(True)  # the same for P2, which also needs P1 alive
 
@@ -225,7 +230,7 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
         active1,
         label="dopplertof paired path",
         max_iterations=-1,
-        exclude=[scene, correlation, bank1, bank2, poses1, poses2, poses1_64, poses2_64, static, bsdf_ctx, roughness, threshold, cameras, analytic, own_coef, shift_coef, lanes_ops],
+        exclude=[scene, correlation, bank1, bank2, poses1, poses2, poses1_64, poses2_64, static, bsdf_ctx, roughness, threshold, analytic, own_coef, shift_coef, opaque_cameras],
     ):
         active2 &= active1
         valid1 = active1 & si1.is_valid()
@@ -289,16 +294,12 @@ def trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth=5, h
                 radiance = dr.select(m1c, radiance + 0.5 * (x1c + x2c), radiance)
                 lum1 = mi.luminance(x1c) if mi.is_rgb else x1c[0]
                 lum2 = mi.luminance(x2c) if mi.is_rgb else x2c[0]
-                for i in range(len(lanes_ops)):
-                    w = _analytic_integral(lanes_ops[i], l1c, l2c, mi.Float64(lum1), mi.Float64(lum2))
+                for i in range(len(opaque_cameras)):
+                    w = _analytic_integral(opaque_cameras[i], l1c, l2c, mi.Float64(lum1), mi.Float64(lum2))
                     measurements[i] = dr.select(m1c, measurements[i] + mi.Float(w), measurements[i])
-            contributions = []
-        for k, (contrib, length, mask) in enumerate(contributions):  # each member at its own time
-            radiance = dr.select(mask, radiance + contrib, radiance)
-            if dr.hint(len(cameras) > 0, mode="scalar"):
-                lum = mi.luminance(contrib) if mi.is_rgb else contrib[0]
-                weights = (bank1, bank2)[k % 2].weights(length)
-                measurements = [dr.select(mask, measurements[i] + weights[i] * lum, measurements[i]) for i in range(len(weights))]
+        else:
+            for k, (contrib, length, mask) in enumerate(contributions):  # each member at its own time
+                radiance, measurements = _accumulate(radiance, measurements, (bank1, bank2)[k % 2], contrib, length, mask)
 
         # ---------------------------------------------------- BSDF sampling: P1, then P2 (replay)
         sample_1 = rng.next_float32()
