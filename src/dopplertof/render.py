@@ -19,7 +19,7 @@ import numpy as np
 
 from .correlation import Correlation
 from .modulation import Camera
-from .timesampling import METHODS, validate
+from .timesampling import ANALYTIC, METHODS, validate
 
 DEFAULT_EXPOSURE_S = 1.5e-3
 DEFAULT_LANES_PER_PASS = 1 << 21
@@ -182,8 +182,9 @@ def render(
             n_times = 1  # independent times need no grouping
         time_sampling = TimeSampling(time_sampling, n_times, antithetic_shift, stratify_intervals)
     n = time_sampling.n_times
-    paired = correlation.paired or time_sampling.method == "analytic"
-    if time_sampling.method == "analytic":
+    analytic = time_sampling.method == ANALYTIC
+    paired = correlation.paired or analytic
+    if analytic:
         if correlation.mode not in ("replay", "reconnection", "adaptive") or correlation.depth is not None:
             raise ValueError(f"analytic time integration needs a fully correlated partner (replay, reconnection or adaptive), got {correlation.mode!r}")
         bad = [f"{c.label()} ({c.waveform}{'' if c.low_pass else ', full waveform'})" for c in cameras if not (c.low_pass and c.waveform == "sinusoidal")]
