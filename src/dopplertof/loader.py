@@ -43,7 +43,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from .motion import Keyframed, Motion, Parametric
-from .plugin import PLUGIN_NAMES
+from .settings import PLUGIN_NAMES, STOCK_PATH_INTEGRATORS, integrator_layer
 from .scene import Body, DynamicScene, SceneError
 
 _SHAPE_TAGS = {"shape"}
@@ -260,8 +260,6 @@ def _load_xml(path: str, params: dict) -> DynamicScene:
                 raise SceneError(f"{where}: more than one <animation>")
             if any(t.attrib.get("name") == "to_world" for t in el.findall("transform")):
                 raise SceneError(f"{where}: has both <transform name=\"to_world\"> and <animation>; keep one")
-            if el.findall("emitter"):
-                raise SceneError(f"{where}: moving emitters are not supported; keep area lights static")
             motion = _parse_animation(anims[0], where)
             el.remove(anims[0])
             moving.append((motion, (index, el)))
@@ -294,7 +292,31 @@ def _load_xml(path: str, params: dict) -> DynamicScene:
             resolver.append(entry)
     if not static.sensors():
         raise SceneError(f"{path}: the scene has no <sensor>")
-    return DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path)
+    return _checked_scene(DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path))
+
+
+def _checked_scene(scene: DynamicScene) -> DynamicScene:
+    """Refuse what the tracer would silently drop, and validate the ``<integrator>`` now
+    (not after a long render): participating media, emitters or sensors on moving bodies,
+    bad integrator parameters."""
+    where = scene.source
+    for label, mi_scene in [("", scene.static)] + [(f"moving body {b.name!r}: ", b.scene) for b in scene.bodies]:
+        for shape in mi_scene.shapes():
+            if shape.interior_medium() is not None or shape.exterior_medium() is not None:
+                raise SceneError(f"{where}: {label}shape {shape.id() or shape.class_name()!r} has a participating medium; media are not supported (remove the <medium> or render with stock Mitsuba's volpath)")
+        if label and mi_scene.emitters():
+            raise SceneError(f"{where}: {label}carries an emitter; moving emitters are not supported (keep lights static)")
+        if label and mi_scene.sensors():
+            raise SceneError(f"{where}: {label}carries a sensor; moving sensors are not supported")
+    for sensor in scene.static.sensors():
+        if sensor.get_medium() is not None:
+            raise SceneError(f"{where}: the sensor is inside a participating medium; media are not supported")
+    if scene.integrator_params:
+        try:
+            integrator_layer(scene.integrator_params, f"{where}: <integrator>")
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
+    return scene
 
 
 def _motion_key(motion: Motion):
@@ -412,7 +434,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
     integrator_params = {}
     for key, value in scene_dict.items():
         where = f"<dict>: entry {key!r}"
-        if isinstance(value, dict) and value.get("type") in PLUGIN_NAMES:
+        if isinstance(value, dict) and value.get("type") in PLUGIN_NAMES + STOCK_PATH_INTEGRATORS:
             integrator_params = {k: v for k, v in value.items()}
             continue
         if isinstance(value, dict) and "motion" in value:
@@ -420,8 +442,6 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
             spec = shape.pop("motion")
             if isinstance(spec, Motion):
                 shape.pop("to_world", None)  # a Motion object places the shape itself
-            if "emitter" in shape:
-                raise SceneError(f"{where}: moving emitters are not supported; keep area lights static")
             motion = _motion_from_dict(spec, "to_world" in shape, where)
             placement = _as_matrix(shape["to_world"], where) if "to_world" in shape else None
             moving.append((motion, (key, shape, placement)))
@@ -443,4 +463,4 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
         raise _mitsuba_error("<dict>", exc) from None
     if not static.sensors():
         raise SceneError("<dict>: the scene has no sensor")
-    return DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params)
+    return _checked_scene(DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params))

@@ -295,3 +295,23 @@ class CameraBank:
                 w = full_weight(cam, u, path_length_m)
             out.append(mi.Float(w))
         return out
+
+
+def analytic_integral(cam: OpaqueCamera, length1_m, length2_m, x1, x2):
+    """(g₁/2)∫₀¹ cos(a u + b)(x1 + (x2 − x1)u) du, a = 2πh + k(L2 − L1), b = ψ + kL1 (Float64).
+
+    The low-pass sinusoid weight integrated over the exposure for a contribution X and a
+    path length L linear in time between their values at the start (1) and end (2): the
+    original's analytic mode, with ψ (which the original omits).
+    """
+    import drjit as dr
+
+    a = TWO_PI * cam.heterodyne + cam.wavenumber * (length2_m - length1_m)
+    b = wrap_phase(cam.phase + cam.wavenumber * length1_m)
+    sin_b, cos_b = dr.sincos(b)
+    sin_ab, cos_ab = dr.sincos(a + b)
+    small = dr.abs(a) < 1e-4
+    a_safe = dr.select(small, 1.0, a)
+    constant = dr.select(small, cos_b - 0.5 * a * sin_b, (sin_ab - sin_b) / a_safe)  # ∫cos
+    linear = dr.select(small, 0.5 * cos_b - a * sin_b / 3.0, sin_ab / a_safe + (cos_ab - cos_b) / dr.square(a_safe))  # ∫u cos
+    return 0.5 * cam.g1 * (x1 * constant + (x2 - x1) * linear)
