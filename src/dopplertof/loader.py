@@ -1,7 +1,8 @@
 """Loading dynamic scenes from Mitsuba 3 XML files and from Python dicts.
 
 XML: the Mitsuba 3 format (or the original CPU code's Mitsuba 0.6 format, translated by
-:mod:`dopplertof.mitsuba06`; ``<include>`` is expanded here for both), plus the original D-ToF code's motion syntax inside a shape::
+:mod:`dopplertof.mitsuba06`; ``<include>`` is expanded here for both), plus the original
+D-ToF code's motion syntax inside a shape::
 
     <shape type="cube">
         <animation name="to_world">
@@ -247,8 +248,8 @@ def _substitute(root, values: dict, path: str) -> dict:
         return val
 
     for d in root.findall("default"):
-        if "name" in d.attrib:
-            values.setdefault(d.attrib["name"], replace(d, "value") if "value" in d.attrib else "")
+        if "name" in d.attrib and d.attrib["name"] not in values:  # the first definition wins
+            values[d.attrib["name"]] = replace(d, "value") if "value" in d.attrib else ""
         root.remove(d)
     for el in root.iter():
         for key, val in el.attrib.items():

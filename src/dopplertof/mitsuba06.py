@@ -423,7 +423,7 @@ def translate(root, where: str) -> bool:
         else:  # a stock integrator: strictNormals has the same meaning there
             for p in list(integrator):
                 if p.attrib.get("name") == "strictNormals":
-                    strict = _props(integrator, here)["strictNormals"] is True
+                    strict = _typed("strictNormals", _props(integrator, here)["strictNormals"], "bool", here)
                     integrator.remove(p)
     for el in root.iter():
         if el.tag != "default" and "name" in el.attrib:
