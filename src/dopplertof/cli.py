@@ -62,17 +62,46 @@ def _fail(message: str):
     sys.exit(2)
 
 
-def _load(scene_arg: str, resolution):
+def _resolution(text):
+    """``"N"`` (or an int) → N, square; ``"WxH"`` → (W, H); None stays None."""
+    if text is None:
+        return None
+    try:
+        size = (text,) if isinstance(text, int) else tuple(int(v) for v in text.lower().split("x"))
+    except ValueError:
+        size = ()
+    if len(size) not in (1, 2) or min(size) <= 0:
+        raise ValueError(f"--resolution {text!r}: expected N or WxH (positive integers)")
+    return size[0] if len(size) == 1 else size
+
+
+def _defines(items) -> dict:
+    """``-D name=value`` options as ``{name: value}``."""
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not name.strip().replace("_", "a").isalnum():
+            raise ValueError(f"-D {item!r}: expected name=value (name: letters, digits, _)")
+        out[name.strip()] = value
+    return out
+
+
+def _load(scene_arg: str, resolution=None, defines=()):
+    """The scene of ``dopplertof render``: a built-in name or an XML file, with ``--resolution``
+    (N or WxH) and ``-D name=value`` (``$name`` values of a file)."""
     from . import scenes
     from .loader import load_scene
 
+    size, params = _resolution(resolution), _defines(defines)
     if scene_arg in scenes.SCENES:
-        return scenes.build(scene_arg, **({} if resolution is None else {"resolution": resolution}))
-    if resolution is not None:
-        raise ValueError("--resolution applies to built-in scenes; set the film size in the scene file")
+        if params:
+            raise ValueError(f"-D applies to scene files; {scene_arg!r} is a built-in scene")
+        if isinstance(size, tuple) and size[0] != size[1]:
+            raise ValueError(f"--resolution {resolution!r}: built-in scenes are square; give one number")
+        return scenes.build(scene_arg, **({} if size is None else {"resolution": size if isinstance(size, int) else size[0]}))
     if not os.path.exists(scene_arg):
         raise ValueError(f"{scene_arg}: no such scene file or built-in scene (see 'dopplertof scenes')")
-    return load_scene(scene_arg)
+    return load_scene(scene_arg, film_resolution=size, **params)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -111,10 +140,11 @@ def scenes():
 @click.option("--reconnection-threshold", type=float, default=None,
               help="adaptive: reconnect where both surfaces are rougher than this GGX/Beckmann alpha (default 0.5).")
 @click.option("--exposure", type=float, default=None, help="Exposure T in seconds (default 1.5e-3).")
-@click.option("--resolution", type=int, default=None, help="Film size of a built-in scene (pixels).")
+@click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces a file's.")
+@click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file (overrides its <default>). Repeatable.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def render(scene, spp, output, camera_specs, seed, max_depth, time_sampling, correlation, correlation_depth,
-           reconnection_threshold, exposure, resolution, quiet):
+           reconnection_threshold, exposure, resolution, defines, quiet):
     """Render SCENE (an XML file or a built-in scene name) into OUTPUT."""
     import dataclasses
 
@@ -124,7 +154,7 @@ def render(scene, spp, output, camera_specs, seed, max_depth, time_sampling, cor
     from .scene import SceneError
 
     try:
-        dyn = _load(scene, resolution)
+        dyn = _load(scene, resolution, defines)
         # The scene's <integrator> (original parameter names) first; options replace it.
         settings = render_settings(dyn.integrator_params, f"{scene}: <integrator>") if dyn.integrator_params else {}
         if camera_specs:

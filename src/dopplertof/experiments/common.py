@@ -77,8 +77,8 @@ class ExperimentScene:
 def open_scene(scene_arg: str, resolution: int | None) -> ExperimentScene:
     """Load a built-in scene by name or a Mitsuba XML file, as ``dopplertof render`` does.
 
-    Raises ValueError (or SceneError) for an unknown scene, a missing file, bad
-    ``<integrator>`` parameters, or a ``resolution`` given for a file.
+    Raises ValueError (or SceneError) for an unknown scene, a missing file or bad
+    ``<integrator>`` parameters; ``resolution`` replaces a file's film size too.
     """
     from .. import scenes
     from ..cli import _load  # imported here: cli imports this package at its end
