@@ -107,7 +107,7 @@ def test_integrator_keys(props, expected):
     assert {k: params[k] for k in expected} == expected
     assert "antithetic_shift" not in params or params["time_sampling"] in ("antithetic", "antithetic_mirror")
     settings = render_settings(params)  # every translation is a valid render setting
-    assert settings["time_sampling"] == params["time_sampling"] and settings["n_times"] == params["n_times"]
+    assert settings.time_sampling == params["time_sampling"] and settings.group_size == params["n_times"]
 
 
 def test_strict_normals_is_reported():

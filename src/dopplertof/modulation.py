@@ -28,11 +28,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .validation import parse_bool
+
 import numpy as np
 
 SPEED_OF_LIGHT_M_S = 299_792_458.0
 TWO_PI = 2.0 * math.pi
 WAVEFORMS = ("sinusoidal", "rectangular", "triangular", "trapezoidal")
+# Beyond these the Float64 phase arithmetic loses the path length (k·L at 1 THz and 1 km is
+# 2e7 rad, still resolving 1e-8 rad); no D-ToF sensor comes near them.
+MAX_MODULATION_FREQUENCY_HZ = 1e12
+MAX_HETERODYNE = 1e9
 
 
 @dataclass(frozen=True)
@@ -60,18 +66,20 @@ class Camera:
     low_pass: bool = True
 
     def __post_init__(self):
+        from .validation import checked
+
         for name in ("modulation_frequency", "exposure", "heterodyne", "phase", "g1", "g0"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(value):
-                raise ValueError(f"Camera: {name} must be a finite number, got {value!r}")
-            object.__setattr__(self, name, float(value))
-        if self.modulation_frequency <= 0:
-            raise ValueError(f"Camera: modulation_frequency must be > 0 Hz, got {self.modulation_frequency!r}")
+            object.__setattr__(self, name, checked(name, getattr(self, name), "float", "Camera"))
+        object.__setattr__(self, "waveform", checked("waveform", self.waveform, "str", "Camera"))
+        object.__setattr__(self, "low_pass", checked("low_pass", self.low_pass, "bool", "Camera"))
+        if not 0 < self.modulation_frequency <= MAX_MODULATION_FREQUENCY_HZ:
+            raise ValueError(f"Camera: modulation_frequency must be in (0, {MAX_MODULATION_FREQUENCY_HZ:g}] Hz, got {self.modulation_frequency!r}")
+        if abs(self.heterodyne) > MAX_HETERODYNE:
+            raise ValueError(f"Camera: |heterodyne| must be <= {MAX_HETERODYNE:g} beat cycles per exposure, got {self.heterodyne!r}")
         if self.exposure <= 0:
             raise ValueError(f"Camera: exposure must be > 0 s, got {self.exposure!r}")
         if self.waveform not in WAVEFORMS:
             raise ValueError(f"Camera: unknown waveform {self.waveform!r}; choose one of {', '.join(WAVEFORMS)}")
-        object.__setattr__(self, "low_pass", bool(self.low_pass))
 
     @property
     def wavenumber(self) -> float:
@@ -118,6 +126,61 @@ class Camera:
             )
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
+
+
+# ----------------------------------------------------------------------------------------
+# Cameras from text (command line)
+
+_CAMERA_KEYS = {
+    "h": "heterodyne",
+    "heterodyne": "heterodyne",
+    "psi": "phase",
+    "phase": "phase",
+    "f": "modulation_frequency",
+    "frequency": "modulation_frequency",
+    "T": "exposure",
+    "exposure": "exposure",
+    "waveform": "waveform",
+    "g1": "g1",
+    "g0": "g0",
+    "low_pass": "low_pass",
+}
+
+
+def parse_camera(text: str, exposure: float | None = None) -> Camera:
+    """A :class:`Camera` from ``"h=1,psi=0,f=30e6,waveform=sinusoidal"``.
+
+    ``psi`` accepts radians or degrees with a ``deg`` suffix (``psi=90deg``); ``f`` is Hz.
+    """
+    kwargs: dict = {}
+    items = [p.strip() for p in text.split(",")]
+    if not any(items):
+        raise ValueError(f"camera {text!r}: empty; give key=value pairs such as 'h=1,psi=90deg'")
+    for item in filter(None, items):
+        if "=" not in item:
+            raise ValueError(f"camera {text!r}: expected key=value, got {item!r}")
+        key, value = (s.strip() for s in item.split("=", 1))
+        if key not in _CAMERA_KEYS:
+            raise ValueError(f"camera {text!r}: unknown key {key!r}; use {', '.join(sorted(set(_CAMERA_KEYS)))}")
+        if name in kwargs:
+            raise ValueError(f"camera {text!r}: {key!r} given twice")
+        name = _CAMERA_KEYS[key]
+        if name == "waveform":
+            kwargs[name] = value
+        elif name == "low_pass":
+            kwargs[name] = parse_bool(value, f"camera {text!r}: low_pass")
+        else:
+            try:
+                kwargs[name] = math.radians(float(value[:-3])) if name == "phase" and value.endswith("deg") else float(value)
+            except ValueError:
+                raise ValueError(f"camera {text!r}: {key}={value!r} is not a number") from None
+    if exposure is not None:
+        kwargs.setdefault("exposure", exposure)
+    try:
+        return Camera(**kwargs)
+    except ValueError as exc:
+        raise ValueError(f"camera {text!r}: {exc}") from None
+
 
 
 # ----------------------------------------------------------------------------------------
