@@ -66,6 +66,9 @@ _SYSTEM_LLVM_DIRS = (
     "/usr/local/opt/llvm@*/lib",
 )
 
+# ldconfig lives in /sbin, which a normal user's PATH often lacks.
+_LDCONFIG_FALLBACKS = ("/sbin/ldconfig", "/usr/sbin/ldconfig")
+
 # The one shared library of LLVM (not its static parts libLLVMCore.a, ...): libLLVM.so,
 # libLLVM-19.so, libLLVM-14.0.6.so.1, libLLVM.so.19.1, libLLVM.dylib, libLLVM-19.dylib.
 _LIBLLVM_NAME = re.compile(r"^libLLVM(?:-(\d+)[\w.]*)?\.(?:so(?:\.(\d+)[\w.]*)?|dylib)$")
@@ -155,9 +158,8 @@ def _from_system_dirs() -> list[tuple[int, str]]:
 
 
 def _from_ldconfig() -> list[tuple[int, str]]:
-    # ldconfig lives in /sbin, which a normal user's PATH often lacks.
     tool = shutil.which("ldconfig") or next(
-        (t for t in ("/sbin/ldconfig", "/usr/sbin/ldconfig") if os.access(t, os.X_OK)), None
+        (t for t in _LDCONFIG_FALLBACKS if os.access(t, os.X_OK)), None
     )
     if tool is None:
         return []
