@@ -27,7 +27,8 @@ apt_install() {
 
 # Python first: the libLLVM search below runs in it. pyproject.toml asks for >= 3.10.
 python_ok() {
-    command -v "$PY" >/dev/null 2>&1 && "$PY" -c 'import sys; sys.exit(sys.version_info < (3, 10))' 2>/dev/null
+    command -v "$PY" >/dev/null 2>&1 &&
+        "$PY" -c 'import sys; sys.exit(sys.version_info < (3, 10))' 2>/dev/null
 }
 if ! python_ok; then
     if can_apt && [ -z "${PYTHON:-}" ]; then
