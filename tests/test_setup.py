@@ -170,3 +170,23 @@ def test_root_without_libllvm_installs_libllvm19(checkout):
     assert "setup: installing libllvm19" in result.stdout
     assert result.stderr.splitlines()[-1] == f"setup: {backend.LLVM_INSTALL_HINT}"
     assert "apt-get install -y -qq libllvm19" in calls.read_text()
+
+
+def test_normal_user_without_venv_support_is_told_what_to_install(normal_user, checkout):
+    repo, _, calls = checkout
+    # Debian without python3-venv has venv but no ensurepip: shadow it with a broken one.
+    hide = repo / "hide-ensurepip"
+    hide.mkdir()
+    (hide / "ensurepip.py").write_text("raise ImportError('not installed')\n")
+    # Whatever this machine has, the libLLVM check before passes: the variable names a file.
+    fake_llvm = repo / "libLLVM-19.so"
+    fake_llvm.touch()
+    result = _run_setup(checkout, user=normal_user,
+                        env={"PYTHONPATH": str(hide), backend.LLVM_PATH_ENV: str(fake_llvm)})
+    assert result.returncode != 0
+    assert result.stderr.splitlines() == [
+        "setup: python3 cannot make a virtual environment (no ensurepip); install it with "
+        "'sudo apt-get install python3-venv' (Debian/Ubuntu) or set PYTHON=/path/to/python3"
+    ]
+    assert calls.read_text() == ""
+    assert not (repo / ".venv").exists()
