@@ -187,3 +187,9 @@ def test_backend_module_loads_alone_without_drjit():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             check=True)
     assert result.stdout.strip() == "[]"
+
+
+def test_backend_failure_says_what_to_install_or_fix(bare, tmp_path, monkeypatch):
+    assert backend._install_hint().endswith(backend.LLVM_INSTALL_HINT)
+    monkeypatch.setenv(backend.LLVM_PATH_ENV, str(tmp_path / "libLLVM-19.so"))
+    assert f"DRJIT_LIBLLVM_PATH={tmp_path / 'libLLVM-19.so'} is not a file" in backend._install_hint()
