@@ -191,5 +191,6 @@ def test_backend_module_loads_alone_without_drjit():
 
 def test_backend_failure_says_what_to_install_or_fix(bare, tmp_path, monkeypatch):
     assert backend._install_hint().endswith(backend.LLVM_INSTALL_HINT)
-    monkeypatch.setenv(backend.LLVM_PATH_ENV, str(tmp_path / "libLLVM-19.so"))
-    assert f"DRJIT_LIBLLVM_PATH={tmp_path / 'libLLVM-19.so'} is not a file" in backend._install_hint()
+    missing = tmp_path / "libLLVM-19.so"
+    monkeypatch.setenv(backend.LLVM_PATH_ENV, str(missing))
+    assert f"DRJIT_LIBLLVM_PATH={missing} is not a file" in backend._install_hint()
