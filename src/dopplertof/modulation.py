@@ -162,9 +162,9 @@ def parse_camera(text: str, exposure: float | None = None) -> Camera:
         key, value = (s.strip() for s in item.split("=", 1))
         if key not in _CAMERA_KEYS:
             raise ValueError(f"camera {text!r}: unknown key {key!r}; use {', '.join(sorted(set(_CAMERA_KEYS)))}")
+        name = _CAMERA_KEYS[key]
         if name in kwargs:
             raise ValueError(f"camera {text!r}: {key!r} given twice")
-        name = _CAMERA_KEYS[key]
         if name == "waveform":
             kwargs[name] = value
         elif name == "low_pass":

@@ -39,6 +39,7 @@ import click
 import numpy as np
 
 from . import io, viz
+from .clitools import fail
 from . import reconstruct as rc
 from .modulation import Camera
 
@@ -249,12 +250,11 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
               help="Estimator (default: auto, the ratio for matched h=0/h=1 pairs, else the fit).")
 def reconstruct_command(folder, output, method):
     """Reconstruct radial velocity (and depth) from the measurements in FOLDER, the output of 'dopplertof render'."""
-    from .cli import _fail
 
     try:
         result, written, error = reconstruct_folder(folder, output, method)
     except (ValueError, FileNotFoundError) as exc:
-        _fail(str(exc))
+        fail(str(exc))
     summary = f"; {describe_error(error)}" if error else ""
     click.echo(f"reconstructed velocity ({result.method}) of {folder}{summary}")
     for path in written:
