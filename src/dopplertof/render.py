@@ -29,10 +29,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .outputs import ESTIMATES, OUTPUTS, STDERR_NAMES, TRUTH
+from .outputs import ESTIMATES, TRUTH
 from .settings import DEFAULT_EXPOSURE_S, RenderSettings, scene_layer
 
 __all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S"]
+
+MAX_COVARIANCE_CAMERAS = 8  # beyond, the per-pixel camera covariance is not kept (memory)
 
 
 @dataclass
@@ -44,7 +46,10 @@ class RenderResult:
     (H, W, 3) or (H, W) in mono, ``measurements`` and ``measurement_stderr``
     (n_cameras, H, W), ``depth``, ``velocity``, ``point_velocity`` (H, W; NaN where no
     sample hit), ``velocity_3d`` (H, W, 3), ``flow`` (H, W, 2), ``coverage`` (H, W) and
-    ``instance_id`` (H, W, int32). Images are float32.
+    ``instance_id`` (H, W, int32), and, for 2 to ``MAX_COVARIANCE_CAMERAS`` cameras,
+    ``measurement_covariance`` (n_cameras, n_cameras, H, W): the covariance of the
+    measurements' means (cameras share paths, so their errors correlate), which
+    :func:`dopplertof.reconstruct.velocity` propagates. Images are float32.
     """
 
     maps: dict
@@ -106,8 +111,12 @@ class Accumulator:
         self.color_channels = color_channels
         c, n = self.estimate_channels, n_pixels
         self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int64)}
+        self.pairs = []
         if len(self.bounds) > 1:
             self.state.update(open_sum=np.zeros((c, n)), rep_sum=np.zeros((c, n)), rep_sq=np.zeros((c, n)), reps_closed=np.zeros(n, np.int64))
+            if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:  # cameras share paths: their errors correlate
+                self.pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
+                self.state["rep_cross"] = np.zeros((len(self.pairs), n))
         truth_channels = sum(o.channels for o in TRUTH)
         self.state.update(truth_sum=np.zeros((truth_channels, n)), hits=np.zeros(n), samples=np.zeros(n, np.int64))
         self.state["instance_id"] = np.full(n, -1, np.int32)
@@ -144,6 +153,9 @@ class Accumulator:
                     rep_mean = s["open_sum"][:, pix] / size
                     s["rep_sum"][:, pix] += rep_mean
                     s["rep_sq"][:, pix] += rep_mean * rep_mean
+                    cams = rep_mean[self.color_channels :]
+                    for k, (i, j) in enumerate(self.pairs):
+                        s["rep_cross"][k, pix] += cams[i] * cams[j]
                     s["open_sum"][:, pix] = 0.0
                     s["reps_closed"][pix] += 1
         sums = [np.asarray(t.numpy(), dtype=np.float64) for t in truth_sums]
@@ -160,11 +172,20 @@ class Accumulator:
         maps = {}
         with np.errstate(invalid="ignore", divide="ignore"):
             mean = s["group_sum"] / s["groups_done"]
+            covariance = None
             if "rep_sum" in s:
                 n = s["reps_closed"].astype(np.float64)
                 rep_mean = s["rep_sum"] / n
                 var = np.maximum(s["rep_sq"] / n - rep_mean * rep_mean, 0.0) * n / (n - 1)
                 err = np.where(n >= 2, np.sqrt(var / n), np.nan)
+                if self.pairs:  # covariance of the cameras' means, from the same replicates
+                    cc = self.color_channels
+                    covariance = np.zeros((n_cameras, n_cameras, height * width))
+                    for i in range(n_cameras):
+                        covariance[i, i] = err[cc + i] ** 2
+                    for k, (i, j) in enumerate(self.pairs):
+                        cross = (s["rep_cross"][k] / n - rep_mean[cc + i] * rep_mean[cc + j]) * n / (n - 1) / n
+                        covariance[i, j] = covariance[j, i] = np.where(n >= 2, cross, np.nan)
             else:
                 err = np.full_like(mean, np.nan)
             truth = s["truth_sum"] / s["hits"]
@@ -186,7 +207,8 @@ class Accumulator:
             maps[o.name] = (part[0].reshape(height, width) if o.channels == 1 else np.moveaxis(part, 0, -1).reshape(height, width, o.channels)).astype(np.float32)
         maps["coverage"] = coverage.reshape(height, width).astype(np.float32)
         maps["instance_id"] = s["instance_id"].reshape(height, width)
-        assert set(maps) == {o.name for o in OUTPUTS} | set(STDERR_NAMES)
+        if covariance is not None:
+            maps["measurement_covariance"] = covariance.reshape(n_cameras, n_cameras, height, width).astype(np.float32)
         return maps
 
 
