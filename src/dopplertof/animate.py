@@ -151,7 +151,7 @@ def _render_frame(scene, index, fps, settings, method, folder, progress, stop):
         raise KeyboardInterrupt
     os.makedirs(folder, exist_ok=True)
     write_result(result, folder, {"frame": index, "time_s": start_s})
-    reconstruction = reconstruct(result.measurements, cameras, method)
+    reconstruction = reconstruct(result.measurements, cameras, method, result.measurement_stderr, result.maps.get("measurement_covariance"))
     write_reconstruction(folder, reconstruction, result.velocity)
     summary = {"frame": index, "time_s": start_s, "exposure_s": cameras[0].exposure,
                **velocity_error(reconstruction, result.velocity)}

@@ -8,6 +8,8 @@ file                   content
                        ``.exr`` with its ``_stderr.exr``
 ``*.png``              previews (diverging colour maps with a symmetric range for signed
                        images)
+``measurement_``       the covariance of the cameras' means (n, n, H, W), 2 to 8 cameras
+``covariance.npy``
 ``checkpoint.npz``     the Float64 sums of an interrupted render (``--resume`` continues)
 ``metadata.json``      written last: scene, film, settings, cameras, spp done and asked,
                        versions, variant, device, render time, command line, the files
@@ -130,6 +132,8 @@ def write_result(result, folder: str, metadata: dict | None = None) -> list[str]
                 io.write_exr(path(f"{stem}.exr"), result.measurements[i])
                 io.write_exr(path(f"{stem}_stderr.exr"), result.measurement_stderr[i])
                 viz.save_signed_png(path(f"{stem}.png"), result.measurements[i], colorbar=True, title=cam.label())
+            if "measurement_covariance" in result.maps:
+                io.write_npy(path("measurement_covariance.npy"), result.measurement_covariance)
             continue
         image = getattr(result, o.name)
         channels = [f"{o.name}.{c}" for c in o.components] if o.components else None

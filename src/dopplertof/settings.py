@@ -26,6 +26,8 @@ import dataclasses
 import difflib
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from .correlation import MODES, PAIRED, Correlation
 from .modulation import Camera
 from .timesampling import ANALYTIC, METHODS
@@ -291,7 +293,7 @@ def integrator_layer(params: dict, where: str = "integrator") -> dict:
             kind_, name = _ORIGINAL_KEYS[key]
             value = checked(key, value, kind_, where)
             if name is not None:
-                if name in params:
+                if name != key and name in params:
                     raise ValueError(f"{where}: give either {name!r} or {key!r}, not both")
                 layer[name] = value
         elif key in _NO_EFFECT_KEYS:
@@ -338,14 +340,16 @@ def scene_layer(scene, where: str | None = None) -> dict:
     if length_s > 0:
         cameras = layer.get("cameras", ())
         given_t = [k for k in ("time", "exposure") if k in scene.integrator_params]
-        if cameras and given_t and abs(cameras[0].exposure - length_s) > 1e-9 * length_s:
+        # Mitsuba keeps shutter times in float32: agreeing means agreeing to a few of its ulps.
+        tolerance = 4.0 * float(np.spacing(np.float32(abs(open_s) + length_s)))
+        if cameras and given_t and abs(cameras[0].exposure - length_s) > tolerance:
             raise ValueError(
                 f"{where}: the sensor's shutter is open for {length_s!r} s but the <integrator> exposure "
                 f"{given_t[0]!r} is {cameras[0].exposure!r} s; make them agree or remove one"
             )
-        if cameras:
+        if cameras and not given_t:
             layer["cameras"] = tuple(dataclasses.replace(c, exposure=length_s) for c in cameras)
-        else:
+        elif not cameras:
             layer["exposure"] = length_s
         if "exposure_start" in scene.integrator_params and scene.integrator_params["exposure_start"] != open_s:
             raise ValueError(f"{where}: the sensor's shutter opens at {open_s!r} s but the <integrator> exposure_start is {scene.integrator_params['exposure_start']!r} s")
