@@ -28,8 +28,34 @@ def scene_description(scene_arg: str, resolution, defines) -> dict:
     return {"path": os.path.abspath(scene_arg), "sha256": digest, "defines": list(defines), "resolution": resolution}
 
 
+# Commands imported only when used, so that ``dopplertof --help`` answers at once:
+# name -> (module, attribute, short help).
+_LAZY_COMMANDS = {
+    "animate": ("dopplertof.animate", "animate_command", "Render SCENE as a clip: one D-ToF exposure per frame, with velocity."),
+    "experiment": ("dopplertof.experiments.cli", "experiment", "Reproduce the paper's experiments (time sampling, shifts, velocity)."),
+    "reconstruct": ("dopplertof.render_folder", "reconstruct_command", "Reconstruct radial velocity (and depth) from a render folder."),
+}
+
+
 class _Group(click.Group):
-    """A group whose usage errors are one ``error:`` line (exit 2), like every other error."""
+    """A group whose usage errors are one ``error:`` line (exit 2), like every other error,
+    and whose larger commands load on first use."""
+
+    def list_commands(self, ctx):
+        return sorted([*super().list_commands(ctx), *_LAZY_COMMANDS])
+
+    def get_command(self, ctx, name):
+        if name in _LAZY_COMMANDS and name not in self.commands:
+            import importlib
+
+            module, attribute, _ = _LAZY_COMMANDS[name]
+            self.add_command(getattr(importlib.import_module(module), attribute), name)
+        return super().get_command(ctx, name)
+
+    def format_commands(self, ctx, formatter):
+        rows = [(name, _LAZY_COMMANDS[name][2] if name in _LAZY_COMMANDS else self.commands[name].get_short_help_str(60)) for name in self.list_commands(ctx)]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
 
     def main(self, *args, **kwargs):
         try:
@@ -121,19 +147,6 @@ def render(scene, output, camera_specs, resolution, defines, overwrite, resume, 
     click.echo(f"rendered {scene} at {result.spp} spp; images in {os.path.abspath(output)}/")
     for path in written:
         click.echo(f"  {path}")
-
-
-def _add_subcommands():
-    from .animate import animate_command
-    from .experiments.cli import experiment
-    from .render_folder import reconstruct_command
-
-    main.add_command(experiment)
-    main.add_command(animate_command)
-    main.add_command(reconstruct_command)
-
-
-_add_subcommands()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -401,6 +401,12 @@ def _checked_scene(scene: DynamicScene) -> DynamicScene:
     for sensor in scene.static.sensors():
         if sensor.get_medium() is not None:
             raise SceneError(f"{where}: the sensor is inside a participating medium; media are not supported")
+    from .tracing.film import FilterSampler
+
+    try:
+        FilterSampler(scene.sensor.film())
+    except ValueError as exc:
+        raise SceneError(f"{where}: {exc}") from None
     if scene.integrator_params:
         try:
             integrator_layer(scene.integrator_params, f"{where}: <integrator>")

@@ -68,6 +68,10 @@ scene's first sensor and primal rendering (no derivatives) are supported.
 
 from __future__ import annotations
 
+import importlib.abc
+import importlib.util
+import sys
+
 import numpy as np
 
 from .backend import SUPPORTED_VARIANTS
@@ -202,9 +206,39 @@ def _on_variant_change(old_variant, new_variant):
 def register_on_variant_change() -> None:
     """Register now if a variant is active, and again whenever the variant changes.
 
-    Called when :mod:`dopplertof` is imported; sets no variant itself.
+    Sets no variant itself.
     """
     import mitsuba as mi
 
     mi.detail.add_variant_callback(_on_variant_change)
     register()
+
+
+class _AfterMitsubaImport(importlib.abc.MetaPathFinder):
+    """Runs :func:`register_on_variant_change` right after ``import mitsuba`` completes its
+    module code, so that importing :mod:`dopplertof` need not import Mitsuba itself."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "mitsuba":
+            return None
+        sys.meta_path.remove(self)  # find the real module with the other finders
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.loader is not None and hasattr(spec.loader, "exec_module"):
+            exec_module = spec.loader.exec_module
+
+            def exec_then_register(module):
+                exec_module(module)
+                register_on_variant_change()
+
+            spec.loader.exec_module = exec_then_register
+        return spec
+
+
+def register_when_mitsuba_loads() -> None:
+    """Called when :mod:`dopplertof` is imported: register now if Mitsuba is loaded, else
+    as soon as it is (like mitransient, the plugins then exist for ``mi.load_dict``,
+    ``mi.load_file`` and ``mi.render`` once a supported variant is set)."""
+    if "mitsuba" in sys.modules:
+        register_on_variant_change()
+    elif not any(isinstance(f, _AfterMitsubaImport) for f in sys.meta_path):
+        sys.meta_path.insert(0, _AfterMitsubaImport())

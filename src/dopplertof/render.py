@@ -216,6 +216,28 @@ def _components(value, channels):
     return [value] if channels == 1 else [value[i] for i in range(channels)]
 
 
+def host_bytes_per_pixel(n_cameras: int) -> int:
+    """Host memory of the film's Float64 sums and the float32 result, per pixel (bytes)."""
+    estimates = 3 + n_cameras
+    truth = sum(o.channels for o in TRUTH) + 2
+    covariance = n_cameras * n_cameras if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS else 0
+    return 8 * (5 * estimates + truth + 3 + covariance) + 4 * (2 * estimates + truth + covariance)
+
+
+def check_film_memory(width: int, height: int, n_cameras: int) -> None:
+    """ValueError for an empty film, or one whose buffers need more than the available memory."""
+    if width < 1 or height < 1:
+        raise ValueError(f"the film must be at least 1x1 pixels, got {width}x{height}")
+    need = width * height * host_bytes_per_pixel(n_cameras)
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            available = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
+    except (OSError, StopIteration, ValueError):
+        return  # not Linux: no check
+    if need > available:
+        raise ValueError(f"a {width}x{height} film with {n_cameras} camera(s) needs about {need / 2**30:.1f} GiB of memory for its buffers; {available / 2**30:.1f} GiB are available")
+
+
 # ----------------------------------------------------------------------------------------
 # Checkpoints
 
@@ -290,6 +312,7 @@ def render(scene, cameras=None, *, settings: RenderSettings | None = None, progr
 
     width, height = scene.resolution
     n_pixels = width * height
+    check_film_memory(width, height, len(settings.cameras))
     group = settings.group_size
     exposure = settings.exposure_s
     scene.set_time_window(settings.exposure_start, settings.exposure_start + exposure)
