@@ -244,9 +244,12 @@ def test_any_filter_matches_stock_path_per_pixel(rfilter):
     scene_dict = _scene_with_filter(rfilter)
     stock, stock_var = _stock_mean_and_variance(scene_dict, spp=64, runs=8)
     ours = dt.render(dt.load_scene(scene_dict), spp=512, seed=3, time_sampling="uniform", correlation="none")
-    predicted = np.mean(ours.stderr.astype(np.float64) ** 2 + stock_var)
-    mse = np.mean((ours.intensity - stock) ** 2)
-    assert 0.9 < mse / predicted < 1.1
+    # Per pixel, the difference against stock is noise of the predicted size. (The image-wide
+    # ratio MSE / predicted is dominated by a few heavy-tailed pixels next to the light: it
+    # ranged 0.54 to 1.27 between runs of one configuration, so it cannot tell 10 % apart.)
+    z = (ours.intensity - stock) / np.sqrt(ours.stderr.astype(np.float64) ** 2 + stock_var)
+    assert 0.9 < np.std(z) < 1.12
+    assert abs(np.mean(z)) < 0.05
 
 
 @pytest.mark.parametrize("name", ["mitchell", "catmullrom", "lanczos"])

@@ -16,14 +16,15 @@ import importlib as _importlib  # noqa: E402
 
 from .plugin import register_when_mitsuba_loads as _register_plugin  # noqa: E402
 
+# Not lazy: importing the submodule `render` would bind the module over the function.
+from .render import RenderResult, render  # noqa: E402
+
 _register_plugin()
 
 _ATTRIBUTES = {
     "Camera": "modulation",
     "DynamicScene": "scene",
     "SceneError": "scene",
-    "RenderResult": "render",
-    "render": "render",
     "RenderSettings": "settings",
     "load_scene": "loader",
     "set_variant": "backend",
