@@ -171,19 +171,20 @@ def test_rendering_source_digest_follows_the_renderer_only(tmp_path):
     package = tmp_path / "dopplertof"
     shutil.copytree(common.PACKAGE_DIR, package, ignore=shutil.ignore_patterns("__pycache__"))
     names = {p.relative_to(package).as_posix() for p in common.rendering_source_files(package)}
-    assert {"integrator.py", "render.py", "scene.py", "motion.py", "loader.py", "scenes.py"} <= names
-    assert not names & {"cli.py", "viz.py", "io.py", "render_folder.py"}
+    tracing = {"tracing/single.py", "tracing/paired.py", "tracing/path.py", "tracing/lanes.py", "tracing/sink.py", "tracing/film.py", "tracing/materials.py"}
+    assert tracing | {"render.py", "settings.py", "outputs.py", "timesampling.py", "scene.py", "motion.py", "loader.py", "scenes.py"} <= names
+    assert not names & {"cli.py", "clitools.py", "folder.py", "viz.py", "io.py", "render_folder.py"}
     assert not any(name.startswith("experiments/") for name in names)
 
     before = common.rendering_source_digest(package)
     with open(package / "cli.py", "a") as f:
         f.write("\n# not rendering\n")
     assert common.rendering_source_digest(package) == before
-    with open(package / "integrator.py", "a") as f:
+    with open(package / "tracing" / "single.py", "a") as f:
         f.write("\n# rendering\n")
     changed = common.rendering_source_digest(package)
     assert changed != before
-    (package / "paired.py").write_text("# a new integrator module\n")
+    (package / "tracing" / "bounce.py").write_text("# a new tracing module\n")
     assert common.rendering_source_digest(package) != changed
 
 

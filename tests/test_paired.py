@@ -1,4 +1,4 @@
-"""Paired tracing: correlation ``reconnection`` and ``adaptive`` (:mod:`dopplertof.paired`).
+"""Paired tracing: correlation ``reconnection`` and ``adaptive`` (:mod:`dopplertof.tracing.paired`).
 
 Issue 3's checks: a static scene at h = 1 renders zero (to float rounding with antithetic
 pairs); every time sampling × correlation mode is unbiased against a high-spp reference on
@@ -47,8 +47,12 @@ def bonferroni_bound(n_tests, family_false_alarm=FAMILY_FALSE_ALARM):
 
 
 def time_sampling(method):
-    """Pairs of times (n_times = 2) for every method; the antithetic shifts of the original."""
-    return dt.TimeSampling(method, 2, 0.0 if method == "antithetic_mirror" else 0.5, True)
+    """Pairs of times (n_times = 2) for every method; the antithetic shifts of the original
+    (the defaults: ½ for antithetic, 0 for antithetic_mirror) and stratified intervals."""
+    settings = dict(time_sampling=method, n_times=2, stratify_intervals=True)
+    if method in ("antithetic", "antithetic_mirror"):
+        settings["antithetic_shift"] = 0.0 if method == "antithetic_mirror" else 0.5
+    return settings
 
 
 def region_sums(result, masks):
@@ -78,7 +82,7 @@ def moving_and_whole(reference):
 def render(scene, spp, seed, method="antithetic", correlation="replay", **kw):
     """A render with this module's cameras and depth, pairs of times of ``method``."""
     return dt.render(scene, cameras=CAMERAS, spp=spp, seed=seed, max_depth=MAX_DEPTH,
-                     time_sampling=time_sampling(method), correlation=correlation, **kw)
+                     correlation=correlation, **time_sampling(method), **kw)
 
 
 # ----------------------------------------------------------------------------------------
@@ -252,9 +256,9 @@ def test_failed_shifts_do_not_bias():
     "kwargs, message",
     [
         (dict(n_times=3), r"pairs two times \(n_times=2\), got n_times=3"),
-        (dict(time_sampling=dt.TimeSampling("stratified", 4)), "n_times=4"),
-        (dict(correlation_depth=2), "correlation_depth applies to replay"),
-        (dict(reconnection_threshold=-0.5), "threshold must be a roughness >= 0, got -0.5"),
+        (dict(time_sampling="stratified", n_times=4), "n_times=4"),
+        (dict(correlation_depth=2), "'correlation_depth' applies to replay"),
+        (dict(reconnection_threshold=-0.5), "'reconnection_threshold' must be >= 0.0, got -0.5"),
         (dict(reconnection_threshold=float("nan")), "threshold"),
     ],
 )
@@ -265,7 +269,7 @@ def test_paired_modes_reject_bad_settings(static_cornell, correlation, kwargs, m
 
 def test_uniform_times_are_paired_for_the_paired_modes(static_cornell):
     result = dt.render(static_cornell, spp=4, max_depth=2, time_sampling="uniform", correlation="adaptive")
-    assert result.settings["n_times"] == 2 and result.settings["correlation"] == "adaptive"
+    assert result.settings.group_size == 2 and result.settings.correlation == "adaptive"
 
 
 # ----------------------------------------------------------------------------------------
@@ -290,8 +294,8 @@ def test_cli_renders_adaptive_with_its_threshold(tmp_path):
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--correlation", "adaptive", "--reconnection-threshold", -1], "threshold must be a roughness >= 0, got -1.0"),
-        (["--correlation", "reconnection", "--correlation-depth", 2], "correlation_depth applies to replay"),
+        (["--correlation", "adaptive", "--reconnection-threshold", -1], "'reconnection_threshold' must be >= 0.0, got -1.0"),
+        (["--correlation", "reconnection", "--correlation-depth", 2], "'correlation_depth' applies to replay"),
     ],
 )
 def test_cli_rejects_bad_paired_settings_in_one_line(tmp_path, args, message):

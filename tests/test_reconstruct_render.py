@@ -23,6 +23,7 @@ from click.testing import CliRunner
 
 import dopplertof as dt
 from dopplertof import cli, io, render_folder
+from dopplertof.folder import write_result
 from dopplertof.modulation import SPEED_OF_LIGHT_M_S
 
 CAMERAS = [dt.Camera(heterodyne=h, phase=psi) for h in (0.0, 1.0) for psi in (0.0, math.pi / 2)]
@@ -107,7 +108,7 @@ def test_reconstruct_command_writes_the_maps(rendered, tmp_path):
     result = rendered
     rec = render_folder.reconstruct(result.measurements, CAMERAS)
     assert rec.method == "ratio"  # the default for matched homodyne/heterodyne pairs
-    cli.write_result(result, tmp_path)
+    write_result(result, tmp_path)
     code, output = run_reconstruct(tmp_path)
     assert code == 0, output
     for name in ("velocity_reconstructed.exr", "velocity_reconstructed.png", "velocity_valid.png",
@@ -123,7 +124,7 @@ def test_reconstruct_command_writes_the_maps(rendered, tmp_path):
 
 def write_folder(rendered, folder, cameras):
     """A render folder of the Cornell box whose metadata lists ``cameras``."""
-    cli.write_result(rendered, folder)
+    write_result(rendered, folder)
     meta = json.loads((folder / "metadata.json").read_text())
     meta["cameras"] = cameras
     (folder / "metadata.json").write_text(json.dumps(meta))
@@ -152,7 +153,7 @@ def test_reconstruct_command_refuses_a_folder_that_is_not_a_render(rendered, tmp
     assert code == 2 and output.strip() == f"error: {tmp_path / 'nothing'}: no such folder"
     code, output = run_reconstruct(tmp_path)
     assert code == 2 and "not a 'dopplertof render' output folder" in output
-    cli.write_result(rendered, tmp_path)
+    write_result(rendered, tmp_path)
     (image,) = [p for p in tmp_path.glob("measurement_3_*.exr") if not p.name.endswith("_stderr.exr")]
     image.unlink()
     code, output = run_reconstruct(tmp_path)

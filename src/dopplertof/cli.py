@@ -112,6 +112,7 @@ def render(scene, output, camera_specs, resolution, defines, overwrite, resume, 
     """
     from . import folder as out_folder
     from .backend import BackendError
+    from .render import check_film_memory
     from .render import render as run_render
     from .scene import SceneError
     from .scenes import open_scene
@@ -126,6 +127,7 @@ def render(scene, output, camera_specs, resolution, defines, overwrite, resume, 
         layer = {**given_settings(options), **cameras_layer(camera_specs, options.get("exposure"), base)}
         settings = RenderSettings.build(base, layer, where=scene)
         width, height = dyn.resolution
+        check_film_memory(width, height, len(settings.cameras))
         out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=out_folder.estimated_bytes(width, height, len(settings.cameras)))
         with StopOnSignal() as stop:
             result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=os.path.join(output, out_folder.CHECKPOINT), stop=stop)

@@ -403,6 +403,9 @@ def _checked_scene(scene: DynamicScene) -> DynamicScene:
             raise SceneError(f"{where}: the sensor is inside a participating medium; media are not supported")
     from .tracing.film import FilterSampler
 
+    width, height = scene.resolution
+    if width < 1 or height < 1:
+        raise SceneError(f"{where}: the film must be at least 1x1 pixels, got {width}x{height}")
     try:
         FilterSampler(scene.sensor.film())
     except ValueError as exc:

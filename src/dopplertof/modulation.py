@@ -168,7 +168,7 @@ def parse_camera(text: str, exposure: float | None = None) -> Camera:
         if name == "waveform":
             kwargs[name] = value
         elif name == "low_pass":
-            kwargs[name] = parse_bool(value, f"camera {text!r}: low_pass")
+            kwargs[name] = parse_bool(value, f"camera {text!r}: 'low_pass'")
         else:
             try:
                 kwargs[name] = math.radians(float(value[:-3])) if name == "phase" and value.endswith("deg") else float(value)

@@ -33,10 +33,11 @@ def checked(name: str, value, kind: str, where: str = ""):
 
 
 def parse_bool(text: str, name: str) -> bool:
-    """A boolean written as text (CLI, XML): true/false, yes/no, 1/0, on/off; else ValueError."""
+    """A boolean written as text (CLI, XML): true/false, yes/no, 1/0, on/off; else
+    ValueError beginning with ``name`` (say what and where, e.g. ``"camera 'h=1': 'low_pass'"``)."""
     lowered = str(text).strip().lower()
     if lowered in ("true", "yes", "1", "on"):
         return True
     if lowered in ("false", "no", "0", "off"):
         return False
-    raise ValueError(f"{name!r} must be true or false, got {text!r}")
+    raise ValueError(f"{name} must be true or false, got {text!r}")

@@ -1,0 +1,220 @@
+"""A new user's first hour (issue 9): bad input, output folders, signals, resume, memory."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+import dopplertof as dt
+from dopplertof import io
+
+DATA = os.path.join(os.path.dirname(__file__), "data")
+ORIGINAL_CORNELL = os.path.join(DATA, "original_cornell.xml")
+
+
+def _cli(*args, **kwargs):
+    return subprocess.run([sys.executable, "-m", "dopplertof.cli", *args], capture_output=True, text=True, **kwargs)
+
+
+def _one_error_line(run, match):
+    assert run.returncode == 2, (run.returncode, run.stdout, run.stderr)
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), run.stderr
+    assert match in lines[0], lines[0]
+
+
+def _write(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+SCENE_XML = """<scene version="3.0.0">
+  <sensor type="perspective"><float name="fov" value="40"/>
+    <film type="hdrfilm"><integer name="width" value="{w}"/><integer name="height" value="4"/></film>
+    <sampler type="independent"><integer name="sample_count" value="{spp}"/></sampler></sensor>
+  <emitter type="point"><point name="position" x="0" y="0" z="0"/><rgb name="intensity" value="1"/></emitter>
+  <shape type="rectangle"><transform name="to_world"><translate z="-3"/></transform>{extra}</shape>
+</scene>"""
+
+
+@pytest.mark.parametrize(
+    "args, match",
+    [
+        (["--camera", "low_pass=flase"], "low_pass' must be true or false, got 'flase'"),
+        (["--camera", "f=1e300"], "modulation_frequency must be in (0, 1e+12] Hz"),
+        (["--camera", ""], "camera '': empty"),
+        (["--camera", "h=1,h=0"], "'h' given twice"),
+        (["--correlation", "none", "--correlation-depth", "3"], "'correlation_depth' applies to replay"),
+        (["--reconnection-threshold", "0.3"], "'reconnection_threshold' applies to adaptive"),
+        (["--seed", str(2**32)], "'seed' must be < 2**32"),
+        (["--max-depth", "2.5"], "'2.5' is not a valid integer"),
+        (["--spp", "0"], "'spp' must be >= 1"),
+        (["--resolution", "0"], "expected N or WxH"),
+        (["--resolution", "50000"], "needs about"),
+        (["--time-sampling", "mirror"], "'mirror' is not one of"),
+        (["--bogus"], "No such option '--bogus'"),
+        (["-D", "nonsense"], "expected name=value"),
+    ],
+)
+def test_bad_command_line_input_is_one_error_line(tmp_path, args, match):
+    _one_error_line(_cli("render", "cornell-box", "--resolution", "8", "-o", str(tmp_path / "out"), *args), match)
+    assert not (tmp_path / "out" / "metadata.json").exists()
+
+
+@pytest.mark.parametrize(
+    "w, spp, extra, match",
+    [
+        (4, 0, "", "'spp' must be >= 1"),
+        (0, 4, "", "at least 1x1"),
+        (4, 4, '<bsdf type="diffuse"><boolean name="x" value="maybe"/></bsdf>', "maybe"),
+    ],
+)
+def test_bad_scene_files_are_one_error_line(tmp_path, w, spp, extra, match):
+    path = _write(tmp_path, "s.xml", SCENE_XML.format(w=w, spp=spp, extra=extra))
+    _one_error_line(_cli("render", path, "-o", str(tmp_path / "out"), "--quiet"), match)
+
+
+def test_the_api_names_bad_values():
+    with pytest.raises(ValueError, match="'low_pass' must be a boolean"):
+        dt.Camera(low_pass="false")
+    with pytest.raises(ValueError, match="modulation_frequency must be in"):
+        dt.Camera(modulation_frequency=1e300)
+
+
+# ------------------------------------------------------------------------------ output folders
+
+
+def test_output_folder_problems_are_found_before_rendering(tmp_path):
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    _one_error_line(_cli("render", "cornell-box", "-o", str(a_file)), "exists and is not a folder")
+    _one_error_line(_cli("render", "cornell-box", "-o", str(a_file / "sub")), "which is a file")
+    if os.geteuid() != 0:  # root writes anywhere; the read-only case is covered by the next test
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o500)
+        _one_error_line(_cli("render", "cornell-box", "-o", str(locked / "o")), "not writable")
+
+
+def test_a_read_only_file_system_is_one_error_line(tmp_path):
+    if not os.path.exists("/proc/self/mountinfo"):
+        pytest.skip("needs Linux")
+    readonly = next((line.split()[4] for line in open("/proc/self/mountinfo") if " ro," in f" {line.split()[5]},"), None)
+    if readonly is None:
+        readonly = "/proc/sys"  # read-only for writes of files even as root
+    _one_error_line(_cli("render", "cornell-box", "--resolution", "8", "-o", os.path.join(readonly, "dopplertof-out")), "not writable")
+
+
+def test_a_used_folder_is_refused_unless_overwrite(tmp_path):
+    out = str(tmp_path / "o")
+    common = ["--resolution", "8", "--spp", "2", "-o", out, "--quiet"]
+    assert _cli("render", "cornell-box", *common, "--camera", "h=1").returncode == 0
+    (tmp_path / "o" / "mine.txt").write_text("keep me")
+    _one_error_line(_cli("render", "cornell-box", *common), "holds another render's files")
+    assert _cli("render", "cornell-box", *common, "--overwrite").returncode == 0
+    names = set(os.listdir(out))
+    assert "mine.txt" in names and not any(n.startswith("measurement_") for n in names)
+
+
+# ------------------------------------------------------------------------------ signals and resume
+
+
+def _interrupt(tmp_path, sig, name):
+    """Start a render, send ``sig`` once its first pass is done; the finished process."""
+    out = tmp_path / name
+    args = ["render", "cornell-box", "--resolution", "32", "--spp", "64", "--lanes-per-pass", "4096", "--camera", "h=1", "-o", str(out), "--quiet", "--seed", "3"]
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(6.0)  # imports, kernel compile and a few of the 32 passes
+    proc.send_signal(sig)
+    stdout, stderr = proc.communicate(timeout=300)
+    return proc.returncode, stderr, out, args
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP], ids=["SIGTERM", "SIGINT", "SIGHUP"])
+def test_a_signal_keeps_the_work_and_resume_is_bit_identical(tmp_path, sig):
+    status, stderr, out, args = _interrupt(tmp_path, sig, "interrupted")
+    assert status == 128 + sig, stderr
+    assert "--resume" in stderr
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["interrupted"] and 0 < meta["spp"] < 64
+    assert (out / "checkpoint.npz").exists()
+    partial = io.read_exr(out / "intensity.exr")
+    assert np.isfinite(partial).all()
+    resumed = _cli(*args, "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    assert not (out / "checkpoint.npz").exists()
+    whole = tmp_path / "whole"
+    full_args = [a if a != str(out) else str(whole) for a in args]
+    assert _cli(*full_args).returncode == 0
+    for name in ("intensity.exr", "stderr.exr", "depth.exr", "velocity.exr", "measurement_0_h1_psi0deg.exr", "measurement_0_h1_psi0deg_stderr.exr"):
+        np.testing.assert_array_equal(io.read_exr(out / name), io.read_exr(whole / name), err_msg=name)
+
+
+def test_a_resume_with_other_settings_is_refused(tmp_path):
+    scene = dt.scenes.build("cornell-box", resolution=16)  # 256 pixels x 8 spp: two passes of 1024 lanes
+    checkpoint = str(tmp_path / "c.npz")
+    calls = iter(range(100))
+    partial = dt.render(scene, spp=8, lanes_per_pass=1024, checkpoint=checkpoint, stop=lambda: next(calls) >= 1)
+    assert partial.interrupted and os.path.exists(checkpoint)
+    with pytest.raises(ValueError, match="other settings"):
+        dt.render(scene, spp=8, seed=1, lanes_per_pass=1024, checkpoint=checkpoint)
+    resumed = dt.render(scene, spp=8, lanes_per_pass=1024, checkpoint=checkpoint)
+    whole = dt.render(scene, spp=8, lanes_per_pass=1024)
+    np.testing.assert_array_equal(resumed.intensity, whole.intensity)
+    np.testing.assert_array_equal(resumed.stderr, whole.stderr)
+    assert not os.path.exists(checkpoint)
+
+
+# ------------------------------------------------------------------------------ memory
+
+
+@pytest.mark.slow
+def test_a_large_film_renders_in_bounded_memory(tmp_path):
+    """2048² at 2 spp with small passes: the peak is the film's buffers, not the lanes."""
+    code = (
+        "import resource, dopplertof as dt\n"
+        "s = dt.scenes.build('cornell-box', resolution=2048)\n"
+        "r = dt.render(s, spp=2, lanes_per_pass=1 << 18)\n"
+        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr
+    peak = int(run.stdout.split()[-1])
+    assert peak < 2.5 * 2**30, f"peak {peak / 2**30:.2f} GiB"
+
+
+# ------------------------------------------------------------------------------ help and metadata
+
+
+def test_help_lists_every_setting():
+    text = _cli("render", "--help").stdout
+    from dopplertof.settings import FIELDS
+
+    for name in FIELDS:
+        if name != "cameras":
+            assert "--" + name.replace("_", "-") in text, name
+
+
+def test_the_command_line_starts_without_the_heavy_libraries():
+    code = "import sys, dopplertof.cli; print(sorted(m for m in ('mitsuba', 'drjit', 'matplotlib') if m in sys.modules))"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.strip() == "[]"
+
+
+def test_metadata_records_the_render(tmp_path):
+    out = tmp_path / "o"
+    assert _cli("render", "cornell-box", "--resolution", "8", "--spp", "4", "--camera", "h=1", "-o", str(out), "--quiet").returncode == 0
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["scene"] == {"builtin": "cornell-box", "resolution": "8"}
+    assert meta["film"] == [8, 8] and meta["spp"] == meta["spp_requested"] == 4
+    assert set(meta["versions"]) >= {"dopplertof", "mitsuba", "drjit", "variant", "device"}
+    assert meta["render"]["render_seconds"] > 0 and meta["command"][0]
+    assert meta["settings"]["seed"] == 0 and len(meta["cameras"]) == 1
+    assert set(meta["files"]) <= set(os.listdir(out))
