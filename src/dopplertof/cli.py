@@ -203,6 +203,10 @@ from .render_folder import reconstruct_command  # noqa: E402
 main.add_command(animate_command)
 main.add_command(reconstruct_command)
 
+from .dataset.cli import dataset_group  # noqa: E402
+
+main.add_command(dataset_group)
+
 
 if __name__ == "__main__":  # pragma: no cover
     main()
