@@ -382,3 +382,10 @@ def test_sample_streams_are_counter_based():
     assert forward[0]["scene"] != forward[1]["scene"]
     assert make_record(cfg, 12, 0, "llvm_ad_rgb")["render"]["seed"] != forward[0]["render"]["seed"]
     assert parse_shard_range("2:", 5) == range(2, 5)
+
+
+def test_readme_tables_come_from_the_one_home():
+    """The README's configuration and field tables are the generated ones (no drift)."""
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    assert config_mod.markdown_table() in readme
+    assert schema.markdown_table() in readme

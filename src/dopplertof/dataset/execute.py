@@ -50,7 +50,10 @@ def render_shard(job: dict) -> dict:
 
     ``job``: ``folder``, ``index``, ``first``, ``count``, ``config``, ``seed``, ``variant``,
     ``fields``, and optionally ``threads`` (Dr.Jit threads), ``fault`` (test hook).
-    Returns ``{"record": shard record, "seconds": {...}, "pid": …}``.
+    Returns ``{"record": shard record, "seconds": {...}, "pid": …}``: wall seconds of
+    ``startup`` (imports and backend start: in a fresh worker, once), then per phase summed
+    over the shard's samples (``record``, ``scene``, ``render``, ``sensor``, ``write``) and
+    their ``total`` (start-up excluded).
     """
     _fault(job)
     t_start = time.perf_counter()
@@ -63,7 +66,9 @@ def render_shard(job: dict) -> dict:
         import drjit as dr
 
         dr.set_thread_count(int(job["threads"]))
-    seconds = {"record": 0.0, "scene": 0.0, "render": 0.0, "sensor": 0.0, "write": 0.0}
+    # once per worker process (imports, backend start), not per shard
+    seconds = {"startup": time.perf_counter() - t_start, "record": 0.0, "scene": 0.0, "render": 0.0, "sensor": 0.0, "write": 0.0}
+    t_start = time.perf_counter()
     samples = []
     for i in range(job["first"], job["first"] + job["count"]):
         t0 = time.perf_counter()
