@@ -29,7 +29,7 @@ import copy
 import math
 import os
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,7 +55,6 @@ class Param:
     kind: str
     choices: tuple = ()
     minimum: float | None = None
-    section_doc: str = field(default="", compare=False)
 
 
 PARAMETERS: tuple[Param, ...] = (
@@ -273,8 +272,8 @@ def validate(config: dict) -> dict:
     out = defaults()
     for key, value in _flatten(config).items():
         sec, name = key.split(".", 1)
-        out[sec][name] = _check(_BY_KEY[key], value)
-    for p in PARAMETERS:  # the defaults, normalised the same way
+        out[sec][name] = value
+    for p in PARAMETERS:  # user values and defaults, normalised the same way
         sec, name = p.key.split(".", 1)
         out[sec][name] = _check(p, out[sec][name])
     cam = out["camera"]

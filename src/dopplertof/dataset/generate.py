@@ -241,11 +241,9 @@ def generate(
 
     try:
         with _sigterm_as_interrupt():
-            if not jobs:
-                pass
-            elif ray:
+            if jobs and ray:
                 execute.run_ray(jobs, on_done, address=address, max_retries=max_retries)
-            else:
+            elif jobs:
                 execute.run_local(jobs, workers, on_done, max_retries=max_retries)
     finally:
         if bar is not None:

@@ -232,5 +232,8 @@ def verify(folder: str) -> dict:
         status = shard_status(folder, index, shard["count"])
         if status == "ok" and shard["sha256"] not in (None, read_record(folder, index)["sha256"]):
             status = "corrupt"
-        (ok.append(shard["name"]) if status == "ok" else bad.__setitem__(shard["name"], status))
+        if status == "ok":
+            ok.append(shard["name"])
+        else:
+            bad[shard["name"]] = status
     return {"ok": ok, "bad": bad, "complete": not bad}
