@@ -15,9 +15,15 @@ from click.testing import CliRunner
 
 import dopplertof as dt
 from dopplertof import cli
-from dopplertof.plugin import PLUGIN_NAMES, output_channels, render_image, render_settings
+from dopplertof.plugin import PLUGIN_NAMES, output_channels, render_image
+from dopplertof.settings import RenderSettings, integrator_layer
 
 from scene_dicts import T, grey, perspective
+
+
+def render_settings(params: dict, where: str = "integrator") -> RenderSettings:
+    """The settings an ``<integrator>`` block asks for (as the plugin and the CLI build them)."""
+    return RenderSettings.build(integrator_layer(params, where), where=where)
 
 
 # ----------------------------------------------------------------------------------------
@@ -28,9 +34,9 @@ from scene_dicts import T, grey, perspective
 def test_plugin_loads_under_both_names(name):
     integrator = mi.load_dict({"type": name, "w_g": 30, "hetero_frequency": 1.0, "max_depth": 4})
     assert isinstance(integrator, mi.Integrator)
-    camera = integrator.settings["cameras"][0]
+    camera = integrator.settings.cameras[0]
     assert camera.modulation_frequency == 30e6 and camera.heterodyne == 1.0
-    assert integrator.settings["max_depth"] == 4
+    assert integrator.settings.max_depth == 4
     assert integrator.aov_names() == output_channels()[3:]
 
 
@@ -42,18 +48,18 @@ def test_plugin_loads_from_a_scene_file(tmp_path):
         "</integrator></scene>"
     )
     settings = mi.load_file(str(path)).integrator().settings
-    assert settings["cameras"][0].phase == pytest.approx(math.pi / 2)
-    assert (settings["correlation"], settings["correlation_depth"]) == ("replay", 16)
+    assert settings.cameras[0].phase == pytest.approx(math.pi / 2)
+    assert (settings.correlation, settings.correlation_depth) == ("replay", 16)
 
 
 def test_unknown_or_mistyped_parameter_is_a_clear_error():
-    with pytest.raises(RuntimeError, match=r"unknown parameter 'w_gg'; did you mean 'w_g'\?"):
+    with pytest.raises(RuntimeError, match=r"unknown setting 'w_gg'; did you mean 'w_g'\?"):
         mi.load_dict({"type": "dopplertof", "w_gg": 30})
     with pytest.raises(RuntimeError, match=r"'max_depth' must be an integer, got 2.5"):
         mi.load_dict({"type": "dopplertofpath", "max_depth": 2.5})
-    with pytest.raises(ValueError, match=r"scene.xml: 'low_frequency_component_only' must be a boolean, got 'yes'"):
+    with pytest.raises(ValueError, match=r"scene.xml: 'low_frequency_component_only' must be a boolean \(true/false\), got 'yes'"):
         render_settings({"low_frequency_component_only": "yes"}, "scene.xml")
-    with pytest.raises(ValueError, match=r"^integrator: unknown time sampling 'mirror'"):
+    with pytest.raises(ValueError, match=r"^integrator: unknown time_sampling 'mirror'"):
         render_settings({"time_sampling_method": "mirror"})
     with pytest.raises(ValueError, match=r"give either 'exposure' or 'time', not both"):
         render_settings({"time": 1e-3, "exposure": 1e-3})
@@ -70,7 +76,7 @@ if sys.argv[1] == "import-first":
     mi.set_variant(os.environ["DOPPLERTOF_VARIANT"])
     mi.load_dict({"type": "dopplertofpath"})
     dt.set_variant(os.environ["DOPPLERTOF_VARIANT"].replace("rgb", "mono"))  # and a later one
-print(mi.variant(), mi.load_dict({"type": "dopplertof", "w_g": 20}).settings["cameras"][0].modulation_frequency)
+print(mi.variant(), mi.load_dict({"type": "dopplertof", "w_g": 20}).settings.cameras[0].modulation_frequency)
 """
 
 
@@ -101,20 +107,28 @@ def test_scene_dict_keeps_a_dopplertofpath_integrator():
 
 
 def _camera(params):
-    return render_settings(params)["cameras"][0]
+    return render_settings(params).cameras[0]
 
 
 def test_defaults_are_the_originals():
+    """Camera defaults are the original's; every other setting is RenderSettings' one
+    default (replay correlation, max_depth 5: see dopplertof.plugin)."""
     s = render_settings({})
-    assert vars(s["cameras"][0]) == dict(
+    assert vars(s.cameras[0]) == dict(
         modulation_frequency=30e6, exposure=0.0015, heterodyne=0.0, phase=0.0,
         waveform="sinusoidal", g1=0.5, g0=0.5, low_pass=True,
     )
-    assert {k: v for k, v in s.items() if k != "cameras"} == dict(
+    resolved = dict(
+        time_sampling=s.time_sampling, n_times=s.group_size, antithetic_shift=s.shift, stratify_intervals=s.stratify_intervals,
+        correlation=s.correlation, correlation_depth=s.correlation_depth, reconnection_threshold=s.threshold,
+        max_depth=s.max_depth, rr_depth=s.rr_depth, hide_emitters=s.hide_emitters, exposure_start=s.exposure_start,
+    )
+    assert resolved == dict(
         time_sampling="antithetic", n_times=2, antithetic_shift=0.5, stratify_intervals=True,
-        correlation="none", correlation_depth=None, reconnection_threshold=0.5, max_depth=-1, rr_depth=5,
+        correlation="replay", correlation_depth=None, reconnection_threshold=0.5, max_depth=5, rr_depth=5,
         hide_emitters=False, exposure_start=0.0,
     )
+    assert s.replace(cameras=()) == RenderSettings()  # one default: the API's
 
 
 @pytest.mark.parametrize(
@@ -144,10 +158,10 @@ def test_camera_parameters(params, field, expected):
 @pytest.mark.parametrize(
     "params, expected",
     [
-        ({"time_sampling_method": "stratified"}, dict(time_sampling="stratified", antithetic_shift=0.0)),
-        ({"time_sampling_method": "antithetic_mirror"}, dict(time_sampling="antithetic_mirror", antithetic_shift=0.0)),
-        ({"time_sampling_method": "antithetic"}, dict(time_sampling="antithetic", antithetic_shift=0.5)),
-        ({"antithetic_shift": 0.25}, dict(antithetic_shift=0.25)),
+        ({"time_sampling_method": "stratified"}, dict(time_sampling="stratified", antithetic_shift=None, group_size=2)),
+        ({"time_sampling_method": "antithetic_mirror"}, dict(time_sampling="antithetic_mirror", shift=0.0)),
+        ({"time_sampling_method": "antithetic"}, dict(time_sampling="antithetic", shift=0.5)),
+        ({"antithetic_shift": 0.25}, dict(antithetic_shift=0.25, shift=0.25)),
         ({"use_stratified_sampling_for_each_interval": False}, dict(stratify_intervals=False)),
         ({"path_correlation_depth": 0}, dict(correlation="none", correlation_depth=None)),
         ({"path_correlation_depth": 1}, dict(correlation="pixel", correlation_depth=None)),
@@ -156,20 +170,22 @@ def test_camera_parameters(params, field, expected):
         ({"correlation": "replay"}, dict(correlation="replay", correlation_depth=None)),
         ({"max_depth": 8, "rr_depth": 3, "hide_emitters": True}, dict(max_depth=8, rr_depth=3, hide_emitters=True)),
         ({"time_sampling": "uniform", "n_times": 1, "exposure_start": 0.5}, dict(time_sampling="uniform", n_times=1, exposure_start=0.5)),
-        ({"m_reconnection_threshold": 0.2}, dict(reconnection_threshold=0.2)),  # M06's key (§8.1)
+        ({"m_reconnection_threshold": 0.2, "correlation": "adaptive"}, dict(reconnection_threshold=0.2, threshold=0.2)),  # M06's key (§8.1)
+        ({"m_reconnection_threshold": 0.2}, dict(correlation="replay", reconnection_threshold=None)),  # travels with every mode; adaptive uses it
         ({"correlation": "adaptive", "reconnection_threshold": 1}, dict(correlation="adaptive", reconnection_threshold=1.0)),
         ({"is_doppler_integrator": True, "samples_per_pass": 4}, dict(time_sampling="antithetic")),  # accepted, no effect
     ],
 )
 def test_render_parameters(params, expected):
+    """``expected`` names settings, or their resolved values (shift, group_size, threshold)."""
     s = render_settings(params)
-    assert {k: s[k] for k in expected} == expected
+    assert {k: getattr(s, k) for k in expected} == expected
 
 
 @pytest.mark.parametrize(
     "params, message",
     [
-        ({"m_reconnection_threshold": -0.1}, "threshold must be a roughness >= 0, got -0.1"),
+        ({"m_reconnection_threshold": -0.1, "correlation": "adaptive"}, "'reconnection_threshold' must be >= 0.0, got -0.1"),
         ({"m_reconnection_threshold": 0.5, "reconnection_threshold": 0.5}, "give either 'reconnection_threshold' or 'm_reconnection_threshold'"),
         ({"reconnection_threshold": "rough"}, "'reconnection_threshold' must be a finite number"),
     ],
@@ -180,7 +196,7 @@ def test_bad_reconnection_threshold_is_a_clear_error(params, message):
 
 
 def test_another_integrators_block_gives_only_its_depths():
-    assert render_settings({"type": "path", "max_depth": 3, "samples_per_pass": 2}) == {"max_depth": 3}
+    assert integrator_layer({"type": "path", "max_depth": 3, "samples_per_pass": 2}) == {"max_depth": 3}
     with pytest.raises(ValueError, match="'max_depth' must be >= 1 or -1"):
         render_settings({"type": "path", "max_depth": 0})
 
@@ -188,7 +204,7 @@ def test_another_integrators_block_gives_only_its_depths():
 def test_settings_are_accepted_by_render():
     """Every key the mapping returns is a keyword of dopplertof.render (checked cheaply:
     a bad spp fails after the keywords were bound)."""
-    settings = render_settings({"path_correlation_depth": 3, "time_sampling_method": "stratified"})
+    settings = integrator_layer({"path_correlation_depth": 3, "time_sampling_method": "stratified"})
     with pytest.raises(ValueError, match="spp"):
         dt.render(dt.DynamicScene(static=_grey_room(4)), spp=0, **settings)
 
@@ -224,9 +240,10 @@ def test_cli_renders_an_original_scene_with_its_integrator_settings(data_dir, tm
     assert meta["settings"] == {
         **meta["settings"],
         **dict(max_depth=4, time_sampling="antithetic", antithetic_shift=0.25, stratify_intervals=False,
-               correlation="replay", correlation_depth=4, exposure=0.0015),
+               correlation="replay", correlation_depth=4),
     }
     (camera,) = meta["cameras"]
+    assert camera["exposure"] == 0.0015
     assert camera["modulation_frequency"] == 30e6 and camera["heterodyne"] == 1.0
     assert camera["phase"] == pytest.approx(math.pi / 2)
     assert os.path.exists(tmp_path / "out" / "measurement_0_h1_psi90deg.exr")
@@ -248,7 +265,7 @@ def test_cli_reports_a_bad_integrator_parameter_in_one_line(data_dir, tmp_path):
     scene = _small_original_cornell(data_dir, tmp_path, '<float name="w_gg" value="20"/>')
     code, output = _run_cli([scene, "--spp", 2, "-o", tmp_path / "out"])
     assert code == 2
-    assert output.strip().splitlines() == [f"error: {scene}: <integrator>: unknown parameter 'w_gg'; did you mean 'w_g'?"]
+    assert output.strip().splitlines() == [f"error: {scene}: <integrator>: unknown setting 'w_gg'; did you mean 'w_g'?"]
 
 
 # ----------------------------------------------------------------------------------------
@@ -284,7 +301,9 @@ def test_mi_render_through_the_plugin_matches_stock_path():
                   "time_sampling_method": "uniform", "max_depth": max_depth}
     img = np.array(mi.render(_grey_room(res, integrator, spp=64), seed=1), dtype=np.float64)  # spp from the sampler
     assert img.shape == (res, res, len(output_channels()))
-    measurement, intensity, stderr = img[..., 0], img[..., 3:6], img[..., 6]
+    channels = output_channels()
+    measurement, stderr = img[..., channels.index("measurement.R")], img[..., channels.index("measurement_stderr_0")]
+    intensity = img[..., channels.index("intensity.R") : channels.index("intensity.B") + 1]
     np.testing.assert_array_equal(img[..., 1], measurement)
     np.testing.assert_allclose(measurement, 0.5 * g1 * intensity[..., 0], rtol=1e-5, atol=1e-9)
 

@@ -1,21 +1,47 @@
-"""dopplertof: physically based simulation of Doppler time-of-flight cameras on stock Mitsuba 3."""
+"""dopplertof: physically based simulation of Doppler time-of-flight cameras on stock Mitsuba 3.
+
+Everything is imported on first use (``dopplertof.render``, ``dopplertof.reconstruct``,
+``dopplertof.sensor``, …), so that the command line starts fast. The Mitsuba integrator
+plugins ``dopplertof``/``dopplertofpath`` are registered as soon as Mitsuba is imported,
+before or after this package (:mod:`dopplertof.plugin`).
+"""
 
 from .backend import configure_llvm_path as _configure_llvm_path
 
 _configure_llvm_path()  # must precede the first `import drjit`
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
-from . import scenes  # noqa: E402
-from .backend import set_variant  # noqa: E402
-from .loader import load_scene  # noqa: E402
-from .modulation import Camera  # noqa: E402
-from .render import RenderResult, TimeSampling, render  # noqa: E402
-from .scene import DynamicScene, SceneError  # noqa: E402
-from .plugin import register_on_variant_change as _register_plugin  # noqa: E402
+import importlib as _importlib  # noqa: E402
 
-# Like mitransient: the `dopplertof`/`dopplertofpath` integrators exist for mi.load_dict,
-# mi.load_file and mi.render once a supported variant is active (now, or when one is set).
+from .plugin import register_when_mitsuba_loads as _register_plugin  # noqa: E402
+
 _register_plugin()
 
-__all__ = ["Camera", "DynamicScene", "RenderResult", "SceneError", "TimeSampling", "load_scene", "render", "scenes", "set_variant"]
+_ATTRIBUTES = {
+    "Camera": "modulation",
+    "DynamicScene": "scene",
+    "SceneError": "scene",
+    "RenderResult": "render",
+    "render": "render",
+    "RenderSettings": "settings",
+    "load_scene": "loader",
+    "set_variant": "backend",
+}
+_MODULES = ("scenes", "reconstruct", "sensor", "io", "viz", "experiments", "animate", "outputs", "settings", "oracles", "folder", "tracing")
+
+
+def __getattr__(name):
+    """Names and modules of the package, imported on first use."""
+    if name in _ATTRIBUTES:
+        return getattr(_importlib.import_module(f".{_ATTRIBUTES[name]}", __name__), name)
+    if name in _MODULES:
+        return _importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module 'dopplertof' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted([*globals(), *_ATTRIBUTES, *_MODULES])
+
+
+__all__ = ["Camera", "DynamicScene", "RenderResult", "RenderSettings", "SceneError", "load_scene", "render", "scenes", "set_variant", "reconstruct", "sensor"]

@@ -42,6 +42,8 @@ import time
 import click
 import numpy as np
 
+from .clitools import StopOnSignal, cameras_layer, fail, given_settings, settings_options
+
 from . import io, viz
 from .modulation import Camera
 from .render_folder import describe_error, reconstruct, resolve_method, velocity_error, write_reconstruction
@@ -107,7 +109,10 @@ def _existing_frames(output: str) -> list[str]:
 
 
 def _prepare_output(output: str, settings: dict, overwrite: bool) -> None:
-    """Create ``output`` for ``settings``; refuse a folder holding a different clip."""
+    """Create ``output`` for ``settings``; refuse an unusable folder or one holding a different clip."""
+    from .folder import check_writable
+
+    check_writable(output)
     settings_path = os.path.join(output, SETTINGS_FILE)
     if overwrite:
         for name in _existing_frames(output):
@@ -135,17 +140,18 @@ def _write_done(folder: str, summary: dict) -> None:
     os.replace(temporary, os.path.join(folder, DONE_FILE))
 
 
-def _render_frame(scene, index, fps, cameras, spp, seed, method, render_kwargs, folder, progress):
-    from .cli import write_result
+def _render_frame(scene, index, fps, settings, method, folder, progress, stop):
+    from .folder import write_result
     from .render import render
 
     start_s = index / fps
-    result = render(scene, cameras=cameras, spp=spp, seed=seed + index, exposure_start=start_s,
-                    progress=progress, **render_kwargs)
-    if result.interrupted:  # render() keeps a partial image on Ctrl-C; a frame must be whole
+    cameras = list(settings.cameras)
+    result = render(scene, settings=settings.replace(seed=settings.seed + index, exposure_start=start_s), progress=progress, stop=stop)
+    if result.interrupted:  # a frame must be whole
         raise KeyboardInterrupt
-    write_result(result, folder)
-    reconstruction = reconstruct(result.measurements, cameras, method)
+    os.makedirs(folder, exist_ok=True)
+    write_result(result, folder, {"frame": index, "time_s": start_s})
+    reconstruction = reconstruct(result.measurements, cameras, method, result.measurement_stderr, result.maps.get("measurement_covariance"))
     write_reconstruction(folder, reconstruction, result.velocity)
     summary = {"frame": index, "time_s": start_s, "exposure_s": cameras[0].exposure,
                **velocity_error(reconstruction, result.velocity)}
@@ -182,10 +188,9 @@ def write_clip_files(output: str, frames: int, fps: float) -> list[str]:
     return written
 
 
-def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FPS, cameras=None, spp: int = 64,
-                     seed: int = 0, method: str | None = None, render_kwargs: dict | None = None,
-                     scene_label: str | None = None, overwrite: bool = False, progress: bool = False,
-                     log=print) -> list[dict]:
+def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FPS, settings=None,
+                     method: str | None = None, scene_label: str | None = None, overwrite: bool = False,
+                     progress: bool = False, log=print, stop=None) -> list[dict]:
     """Render a clip frame by frame into ``output`` (module docstring), resuming a previous run.
 
     Parameters
@@ -198,16 +203,13 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
         Number of frames, > 0.
     fps : float
         Frames per second, > 0: frame ``i`` opens its exposure at i/fps seconds.
-    cameras : list of :class:`Camera`, optional
-        Default :func:`default_cameras`. They must determine velocity (see
+    settings : :class:`~dopplertof.settings.RenderSettings`, optional
+        The settings of every frame (default: the defaults with :func:`default_cameras`);
+        frame ``i`` uses seed ``settings.seed + i`` and opens its exposure at i/fps. The
+        cameras must determine velocity (see
         :func:`dopplertof.render_folder.resolve_method`); checked before rendering.
-    spp, seed : int
-        Paths per pixel; frame ``i`` uses seed ``seed + i``.
     method : {None, "auto", "ratio", "fit"}
         Velocity reconstruction, see :func:`dopplertof.render_folder.resolve_method`.
-    render_kwargs : dict, optional
-        Further keyword arguments of :func:`dopplertof.render` (``max_depth``,
-        ``time_sampling``, ``correlation`` …), not ``exposure_start``.
     scene_label : str, optional
         Identifies the scene in ``animation.json`` (default ``scene.source``).
     overwrite : bool
@@ -230,19 +232,19 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
     KeyboardInterrupt
         On Ctrl-C, after the finished frames are safe; a rerun resumes.
     """
+    from .settings import RenderSettings
+
     frames, fps = check_frames_and_fps(frames, fps)
-    cameras = list(cameras) if cameras else default_cameras()
-    method = resolve_method(cameras, method)
-    render_kwargs = dict(render_kwargs or {})
-    if "exposure_start" in render_kwargs:
-        raise ValueError("render_kwargs must not set exposure_start: each frame opens at frame / fps")
+    settings = settings or RenderSettings(cameras=default_cameras())
+    if not settings.cameras:
+        settings = settings.replace(cameras=default_cameras())
+    method = resolve_method(list(settings.cameras), method)
     width, height = scene.resolution
-    settings = _jsonable({
+    record = _jsonable({
         "scene": scene_label or scene.source, "resolution": [width, height], "frames": frames, "fps": fps,
-        "spp": spp, "seed": seed, "method": method, "cameras": [dataclasses.asdict(c) for c in cameras],
-        "render": render_kwargs,
+        "method": method, "settings": {k: v for k, v in settings.as_dict().items() if k != "exposure_start"},
     })
-    _prepare_output(output, settings, overwrite)
+    _prepare_output(output, record, overwrite)
 
     summaries = []
     for index in range(frames):
@@ -253,7 +255,7 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
             log(f"{head}: done in an earlier run, skipped")
             continue
         started = time.perf_counter()
-        summary = _render_frame(scene, index, fps, cameras, spp, seed, method, render_kwargs, folder, progress)
+        summary = _render_frame(scene, index, fps, settings, method, folder, progress, stop)
         summaries.append(summary)
         log(f"{head}: rendered in {time.perf_counter() - started:.1f} s; {describe_error(summary)}")
     write_clip_files(output, frames, fps)
@@ -266,77 +268,55 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
               help="Number of frames (default: the scene's motion length × fps, at least 1).")
 @click.option("--fps", type=float, default=DEFAULT_FPS, show_default=True,
               help="Frames per second: frame i exposes [i/fps, i/fps + T].")
-@click.option("--spp", type=int, default=None, help="Paths per pixel per frame (default: the scene's sampler, else 64).")
-@click.option("--resolution", type=int, default=None, help="Film size of a built-in scene (pixels).")
+@click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
+@click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file. Repeatable.")
 @click.option("-o", "--output", default=None, help="Output folder (default: out/<scene>-animation).")
-@click.option("--seed", type=int, default=0, show_default=True, help="Frame i uses seed + i.")
 @click.option("--camera", "camera_specs", multiple=True,
               help="A camera as in 'dopplertof render' (repeatable; default h=0 and h=1 at psi=0 and 90deg).")
-@click.option("--max-depth", type=int, default=None, help="Path depth (default: the scene's, else 5).")
-@click.option("--time-sampling", default=None, help="uniform | stratified | antithetic | antithetic_mirror (default antithetic).")
-@click.option("--correlation", default=None,
-              help="none | pixel | replay | reconnection | adaptive (default replay; the last two need pairs of times).")
-@click.option("--reconnection-threshold", type=float, default=None,
-              help="adaptive: reconnect where both surfaces are rougher than this GGX/Beckmann alpha (default 0.5).")
 @click.option("--method", type=click.Choice(["auto", "ratio", "fit"]), default=None,
               help="Velocity reconstruction (default: auto, the ratio for matched h=0/h=1 pairs, else the fit).")
 @click.option("--overwrite", is_flag=True, help="Replace a clip with other settings in the output folder.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def animate_command(scene, frames, fps, spp, resolution, output, seed, camera_specs, max_depth, time_sampling,
-                    correlation, reconnection_threshold, method, overwrite, quiet):
+@settings_options(exclude=("exposure_start",))
+def animate_command(scene, frames, fps, resolution, defines, output, camera_specs, method, overwrite, quiet, **options):
     """Render SCENE as a clip: one D-ToF exposure per frame, with reconstructed velocity and a GIF.
 
-    An interrupted run resumes where it stopped when run again with the same options.
+    Frame i uses seed + i. An interrupted run (Ctrl-C, SIGTERM, SIGHUP) resumes where it
+    stopped when run again with the same options.
     """
     from . import scenes
     from .backend import BackendError
-    from .cli import _fail, _load, parse_camera
     from .scene import SceneError
+    from .settings import RenderSettings, scene_layer
 
     output = output or os.path.join("out", f"{os.path.splitext(os.path.basename(scene))[0]}-animation")
+    stop = StopOnSignal()
     try:
         check_frames_and_fps(1 if frames is None else frames, fps)  # before the scene loads
-        dyn = _load(scene, resolution)
-        base, kwargs = _scene_settings(dyn)
-        cameras = [parse_camera(c, base and base.exposure) for c in camera_specs] or default_cameras(base)
-        kwargs["max_depth"] = max_depth if max_depth is not None else kwargs.get("max_depth", 5)
-        if time_sampling is not None and "antithetic_shift" not in dyn.integrator_params:
-            kwargs.pop("antithetic_shift", None)  # the file's default suited its own method
-        kwargs["time_sampling"] = time_sampling or kwargs.get("time_sampling", "antithetic")
-        kwargs["correlation"] = correlation or kwargs.get("correlation", "replay")
-        if reconnection_threshold is not None:
-            kwargs["reconnection_threshold"] = reconnection_threshold
+        dyn = scenes.open_scene(scene, resolution, defines)
+        base = scene_layer(dyn, scene)
+        base.pop("exposure_start", None)  # each frame sets its own
+        cameras = cameras_layer(camera_specs, options.get("exposure"), base)
+        if not cameras:  # the scene's camera gives f_g, T and the waveform of the default set
+            scene_cameras = base.get("cameras") or ()
+            cameras = {"cameras": default_cameras(scene_cameras[0] if scene_cameras else None)}
+        settings = RenderSettings.build(base, given_settings(options), cameras, where=scene)
         if frames is None:
             duration = scenes.clip_duration(scene) if scene in scenes.SCENES else motion_duration(dyn)
             if duration is None:
                 raise ValueError(f"{scene}: its motion has no end (or nothing moves); give --frames")
             frames = frame_count(duration, fps)
         label = scene if scene in scenes.SCENES else os.path.abspath(scene)
-        render_animation(dyn, output, frames=frames, fps=fps, cameras=cameras,
-                         spp=spp if spp is not None else (dyn.spp_hint or 64), seed=seed, method=method,
-                         render_kwargs=kwargs, scene_label=label, overwrite=overwrite, progress=not quiet,
-                         log=click.echo)
+        with stop:
+            render_animation(dyn, output, frames=frames, fps=fps, settings=settings, method=method, scene_label=label,
+                             overwrite=overwrite, progress=not quiet, log=click.echo, stop=stop)
     except (ValueError, SceneError, BackendError, FileNotFoundError) as exc:
-        _fail(str(exc))
+        fail(str(exc))
+    except OSError as exc:
+        fail(f"cannot write {output!r}: {exc.strerror or exc}")
     except KeyboardInterrupt:
         click.echo(f"interrupted: the finished frames are in {os.path.abspath(output)}/; "
                    "run the same command again to resume", err=True)
-        raise SystemExit(130) from None
+        raise SystemExit(stop.exit_status) from None
     click.echo(f"animation of {scene}: {frames} frame{'' if frames == 1 else 's'} in {os.path.abspath(output)}/ "
                f"({GIF_FILE}: ground truth | reconstructed velocity; {SUMMARY_FILE}; frame_*/)")
-
-
-def _scene_settings(dyn) -> tuple[Camera | None, dict]:
-    """The camera parameters and render settings of the scene's ``<integrator>`` (if any).
-
-    The scene's camera gives f_g, T and the waveform of the default cameras; its h and ψ
-    are replaced by the default set, which determines velocity where one camera cannot.
-    """
-    if not dyn.integrator_params:
-        return None, {}
-    from .plugin import render_settings
-
-    settings = render_settings(dyn.integrator_params, f"{dyn.source}: <integrator>")
-    settings.pop("exposure_start", None)  # each frame sets its own
-    cameras = settings.pop("cameras", None)
-    return (cameras[0] if cameras else None), settings

@@ -5,6 +5,20 @@ with "Cannot select fminimum". Dr.Jit reads ``DRJIT_LIBLLVM_PATH`` once, when it
 starts, so :func:`configure_llvm_path` must run before ``import drjit``: importing
 :mod:`dopplertof` does that.
 
+:func:`find_libllvm` looks in this order and takes the first place that has a libLLVM
+>= 16 (the newest there, if it has several):
+
+=========================  =======================================================
+``DRJIT_LIBLLVM_PATH``     environment variable, the user's choice; used as is, an
+                           error if it is not a file or names an LLVM < 16
+``$CONDA_PREFIX/lib``      the active conda environment (its libstdc++ matches)
+``llvm-config``            ``--libdir`` of ``llvm-config`` and every
+                           ``llvm-config-NN`` on ``PATH``
+system directories         Debian/Ubuntu multiarch and ``/usr/lib/llvm-NN/lib``,
+                           Fedora ``/usr/lib64``, ``/usr/local/lib``, Homebrew
+``ldconfig -p``            whatever else the dynamic linker knows
+=========================  =======================================================
+
 Variant selection (:func:`set_variant`):
 
 ==========================  ====================================================
@@ -13,73 +27,243 @@ default                     ``cuda_ad_rgb`` when a CUDA device works, otherwise
                             ``llvm_ad_rgb``
 ``mono=True``               the ``*_ad_mono`` variant of the chosen backend
 ==========================  ====================================================
+
+This module imports nothing outside the standard library at module level:
+``scripts/setup.sh`` loads it on its own, before Dr.Jit is installed, so that the
+libLLVM search has one home.
 """
 
 from __future__ import annotations
 
+import ctypes
 import glob
 import os
 import re
+import shutil
+import subprocess
 
 MIN_LLVM_MAJOR = 16
 SUPPORTED_VARIANTS = ("llvm_ad_rgb", "llvm_ad_mono", "cuda_ad_rgb", "cuda_ad_mono")
+LLVM_PATH_ENV = "DRJIT_LIBLLVM_PATH"
 
-_LLVM_SEARCH_PATTERNS = (
-    "/usr/lib/x86_64-linux-gnu/libLLVM*.so*",
-    "/usr/lib/aarch64-linux-gnu/libLLVM*.so*",
-    "/usr/lib/llvm-*/lib/libLLVM*.so*",
-    "/usr/lib64/libLLVM*.so*",
-    "/usr/local/lib/libLLVM*.so*",
-    "/opt/homebrew/opt/llvm/lib/libLLVM*.dylib",
-    "/usr/local/opt/llvm/lib/libLLVM*.dylib",
+LLVM_INSTALL_HINT = (
+    f"libLLVM >= {MIN_LLVM_MAJOR} not found; install it with 'sudo apt-get install libllvm19' "
+    "(Debian/Ubuntu), 'conda install -c conda-forge libllvm19', "
+    f"or set {LLVM_PATH_ENV}=/path/to/libLLVM.so"
 )
+
+_SYSTEM_LLVM_DIRS = (
+    "/usr/lib/x86_64-linux-gnu",
+    "/usr/lib/aarch64-linux-gnu",
+    "/usr/lib/llvm-*/lib",
+    "/usr/lib64",
+    "/usr/lib64/llvm*/lib",
+    "/usr/lib",
+    "/usr/local/lib",
+    "/opt/homebrew/opt/llvm/lib",
+    "/opt/homebrew/opt/llvm@*/lib",
+    "/usr/local/opt/llvm/lib",
+    "/usr/local/opt/llvm@*/lib",
+)
+
+# ldconfig lives in /sbin, which a normal user's PATH often lacks.
+_LDCONFIG_FALLBACKS = ("/sbin/ldconfig", "/usr/sbin/ldconfig")
+
+# The one shared library of LLVM (not its static parts libLLVMCore.a, ...): libLLVM.so,
+# libLLVM-19.so, libLLVM-14.0.6.so.1, libLLVM.so.19.1, libLLVM.dylib, libLLVM-19.dylib.
+_LIBLLVM_NAME = re.compile(r"^libLLVM(?:-(\d+)[\w.]*)?\.(?:so(?:\.(\d+)[\w.]*)?|dylib)$")
+# Where an unversioned name (libLLVM.so, libLLVM.dylib) still tells its version by its
+# directory: /usr/lib/llvm-19/lib, Fedora's /usr/lib64/llvm17/lib, Homebrew's llvm@17 and
+# Cellar/llvm/19.1.7.
+_LLVM_DIR_VERSION = re.compile(r"(?:/llvm-|/llvm@|/llvm|/Cellar/llvm/)(\d+)[./]")
 
 
 class BackendError(RuntimeError):
     """No Dr.Jit backend (LLVM or CUDA) could be started."""
 
 
-def _llvm_major(path: str) -> int | None:
-    """Major LLVM version encoded in a library path, or None if it cannot be read."""
-    name = os.path.basename(path)
-    for pattern in (r"libLLVM-(\d+)", r"libLLVM\.so\.(\d+)", r"llvm-(\d+)/"):
-        match = re.search(pattern, name if "/" not in pattern else path)
+def _llvm_major(path: str, major_hint: int | None = None) -> int | None:
+    """Major LLVM version of a libLLVM shared library.
+
+    Parameters
+    ----------
+    path : str
+        Path of a file; anything but LLVM's shared library gives None.
+    major_hint : int, optional
+        Version to assume when neither the name, the file the name links to, nor the
+        directory tells it (``llvm-config --version`` for files in its ``--libdir``).
+
+    Returns the major version, or None if the file is no libLLVM or its version is unknown.
+    """
+    if not _LIBLLVM_NAME.match(os.path.basename(path)):
+        return None
+    # libLLVM.so -> libLLVM.so.19.1: the link's target names the version.
+    for candidate in (path, os.path.realpath(path)):
+        match = _LIBLLVM_NAME.match(os.path.basename(candidate))
+        if match and (match.group(1) or match.group(2)):
+            return int(match.group(1) or match.group(2))
+    for candidate in (path, os.path.realpath(path)):
+        match = _LLVM_DIR_VERSION.search(candidate)
         if match:
             return int(match.group(1))
-    return None
+    return major_hint
+
+
+def _libraries_in(directory: str, major_hint: int | None = None) -> list[tuple[int, str]]:
+    """(major version, path) of every libLLVM shared library directly in ``directory``."""
+    found = []
+    for path in glob.glob(os.path.join(glob.escape(directory), "libLLVM*")):
+        major = _llvm_major(path, major_hint)
+        if major is not None:
+            found.append((major, path))
+    return found
+
+
+def _run(argv: list[str]) -> str:
+    """Standard output of a short command, or "" if it cannot run or fails."""
+    try:
+        result = subprocess.run(argv, capture_output=True, text=True, timeout=10, check=True)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return result.stdout
+
+
+def _from_conda() -> list[tuple[int, str]]:
+    prefix = os.environ.get("CONDA_PREFIX")
+    return _libraries_in(os.path.join(prefix, "lib")) if prefix else []
+
+
+def _from_llvm_config() -> list[tuple[int, str]]:
+    tools = {shutil.which("llvm-config")}
+    for directory in os.environ.get("PATH", "").split(os.pathsep):
+        if directory:
+            tools.update(glob.glob(os.path.join(glob.escape(directory), "llvm-config-*")))
+    # /bin and /usr/bin are often one directory: ask each tool once.
+    tools = {os.path.realpath(t) for t in tools if t and os.access(t, os.X_OK)}
+    found = set()
+    for tool in sorted(tools):
+        libdir = _run([tool, "--libdir"]).strip()
+        version = re.match(r"\s*(\d+)", _run([tool, "--version"]))
+        if libdir:
+            found.update(_libraries_in(libdir, int(version.group(1)) if version else None))
+    return sorted(found)
+
+
+def _from_system_dirs() -> list[tuple[int, str]]:
+    found = []
+    for pattern in _SYSTEM_LLVM_DIRS:
+        for directory in glob.glob(pattern):
+            found += _libraries_in(directory)
+    return found
+
+
+def _from_ldconfig() -> list[tuple[int, str]]:
+    tool = shutil.which("ldconfig") or next(
+        (t for t in _LDCONFIG_FALLBACKS if os.access(t, os.X_OK)), None
+    )
+    if tool is None:
+        return []
+    found = []
+    # Lines look like "\tlibLLVM.so.19.1 (libc6,x86-64) => /lib/x86_64-linux-gnu/libLLVM.so.19.1".
+    for line in _run([tool, "-p"]).splitlines():
+        path = line.rpartition("=>")[2].strip()
+        major = _llvm_major(path) if path else None
+        if major is not None:
+            found.append((major, path))
+    return found
+
+
+_LLVM_ROUTES = (_from_conda, _from_llvm_config, _from_system_dirs, _from_ldconfig)
+
+
+def _check_user_libllvm(path: str) -> str:
+    """``path`` from ``DRJIT_LIBLLVM_PATH`` if it can be used; BackendError naming it if not."""
+    if not os.path.isfile(path):
+        raise BackendError(
+            f"{LLVM_PATH_ENV}={path} is not a file; point it at libLLVM >= {MIN_LLVM_MAJOR} "
+            f"(e.g. /usr/lib/x86_64-linux-gnu/libLLVM-19.so) or unset it"
+        )
+    major = _llvm_major(path)
+    # An unknown version is the user's call: Dr.Jit says so if it cannot use the library.
+    if major is not None and major < MIN_LLVM_MAJOR:
+        raise BackendError(
+            f"{LLVM_PATH_ENV}={path} is LLVM {major}, but Dr.Jit needs libLLVM >= "
+            f"{MIN_LLVM_MAJOR}; point it at a newer one or unset it"
+        )
+    return path
 
 
 def find_libllvm() -> str | None:
-    """Path of the newest libLLVM >= 16 on this machine, or None."""
-    candidates = []
-    for pattern in _LLVM_SEARCH_PATTERNS:
-        for path in glob.glob(pattern):
-            major = _llvm_major(path)
-            if major is not None and major >= MIN_LLVM_MAJOR and os.path.isfile(path):
-                candidates.append((major, path))
-    if not candidates:
-        return None
-    return max(candidates)[1]
+    """Path of a libLLVM >= 16 for Dr.Jit's CPU backend, or None if there is none.
+
+    Looks in the order of the module docstring and takes the first place that has one,
+    the newest if it has several.
+
+    Raises
+    ------
+    BackendError
+        ``DRJIT_LIBLLVM_PATH`` is set but not a file, or names an LLVM older than 16.
+    """
+    user_path = os.environ.get(LLVM_PATH_ENV)
+    if user_path:
+        return _check_user_libllvm(user_path)
+    for route in _LLVM_ROUTES:
+        usable = [
+            (major, path)
+            for major, path in route()
+            if major >= MIN_LLVM_MAJOR and os.path.isfile(path)
+        ]
+        if usable:
+            return max(usable)[1]
+    return None
 
 
 def configure_llvm_path() -> str | None:
     """Set ``DRJIT_LIBLLVM_PATH`` to a libLLVM >= 16 unless the user already set it.
 
     Returns the path in use (None if none was found; the CUDA backend may still work).
+    Never raises: a wrong ``DRJIT_LIBLLVM_PATH`` is reported when a variant is chosen,
+    so that importing dopplertof works on a CUDA-only machine.
     """
-    current = os.environ.get("DRJIT_LIBLLVM_PATH")
+    current = os.environ.get(LLVM_PATH_ENV)
     if current:
         return current
     path = find_libllvm()
     if path:
-        os.environ["DRJIT_LIBLLVM_PATH"] = path
+        os.environ[LLVM_PATH_ENV] = path
     return path
 
 
-_INSTALL_HINT = (
-    "dopplertof needs Dr.Jit's LLVM backend (libLLVM >= 16; on Debian/Ubuntu: "
-    "'apt-get install libllvm19', or set DRJIT_LIBLLVM_PATH) or a working CUDA GPU"
-)
+def cuda_device_count() -> int:
+    """Number of CUDA devices the NVIDIA driver reports; 0 without a driver or a GPU.
+
+    Asks the driver library directly (``cuInit``, ``cuDeviceGetCount``), so it works
+    before Dr.Jit is installed; :func:`default_variant` asks Dr.Jit itself.
+    """
+    for name in ("libcuda.so.1", "libcuda.so", "libcuda.dylib", "nvcuda.dll"):
+        try:
+            cuda = ctypes.CDLL(name)
+        except OSError:
+            continue
+        count = ctypes.c_int(0)
+        if cuda.cuInit(0) != 0 or cuda.cuDeviceGetCount(ctypes.byref(count)) != 0:
+            return 0
+        return count.value
+    return 0
+
+
+def _install_hint() -> str:
+    """What to install (or fix) so that a Dr.Jit backend starts."""
+    try:
+        llvm_problem = None if find_libllvm() else LLVM_INSTALL_HINT
+    except BackendError as exc:
+        llvm_problem = str(exc)
+    if llvm_problem is None:
+        return (
+            f"dopplertof needs Dr.Jit's LLVM backend (libLLVM >= {MIN_LLVM_MAJOR}) "
+            "or a working CUDA GPU"
+        )
+    return f"dopplertof needs Dr.Jit's LLVM backend or a working CUDA GPU: {llvm_problem}"
 
 
 def _backend_works(name: str) -> bool:
@@ -102,7 +286,7 @@ def default_variant(mono: bool = False) -> str:
     elif _backend_works("LLVM"):
         backend = "llvm"
     else:
-        raise BackendError(f"no Dr.Jit backend works: {_INSTALL_HINT}")
+        raise BackendError(f"no Dr.Jit backend works; {_install_hint()}")
     return f"{backend}_ad_{'mono' if mono else 'rgb'}"
 
 
@@ -130,7 +314,9 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
         try:
             mi.set_variant(name)
         except Exception as exc:  # noqa: BLE001 - turn Dr.Jit's message into one line
-            raise BackendError(f"cannot start Mitsuba variant {name!r} ({exc}); {_INSTALL_HINT}") from None
+            raise BackendError(
+                f"cannot start Mitsuba variant {name!r} ({exc}); {_install_hint()}"
+            ) from None
     return name
 
 

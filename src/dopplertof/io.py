@@ -25,6 +25,7 @@ RGB(A) images and the stored (alphabetical) order otherwise.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from pathlib import Path
@@ -51,6 +52,24 @@ def _prepare_output(path: PathLike) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     return path
+
+
+@contextlib.contextmanager
+def atomic_path(path: PathLike):
+    """A temporary path beside ``path`` (same suffix) to write to; renamed over ``path``
+    when the block succeeds, removed when it fails, so that ``path`` is never a partial
+    file (an interrupted, full or failing write leaves the previous file, or none)."""
+    path = _prepare_output(path)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
+    try:
+        yield tmp
+        with open(tmp, "rb") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.remove(tmp)
+        raise
 
 
 def _existing_file(path: PathLike, what: str) -> Path:
@@ -142,10 +161,9 @@ def write_exr(path: PathLike, image: np.ndarray, channels: Sequence[str] | None 
         "type": OpenEXR.scanlineimage,
         EXR_CHANNEL_ORDER_ATTRIBUTE: names,
     }
-    path = _prepare_output(path)
-    with OpenEXR.File(header, pixels) as exr_file:
-        exr_file.write(str(path))
-    return path
+    with atomic_path(path) as tmp, OpenEXR.File(header, pixels) as exr_file:
+        exr_file.write(str(tmp))
+    return Path(path)
 
 
 def read_exr_channels(path: PathLike) -> dict[str, np.ndarray]:
@@ -249,10 +267,9 @@ def write_npy(path: PathLike, array: np.ndarray) -> Path:
     pathlib.Path
         The path written.
     """
-    path = _prepare_output(path)
-    with open(path, "wb") as file:  # a file object stops numpy.save appending ".npy"
+    with atomic_path(path) as tmp, open(tmp, "wb") as file:  # a file object stops numpy.save appending ".npy"
         np.save(file, np.asarray(array))
-    return path
+    return Path(path)
 
 
 def read_npy(path: PathLike) -> np.ndarray:
@@ -358,9 +375,9 @@ def write_json(path: PathLike, obj: Any) -> Path:
         If ``obj`` contains a value JSON cannot represent (e.g. a complex number).
     """
     text = json.dumps(_to_jsonable(obj), indent=2)  # serialise before touching the file
-    path = _prepare_output(path)
-    path.write_text(text + "\n", encoding="utf-8")
-    return path
+    with atomic_path(path) as tmp:
+        tmp.write_text(text + "\n", encoding="utf-8")
+    return Path(path)
 
 
 def read_json(path: PathLike) -> Any:

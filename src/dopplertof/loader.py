@@ -1,6 +1,8 @@
 """Loading dynamic scenes from Mitsuba 3 XML files and from Python dicts.
 
-XML: the Mitsuba 3 format, plus the original D-ToF code's motion syntax inside a shape::
+XML: the Mitsuba 3 format (or the original CPU code's Mitsuba 0.6 format, translated by
+:mod:`dopplertof.mitsuba06`; ``<include>`` is expanded here for both), plus the original
+D-ToF code's motion syntax inside a shape::
 
     <shape type="cube">
         <animation name="to_world">
@@ -42,8 +44,9 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
+from . import mitsuba06
 from .motion import Keyframed, Motion, Parametric
-from .plugin import PLUGIN_NAMES
+from .settings import PLUGIN_NAMES, STOCK_PATH_INTEGRATORS, integrator_layer
 from .scene import Body, DynamicScene, SceneError
 
 _SHAPE_TAGS = {"shape"}
@@ -51,25 +54,47 @@ _DEFINITION_TAGS = {"bsdf", "texture", "spectrum", "rgb", "default", "medium"}
 _ORIGINAL_SAMPLERS = {"correlated", "timestratified"}
 
 
-def load_scene(source, **params) -> DynamicScene:
+def load_scene(source, *, film_resolution=None, **params) -> DynamicScene:
     """Load a dynamic scene from an XML file path or a scene dict.
 
     Parameters
     ----------
     source : str, os.PathLike or dict
-        Path of a Mitsuba 3 XML file (with optional ``<animation>`` motion) or a dict in
-        ``mi.load_dict`` form (shapes may carry ``"motion"``).
+        Path of a Mitsuba 3 XML file (with optional ``<animation>`` motion), of a Mitsuba
+        0.6 file of the original D-ToF code (translated by :mod:`dopplertof.mitsuba06`), or
+        a dict in ``mi.load_dict`` form (shapes may carry ``"motion"``).
+    film_resolution : int or (int, int), optional
+        Film (width, height) in pixels (an int: square), replacing the scene's.
     **params
-        XML ``$name`` substitutions, as in ``mi.load_file``.
+        XML ``$name`` substitutions, as in ``mi.load_file`` (they override ``<default>``).
     """
     from .backend import ensure_variant
 
     ensure_variant()
+    size = None if film_resolution is None else _film_size(film_resolution)
     if isinstance(source, dict):
-        return _load_dict(source)
+        if params:
+            raise SceneError(f"<dict>: $name substitutions {sorted(params)} apply to scene files only")
+        return _load_dict(source if size is None else _dict_with_film_size(source, size))
     if isinstance(source, (str, os.PathLike)):
-        return _load_xml(os.fspath(source), params)
+        return _load_xml(os.fspath(source), params, size)
     raise SceneError(f"load_scene expects a file path or a dict, got {type(source).__name__}")
+
+
+def _film_size(resolution) -> tuple[int, int]:
+    """(width, height) from an int or a pair of positive ints."""
+    size = (resolution, resolution) if isinstance(resolution, (int, np.integer)) else tuple(resolution) if isinstance(resolution, (tuple, list)) else ()
+    if len(size) != 2 or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v > 0 for v in size):
+        raise SceneError(f"film_resolution must be a positive int or a (width, height) pair of them, got {resolution!r}")
+    return int(size[0]), int(size[1])
+
+
+def _dict_with_film_size(scene_dict: dict, size) -> dict:
+    out = dict(scene_dict)
+    for key, value in scene_dict.items():
+        if isinstance(value, dict) and isinstance(value.get("film"), dict):
+            out[key] = {**value, "film": {**value["film"], "width": size[0], "height": size[1]}}
+    return out
 
 
 # ----------------------------------------------------------------------------------------
@@ -184,47 +209,113 @@ def _describe(el, index: int) -> str:
     return f"<{el.tag} type=\"{el.attrib.get('type', '?')}\"{' id=' + repr(ident) if ident else ''}> #{index}"
 
 
-def _param_value(el):
-    """Python value of a Mitsuba property element (integer/float/boolean/string)."""
+def property_value(el, where: str):
+    """Python value of a Mitsuba property element (``<integer>``/``<float>``/``<boolean>``/
+    ``<string>``), parsed as Mitsuba 3 does; SceneError naming the element otherwise."""
     value = el.attrib.get("value")
-    if el.tag == "integer":
-        return int(value)
-    if el.tag == "float":
-        return float(value)
-    if el.tag == "boolean":
-        return value.strip().lower() == "true"
+    kind = {"integer": "an integer", "float": "a number", "boolean": "true or false"}.get(el.tag)
+    try:
+        if el.tag == "integer":
+            return int(value.strip())
+        if el.tag == "float":
+            return float(value)
+        if el.tag == "boolean":
+            return {"true": True, "false": False}[value.strip().lower()]
+    except (AttributeError, KeyError, ValueError):
+        raise SceneError(f"{where}: <{el.tag} name={el.attrib.get('name')!r} value={value!r}>: expected {kind}") from None
+    if el.tag != "string":
+        raise SceneError(f"{where}: <{el.tag} name={el.attrib.get('name')!r}> is not an integer, float, boolean or string property")
     return value
 
 
-def _substitute(root, params: dict, path: str):
-    """Apply ``<default>`` values and keyword substitutions to ``$name`` attributes."""
-    values = {d.attrib["name"]: d.attrib["value"] for d in root.findall("default") if "name" in d.attrib}
-    values.update({k: str(v) for k, v in params.items()})
+_TOKEN = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")
+
+
+def _substitute(root, values: dict, path: str) -> dict:
+    """Replace ``$name`` in attributes by ``values`` (which win) or the file's ``<default>``s,
+    and return the values in force. As Mitsuba 3 (``src/core/xml.cpp``): the first
+    definition of a name wins, a default may use earlier ones, and the longest name is
+    replaced first, so with ``res`` and ``resx`` defined ``$resx`` is resx's value."""
+    values = dict(values)
+
+    def replace(el, key):
+        val = el.attrib[key]
+        for name in sorted(values, key=len, reverse=True):
+            val = val.replace(f"${name}", values[name])
+        if "$" in val:
+            missing = ", ".join(sorted({f"${m}" for m in _TOKEN.findall(val)})) or val
+            raise SceneError(f"{path}: unresolved parameter {missing} in <{el.tag} {key}={el.attrib[key]!r}>")
+        return val
+
+    for d in root.findall("default"):
+        if "name" in d.attrib and d.attrib["name"] not in values:  # the first definition wins
+            values[d.attrib["name"]] = replace(d, "value") if "value" in d.attrib else ""
+        root.remove(d)
     for el in root.iter():
         for key, val in el.attrib.items():
             if "$" in val:
-                for name, sub in values.items():
-                    val = val.replace(f"${name}", sub)
-                if "$" in val:
-                    raise SceneError(f"{path}: unresolved parameter in {key}={el.attrib[key]!r}")
-                el.attrib[key] = val
-    for d in root.findall("default"):
-        root.remove(d)
+                el.attrib[key] = replace(el, key)
+    return values
 
 
-def _load_xml(path: str, params: dict) -> DynamicScene:
+def _parse(path: str, where: str):
+    if not os.path.isfile(path):
+        raise SceneError(f"{where}: scene file not found")
+    try:
+        return ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise SceneError(f"{where}: malformed XML ({exc})") from None
+
+
+def _read_scene(path: str, values: dict, where: str, stack: tuple = ()):
+    """The ``<scene>`` root of ``path`` with ``$name`` substituted and every ``<include
+    filename="...">`` replaced by the included file's elements, recursively (a file name
+    is relative to the including file, else to the scene's folder, where Mitsuba's resolver
+    looks). ``values`` gains each file's ``<default>``s; a cycle of includes is an error,
+    and so is mixing Mitsuba 0.6 and 3 versions."""
+    root = _parse(path, where)
+    stack = (*stack, os.path.abspath(path))
+    values.update(_substitute(root, values, path))
+    for parent in list(root.iter()):
+        for index, inc in reversed(list(enumerate(parent))):
+            if inc.tag != "include":
+                continue
+            name = inc.attrib.get("filename", "")
+            here = f"{path}: <include filename={name!r}>"
+            candidates = [os.path.join(os.path.dirname(stack[-1]), name), os.path.join(os.path.dirname(stack[0]), name)]
+            target = os.path.abspath(next((c for c in candidates if name and os.path.isfile(c)), candidates[0]))
+            if target in stack:
+                raise SceneError(f"{here}: include cycle ({' -> '.join(os.path.basename(p) for p in (*stack, target))})")
+            included = _read_scene(target, values, f"{here}: {target}", stack)
+            if included.tag != "scene":
+                parent[index:index + 1] = [included]
+                continue
+            versions = [r.attrib.get("version", "") for r in (root, included)]
+            if "" not in versions and len({v.startswith("0.") for v in versions}) > 1:
+                raise SceneError(f"{here}: version {versions[1]!r} mixes the Mitsuba 0.6 and 3 formats (the scene is {versions[0]!r})")
+            parent[index:index + 1] = list(included)
+    return root
+
+
+def _set_film_size(root, size, path: str) -> None:
+    for film in root.iter("film"):
+        crop = [p.attrib["name"] for p in film if p.attrib.get("name", "").startswith("crop_")]
+        if crop:
+            raise SceneError(f"{path}: <film> has {', '.join(crop)}; a film_resolution override would not fit it")
+        for p in [p for p in film if p.attrib.get("name") in ("width", "height")]:
+            film.remove(p)
+        film.extend(ET.Element("integer", {"name": n, "value": str(v)}) for n, v in zip(("width", "height"), size))
+
+
+def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     import mitsuba as mi
 
-    if not os.path.isfile(path):
-        raise SceneError(f"{path}: scene file not found")
-    try:
-        tree = ET.parse(path)
-    except ET.ParseError as exc:
-        raise SceneError(f"{path}: malformed XML ({exc})") from None
-    root = tree.getroot()
+    root = _read_scene(path, {k: str(v) for k, v in params.items()}, path)
     if root.tag != "scene":
         raise SceneError(f"{path}: the root element must be <scene>, got <{root.tag}>")
-    _substitute(root, params, path)
+    strict_normals = mitsuba06.is_legacy(root) and mitsuba06.translate(root, path)
+    if film_size is not None:
+        _set_film_size(root, film_size, path)
     scene_dir = os.path.dirname(os.path.abspath(path))
 
     integrator_params: dict = {}
@@ -237,16 +328,13 @@ def _load_xml(path: str, params: dict) -> DynamicScene:
             integrator_params["type"] = el.attrib.get("type")
             for p in el:
                 if "name" in p.attrib:
-                    try:
-                        integrator_params[p.attrib["name"]] = _param_value(p)
-                    except (TypeError, ValueError):
-                        raise SceneError(f"{where}: bad value for {p.attrib['name']!r}: {p.attrib.get('value')!r}") from None
+                    integrator_params[p.attrib["name"]] = property_value(p, where)
             root.remove(el)
         elif el.tag == "sensor":
             for sampler in el.findall("sampler"):
                 for p in sampler:
                     if p.attrib.get("name") == "sample_count":
-                        spp_hint = int(p.attrib["value"])
+                        spp_hint = property_value(p, where)
                 if sampler.attrib.get("type") in _ORIGINAL_SAMPLERS:
                     sampler.attrib["type"] = "independent"
                     for p in list(sampler):
@@ -260,8 +348,6 @@ def _load_xml(path: str, params: dict) -> DynamicScene:
                 raise SceneError(f"{where}: more than one <animation>")
             if any(t.attrib.get("name") == "to_world" for t in el.findall("transform")):
                 raise SceneError(f"{where}: has both <transform name=\"to_world\"> and <animation>; keep one")
-            if el.findall("emitter"):
-                raise SceneError(f"{where}: moving emitters are not supported; keep area lights static")
             motion = _parse_animation(anims[0], where)
             el.remove(anims[0])
             moving.append((motion, (index, el)))
@@ -294,7 +380,39 @@ def _load_xml(path: str, params: dict) -> DynamicScene:
             resolver.append(entry)
     if not static.sensors():
         raise SceneError(f"{path}: the scene has no <sensor>")
-    return DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path)
+    if strict_normals:
+        mitsuba06.check_flat_shading([static, *(b.scene for b in bodies)], path)
+    return _checked_scene(DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path))
+
+
+def _checked_scene(scene: DynamicScene) -> DynamicScene:
+    """Refuse what the tracer would silently drop, and validate the ``<integrator>`` now
+    (not after a long render): participating media, emitters or sensors on moving bodies,
+    bad integrator parameters."""
+    where = scene.source
+    for label, mi_scene in [("", scene.static)] + [(f"moving body {b.name!r}: ", b.scene) for b in scene.bodies]:
+        for shape in mi_scene.shapes():
+            if shape.interior_medium() is not None or shape.exterior_medium() is not None:
+                raise SceneError(f"{where}: {label}shape {shape.id() or shape.class_name()!r} has a participating medium; media are not supported (remove the <medium> or render with stock Mitsuba's volpath)")
+        if label and mi_scene.emitters():
+            raise SceneError(f"{where}: {label}carries an emitter; moving emitters are not supported (keep lights static)")
+        if label and mi_scene.sensors():
+            raise SceneError(f"{where}: {label}carries a sensor; moving sensors are not supported")
+    for sensor in scene.static.sensors():
+        if sensor.get_medium() is not None:
+            raise SceneError(f"{where}: the sensor is inside a participating medium; media are not supported")
+    from .tracing.film import FilterSampler
+
+    try:
+        FilterSampler(scene.sensor.film())
+    except ValueError as exc:
+        raise SceneError(f"{where}: {exc}") from None
+    if scene.integrator_params:
+        try:
+            integrator_layer(scene.integrator_params, f"{where}: <integrator>")
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
+    return scene
 
 
 def _motion_key(motion: Motion):
@@ -412,7 +530,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
     integrator_params = {}
     for key, value in scene_dict.items():
         where = f"<dict>: entry {key!r}"
-        if isinstance(value, dict) and value.get("type") in PLUGIN_NAMES:
+        if isinstance(value, dict) and value.get("type") in PLUGIN_NAMES + STOCK_PATH_INTEGRATORS:
             integrator_params = {k: v for k, v in value.items()}
             continue
         if isinstance(value, dict) and "motion" in value:
@@ -420,8 +538,6 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
             spec = shape.pop("motion")
             if isinstance(spec, Motion):
                 shape.pop("to_world", None)  # a Motion object places the shape itself
-            if "emitter" in shape:
-                raise SceneError(f"{where}: moving emitters are not supported; keep area lights static")
             motion = _motion_from_dict(spec, "to_world" in shape, where)
             placement = _as_matrix(shape["to_world"], where) if "to_world" in shape else None
             moving.append((motion, (key, shape, placement)))
@@ -443,4 +559,4 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
         raise _mitsuba_error("<dict>", exc) from None
     if not static.sensors():
         raise SceneError("<dict>: the scene has no sensor")
-    return DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params)
+    return _checked_scene(DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params))

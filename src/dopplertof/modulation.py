@@ -28,11 +28,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .validation import parse_bool
+
 import numpy as np
 
 SPEED_OF_LIGHT_M_S = 299_792_458.0
 TWO_PI = 2.0 * math.pi
 WAVEFORMS = ("sinusoidal", "rectangular", "triangular", "trapezoidal")
+# Beyond these the Float64 phase arithmetic loses the path length (k·L at 1 THz and 1 km is
+# 2e7 rad, still resolving 1e-8 rad); no D-ToF sensor comes near them.
+MAX_MODULATION_FREQUENCY_HZ = 1e12
+MAX_HETERODYNE = 1e9
 
 
 @dataclass(frozen=True)
@@ -60,18 +66,20 @@ class Camera:
     low_pass: bool = True
 
     def __post_init__(self):
+        from .validation import checked
+
         for name in ("modulation_frequency", "exposure", "heterodyne", "phase", "g1", "g0"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(value):
-                raise ValueError(f"Camera: {name} must be a finite number, got {value!r}")
-            object.__setattr__(self, name, float(value))
-        if self.modulation_frequency <= 0:
-            raise ValueError(f"Camera: modulation_frequency must be > 0 Hz, got {self.modulation_frequency!r}")
+            object.__setattr__(self, name, checked(name, getattr(self, name), "float", "Camera"))
+        object.__setattr__(self, "waveform", checked("waveform", self.waveform, "str", "Camera"))
+        object.__setattr__(self, "low_pass", checked("low_pass", self.low_pass, "bool", "Camera"))
+        if not 0 < self.modulation_frequency <= MAX_MODULATION_FREQUENCY_HZ:
+            raise ValueError(f"Camera: modulation_frequency must be in (0, {MAX_MODULATION_FREQUENCY_HZ:g}] Hz, got {self.modulation_frequency!r}")
+        if abs(self.heterodyne) > MAX_HETERODYNE:
+            raise ValueError(f"Camera: |heterodyne| must be <= {MAX_HETERODYNE:g} beat cycles per exposure, got {self.heterodyne!r}")
         if self.exposure <= 0:
             raise ValueError(f"Camera: exposure must be > 0 s, got {self.exposure!r}")
         if self.waveform not in WAVEFORMS:
             raise ValueError(f"Camera: unknown waveform {self.waveform!r}; choose one of {', '.join(WAVEFORMS)}")
-        object.__setattr__(self, "low_pass", bool(self.low_pass))
 
     @property
     def wavenumber(self) -> float:
@@ -118,6 +126,61 @@ class Camera:
             )
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
+
+
+# ----------------------------------------------------------------------------------------
+# Cameras from text (command line)
+
+_CAMERA_KEYS = {
+    "h": "heterodyne",
+    "heterodyne": "heterodyne",
+    "psi": "phase",
+    "phase": "phase",
+    "f": "modulation_frequency",
+    "frequency": "modulation_frequency",
+    "T": "exposure",
+    "exposure": "exposure",
+    "waveform": "waveform",
+    "g1": "g1",
+    "g0": "g0",
+    "low_pass": "low_pass",
+}
+
+
+def parse_camera(text: str, exposure: float | None = None) -> Camera:
+    """A :class:`Camera` from ``"h=1,psi=0,f=30e6,waveform=sinusoidal"``.
+
+    ``psi`` accepts radians or degrees with a ``deg`` suffix (``psi=90deg``); ``f`` is Hz.
+    """
+    kwargs: dict = {}
+    items = [p.strip() for p in text.split(",")]
+    if not any(items):
+        raise ValueError(f"camera {text!r}: empty; give key=value pairs such as 'h=1,psi=90deg'")
+    for item in filter(None, items):
+        if "=" not in item:
+            raise ValueError(f"camera {text!r}: expected key=value, got {item!r}")
+        key, value = (s.strip() for s in item.split("=", 1))
+        if key not in _CAMERA_KEYS:
+            raise ValueError(f"camera {text!r}: unknown key {key!r}; use {', '.join(sorted(set(_CAMERA_KEYS)))}")
+        name = _CAMERA_KEYS[key]
+        if name in kwargs:
+            raise ValueError(f"camera {text!r}: {key!r} given twice")
+        if name == "waveform":
+            kwargs[name] = value
+        elif name == "low_pass":
+            kwargs[name] = parse_bool(value, f"camera {text!r}: low_pass")
+        else:
+            try:
+                kwargs[name] = math.radians(float(value[:-3])) if name == "phase" and value.endswith("deg") else float(value)
+            except ValueError:
+                raise ValueError(f"camera {text!r}: {key}={value!r} is not a number") from None
+    if exposure is not None:
+        kwargs.setdefault("exposure", exposure)
+    try:
+        return Camera(**kwargs)
+    except ValueError as exc:
+        raise ValueError(f"camera {text!r}: {exc}") from None
+
 
 
 # ----------------------------------------------------------------------------------------
@@ -295,3 +358,23 @@ class CameraBank:
                 w = full_weight(cam, u, path_length_m)
             out.append(mi.Float(w))
         return out
+
+
+def analytic_integral(cam: OpaqueCamera, length1_m, length2_m, x1, x2):
+    """(g₁/2)∫₀¹ cos(a u + b)(x1 + (x2 − x1)u) du, a = 2πh + k(L2 − L1), b = ψ + kL1 (Float64).
+
+    The low-pass sinusoid weight integrated over the exposure for a contribution X and a
+    path length L linear in time between their values at the start (1) and end (2): the
+    original's analytic mode, with ψ (which the original omits).
+    """
+    import drjit as dr
+
+    a = TWO_PI * cam.heterodyne + cam.wavenumber * (length2_m - length1_m)
+    b = wrap_phase(cam.phase + cam.wavenumber * length1_m)
+    sin_b, cos_b = dr.sincos(b)
+    sin_ab, cos_ab = dr.sincos(a + b)
+    small = dr.abs(a) < 1e-4
+    a_safe = dr.select(small, 1.0, a)
+    constant = dr.select(small, cos_b - 0.5 * a * sin_b, (sin_ab - sin_b) / a_safe)  # ∫cos
+    linear = dr.select(small, 0.5 * cos_b - a * sin_b / 3.0, sin_ab / a_safe + (cos_ab - cos_b) / dr.square(a_safe))  # ∫u cos
+    return 0.5 * cam.g1 * (x1 * constant + (x2 - x1) * linear)

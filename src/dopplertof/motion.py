@@ -99,6 +99,8 @@ def decompose(matrix, where: str = "transform") -> tuple[np.ndarray, np.ndarray,
     m = np.asarray(matrix, dtype=np.float64)
     if m.shape != (4, 4):
         raise ValueError(f"{where}: expected a 4x4 matrix, got shape {m.shape}")
+    if not np.isfinite(m).all():
+        raise ValueError(f"{where}: transform has non-finite entries (NaN or inf): {m.tolist()}")
     if not np.allclose(m[3], [0, 0, 0, 1], atol=1e-9):
         raise ValueError(f"{where}: projective matrices cannot be rigid motion keys (last row {m[3]})")
     linear = m[:3, :3]

@@ -101,20 +101,29 @@ def moving_plane_measurement_mean(camera, speed_m_s, nodes_xy=48, time_panels=64
     float : the image mean, in the units of ``RenderResult.measurements`` (radiance, W sr⁻¹ m⁻²,
         times the dimensionless correlation weight).
     """
+    return float(moving_plane_measurement_pixels(camera, speed_m_s, 1, nodes_xy, time_panels, time_order)[0, 0])
+
+
+def moving_plane_measurement_pixels(camera, speed_m_s, resolution, nodes_per_pixel=6, time_panels=64, time_order=8):
+    """Exact per-pixel values (resolution × resolution) of the moving plane's direct-light
+    measurement with a box filter: Gauss-Legendre over each pixel and the exposure (see
+    :func:`moving_plane_measurement_mean` for the parameters)."""
     from .modulation import lowpass_waveform
 
     tau = math.tan(math.radians(PLANE_FOV_DEG) / 2)
-    f, w = _gauss_legendre_01(1, nodes_xy)
+    f, w = _gauss_legendre_01(resolution, nodes_per_pixel)  # nodes_per_pixel in each pixel
     fx, fy = np.meshgrid(f, f, indexing="ij")
-    w_xy = np.outer(w, w).ravel()
     cos_axis = 1.0 / np.sqrt(((2 * fx - 1) * tau) ** 2 + ((2 * fy - 1) * tau) ** 2 + 1.0).ravel()
     u, w_t = _gauss_legendre_01(time_panels, time_order)
-    total = 0.0
-    for chunk in range(0, u.size, 256):  # bounded memory: 256 times x nodes_xy² points at once
+    field = np.zeros(cos_axis.size)
+    for chunk in range(0, u.size, 256):  # bounded memory: 256 times x the film's nodes at once
         uc = u[chunk:chunk + 256, None]
         s = (PLANE_DISTANCE_M + speed_m_s * camera.exposure * uc) / cos_axis[None]
         radiance = PLANE_REFLECTANCE / math.pi * PLANE_LIGHT_INTENSITY * cos_axis[None] / s**2
         phase = 2 * math.pi * camera.heterodyne * uc + camera.phase + camera.wavenumber * 2 * s
         integrand = 0.5 * camera.g1 * lowpass_waveform(phase, camera.waveform) * radiance
-        total += float(w_t[chunk:chunk + 256] @ integrand @ w_xy)
-    return total
+        field += w_t[chunk:chunk + 256] @ integrand
+    n = nodes_per_pixel
+    weights = (w * resolution).reshape(resolution, n)  # each pixel's nodes average to 1
+    blocks = field.reshape(resolution, n, resolution, n)
+    return np.einsum("anbm,an,bm->ab", blocks, weights, weights).T

@@ -120,6 +120,9 @@ class VelocityResult:
         u = dL/dt is the rate of the optical path length; NaN where ``valid`` is False.
     method : str
         ``"ratio"`` or ``"fit"``: the estimator that was used.
+    velocity_stderr, depth_stderr : ndarray, shape (...), or None
+        Standard errors (m/s, m) propagated from the measurements' errors (delta method,
+        :func:`velocity`); None when no measurement errors were given.
     """
 
     velocity: np.ndarray
@@ -128,6 +131,8 @@ class VelocityResult:
     amplitude: np.ndarray
     doppler_hz: np.ndarray
     method: str
+    velocity_stderr: np.ndarray | None = None
+    depth_stderr: np.ndarray | None = None
 
 
 @dataclass
@@ -706,21 +711,35 @@ def _velocity_fit(flat, cams, min_amplitude, max_doppler_hz):
 
 def velocity(
     measurements,
-    cameras: Sequence,
+    cameras: Sequence | None = None,
     *,
     min_amplitude: float | None = None,
     method: str = "auto",
     max_doppler_hz: float | None = None,
+    measurement_stderr=None,
+    measurement_covariance=None,
+    max_velocity_stderr: float | None = None,
 ) -> VelocityResult:
     """Per-pixel radial velocity (and depth, amplitude) from D-ToF measurements.
 
     Parameters
     ----------
-    measurements : array_like, shape (n_cameras, ...)
+    measurements : array_like, shape (n_cameras, ...), or a RenderResult
         Rendered (or sensor-reconstructed) measurements, one image per camera, in the
-        units of the standard image times g1/2.
+        units of the standard image times g1/2. A :class:`~dopplertof.render.RenderResult`
+        gives its measurements, cameras, standard errors and covariance at once.
     cameras : sequence of n_cameras camera configurations
         Sharing f_g (Hz) and T (s). See the module docstring.
+    measurement_stderr : array_like, shape (n_cameras, ...), optional
+        Standard errors of the measurements; taken as independent between cameras unless
+        ``measurement_covariance`` is given.
+    measurement_covariance : array_like, shape (n_cameras, n_cameras, ...), optional
+        Covariance of the measurements (of their means: a render's
+        ``measurement_covariance``); cameras rendered from the same paths are correlated.
+    max_velocity_stderr : float, optional
+        With errors given: pixels whose velocity standard error (m/s) exceeds this are
+        invalid. Default 5 % of the unambiguous speed c/(4 f_g T) (83 m/s at 30 MHz,
+        1.5 ms).
     min_amplitude : float, optional
         Signal amplitude (measurement units) at or below which a pixel is invalid:
         the largest |H_i| over the phases for the ratio, (g1/2)|Z| for the fit (g1/2
@@ -747,6 +766,15 @@ def velocity(
         only homodyne), ``method="fit"`` is used with a non-sinusoidal waveform, or
         ``method="ratio"`` with cameras that are not matched pairs.
     """
+    if hasattr(measurements, "measurements"):  # a RenderResult
+        result = measurements
+        cameras = result.cameras if cameras is None else cameras
+        measurements = result.measurements
+        if measurement_stderr is None and measurement_covariance is None:
+            measurement_covariance = result.maps.get("measurement_covariance")
+            measurement_stderr = result.measurement_stderr
+    if cameras is None:
+        raise ValueError("velocity() needs the cameras (or a RenderResult)")
     cams = _camera_set(cameras)
     m = _measurement_array(measurements, cams)
     _check_min_amplitude(min_amplitude)
@@ -780,7 +808,7 @@ def velocity(
     def out(values, mask):
         return np.where(mask, values, np.nan).reshape(shape)
 
-    return VelocityResult(
+    result = VelocityResult(
         velocity=out(vel, ok),
         valid=ok.reshape(shape),
         depth=out(depth_m, depth_ok),
@@ -788,6 +816,71 @@ def velocity(
         doppler_hz=out(dopp, ok),
         method=method,
     )
+    covariance = _covariance(measurement_stderr, measurement_covariance, m.shape)
+    if covariance is None:
+        return result
+    options = dict(min_amplitude=min_amplitude, method=method, max_doppler_hz=max_doppler_hz)
+    v_err, d_err = _propagated_errors(m, cameras, covariance, options)
+    limit = 0.05 * unambiguous_speed_m_s(cams) if max_velocity_stderr is None else float(max_velocity_stderr)
+    if not (np.isfinite(limit) and limit > 0):
+        raise ValueError(f"max_velocity_stderr must be a finite number of m/s > 0, got {max_velocity_stderr!r}")
+    keep = result.valid & np.isfinite(v_err) & (v_err <= limit)
+    result.valid = keep
+    result.velocity = np.where(keep, result.velocity, np.nan)
+    result.doppler_hz = np.where(keep, result.doppler_hz, np.nan)
+    result.velocity_stderr = np.where(keep, v_err, np.nan)
+    result.depth_stderr = np.where(np.isfinite(result.depth), d_err, np.nan)
+    return result
+
+
+def unambiguous_speed_m_s(cams) -> float:
+    """The radial speed c/(4 f_g T) at which the Doppler phase over the exposure reaches π."""
+    cams = cams if isinstance(cams, _CameraSet) else _camera_set(cams)
+    return SPEED_OF_LIGHT_M_S / (4.0 * cams.frequency_hz * cams.exposure_s)
+
+
+def _covariance(stderr, covariance, shape):
+    """(n, n, pixels...) covariance from either argument, or None."""
+    n = shape[0]
+    if covariance is not None:
+        c = np.asarray(covariance, dtype=np.float64)
+        if c.shape != (n, n) + shape[1:]:
+            raise ValueError(f"measurement_covariance must have shape {(n, n) + shape[1:]}, got {c.shape}")
+        return c
+    if stderr is None:
+        return None
+    e = np.asarray(stderr, dtype=np.float64)
+    if e.shape != shape:
+        raise ValueError(f"measurement_stderr must have the measurements' shape {shape}, got {e.shape}")
+    c = np.zeros((n, n) + shape[1:])
+    for i in range(n):
+        c[i, i] = e[i] ** 2
+    return c
+
+
+def _propagated_errors(m, cameras, covariance, options):
+    """Delta method: the velocity's and depth's Jacobians in the measurements by central
+    differences (steps of 1e-3 standard errors, where the estimators are locally linear),
+    then σ² = J Σ Jᵀ per pixel."""
+    n = m.shape[0]
+    sigma = np.sqrt(np.maximum(np.einsum("ii...->i...", covariance), 0.0))
+    step = 1e-3 * np.where(sigma > 0, sigma, 1.0)
+    jac_v = np.empty_like(m)
+    jac_d = np.empty_like(m)
+    for i in range(n):
+        up, down = m.copy(), m.copy()
+        up[i] += step[i]
+        down[i] -= step[i]
+        plus = velocity(up, cameras, **options)
+        minus = velocity(down, cameras, **options)
+        jac_v[i] = (plus.velocity - minus.velocity) / (2 * step[i])
+        jac_d[i] = (plus.depth - minus.depth) / (2 * step[i])
+    var_v = np.einsum("i...,ij...,j...->...", jac_v, covariance, jac_v)
+    var_d = np.einsum("i...,ij...,j...->...", jac_d, covariance, jac_d)
+    return np.sqrt(np.maximum(var_v, 0.0)), np.sqrt(np.maximum(var_d, 0.0))
+
+
+
 
 
 def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None) -> np.ndarray:

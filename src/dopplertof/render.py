@@ -1,265 +1,367 @@
-"""Rendering: passes, seeds, accumulation, progress and the result object.
+"""Rendering: the pass schedule, accumulation, checkpoints and the result object.
 
-:func:`render` splits ``spp`` into passes of about ``lanes_per_pass`` lanes, runs one
-kernel per pass (:func:`dopplertof.integrator.trace`), and accumulates per pixel, in
-Float64 on the host, Σx and Σx² over *independent* units: the mean of each group of
-correlated samples (an antithetic pair counts once), so the standard errors are honest.
+:func:`render` splits the film × spp into passes of at most ``lanes_per_pass`` lanes:
+ranges of samples of every pixel, and tiles of pixels where the film is larger than a
+pass, so the tracing kernel's memory is bounded whatever the film size. Each pass runs one
+kernel (:func:`dopplertof.tracing.trace_pass`) and is added, in Float64 on the host, to
+per-pixel sums:
+
+* estimates (:data:`~dopplertof.outputs.OUTPUTS` of kind ``estimate``): the sum of the
+  group means (a group of correlated samples counts once), and the sums and squares of
+  the means of the pixel's independent *replicates* (:mod:`dopplertof.tracing.lanes`),
+  whose spread gives the standard error;
+* ground truth: sums of value × hit and of hits.
+
 Random numbers depend on (seed, pixel, sample index) only, so the result does not depend
-on how the samples are split into passes.
-
-Ctrl-C during a render returns what the finished passes hold (``result.interrupted``).
+on the tiling or the pass split. A render stopped early (Ctrl-C, or ``stop()`` returning
+True between passes) returns what the finished passes hold (``result.interrupted``);
+with ``checkpoint=PATH`` its sums are saved there, and a later call with the same
+settings continues from them to a result bit-identical to an uninterrupted render.
 """
 
 from __future__ import annotations
 
-import math
+import dataclasses
+import hashlib
+import json
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .correlation import Correlation
-from .modulation import Camera
-from .timesampling import ANALYTIC, METHODS, validate
+from .outputs import ESTIMATES, TRUTH
+from .settings import DEFAULT_EXPOSURE_S, RenderSettings, scene_layer
 
-DEFAULT_EXPOSURE_S = 1.5e-3
-DEFAULT_LANES_PER_PASS = 1 << 21
+__all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S"]
 
-
-@dataclass(frozen=True)
-class TimeSampling:
-    """How the exposure time of each path is drawn (:mod:`dopplertof.timesampling`).
-
-    method : ``uniform`` | ``stratified`` | ``antithetic`` | ``antithetic_mirror``
-    n_times : correlated times per group (2 = antithetic pair); spp counts paths, so a
-        group uses ``n_times`` of the pixel's spp
-    shift : antithetic shift ``a`` in units of T (default ½)
-    stratify_intervals : stratify each interval over the pixel's groups
-    """
-
-    method: str = "antithetic"
-    n_times: int = 2
-    shift: float = 0.5
-    stratify_intervals: bool = True
-
-    def __post_init__(self):
-        validate(self.method, self.n_times, self.shift)
+MAX_COVARIANCE_CAMERAS = 8  # beyond, the per-pixel camera covariance is not kept (memory)
 
 
 @dataclass
 class RenderResult:
-    """What :func:`render` returns. Images are numpy float32, shape (H, W[, 3]).
+    """What :func:`render` returns.
 
-    intensity : (H, W, 3) standard image (radiance, units of a Mitsuba render)
-    stderr : (H, W, 3) standard error of ``intensity``
-    measurements : (n_cameras, H, W) D-ToF measurements (luminance of (1/T)∫ W f dt)
-    measurement_stderr : (n_cameras, H, W)
-    depth : (H, W) camera-ray hit distance, m (NaN where no sample hit)
-    velocity : (H, W) radial velocity as the camera sees it, m/s: d/dt of the hit distance
-        along the fixed camera ray, positive receding (NaN where no sample hit)
-    point_velocity : (H, W) v·d̂ of the hit surface point, m/s (NaN where no hit)
-    coverage : (H, W) fraction of samples whose camera ray hit a surface
+    ``maps`` holds every output of :data:`dopplertof.outputs.OUTPUTS` and the standard
+    errors of the estimates, each also an attribute: ``intensity`` and ``stderr``
+    (H, W, 3) or (H, W) in mono, ``measurements`` and ``measurement_stderr``
+    (n_cameras, H, W), ``depth``, ``velocity``, ``point_velocity`` (H, W; NaN where no
+    sample hit), ``velocity_3d`` (H, W, 3), ``flow`` (H, W, 2), ``coverage`` (H, W) and
+    ``instance_id`` (H, W, int32), and, for 2 to ``MAX_COVARIANCE_CAMERAS`` cameras,
+    ``measurement_covariance`` (n_cameras, n_cameras, H, W): the covariance of the
+    measurements' means (cameras share paths, so their errors correlate), which
+    :func:`dopplertof.reconstruct.velocity` propagates. Images are float32.
     """
 
-    intensity: np.ndarray
-    stderr: np.ndarray
-    measurements: np.ndarray
-    measurement_stderr: np.ndarray
-    depth: np.ndarray
-    velocity: np.ndarray
-    point_velocity: np.ndarray
-    coverage: np.ndarray
-    cameras: list
-    spp: int
-    seed: int
-    settings: dict = field(default_factory=dict)
+    maps: dict
+    settings: RenderSettings
+    spp: int  # paths per pixel done (less than asked where interrupted)
     interrupted: bool = False
+    info: dict = field(default_factory=dict)  # render time (s), passes, variant
+
+    def __getattr__(self, name):
+        maps = self.__dict__.get("maps", {})
+        if name in maps:
+            return maps[name]
+        raise AttributeError(f"RenderResult has no {name!r}")
+
+    @property
+    def cameras(self) -> list:
+        return list(self.settings.cameras)
+
+    @property
+    def seed(self) -> int:
+        return self.settings.seed
 
 
-class _Accumulator:
-    """Float64 per-pixel sums over independent units."""
-
-    def __init__(self, n_pixels, n_cameras, channels):
-        self.units = 0
-        self.samples = 0
-        self.sum_i = np.zeros((n_pixels, channels))
-        self.sq_i = np.zeros((n_pixels, channels))
-        self.sum_m = np.zeros((n_cameras, n_pixels))
-        self.sq_m = np.zeros((n_cameras, n_pixels))
-        self.gt = np.zeros((4, n_pixels))  # hits, depth, velocity, point velocity (sums)
+# ----------------------------------------------------------------------------------------
+# The pass schedule
 
 
-def _validate_positive_int(name, value):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value <= 0:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    return int(value)
+@dataclass(frozen=True)
+class Pass:
+    first_sample: int
+    samples: int
+    pixel_start: int
+    n_pixels: int
 
 
-def _block_moments(values, group, per_pixel):
-    """(Σ, Σ²) per pixel of group means of a per-lane array (Dr.Jit)."""
-    import drjit as dr
-    import mitsuba as mi
+def schedule(n_pixels: int, spp: int, group: int, lanes_per_pass: int) -> list[Pass]:
+    """Passes covering ``n_pixels`` × ``spp``: sample ranges (whole groups) outermost,
+    tiles of pixels innermost, each pass at most ``lanes_per_pass`` lanes (at least one
+    group of one pixel)."""
+    samples = min(spp, max(group, (lanes_per_pass // n_pixels) // group * group))
+    pixels = min(n_pixels, max(1, lanes_per_pass // samples))
+    return [
+        Pass(s0, min(samples, spp - s0), p0, min(pixels, n_pixels - p0)) for s0 in range(0, spp, samples) for p0 in range(0, n_pixels, pixels)
+    ]
 
-    values = mi.Float64(values)  # Σx² of low-variance pixels cancels badly in float32
-    g = dr.block_sum(values, group) * (1.0 / group) if group > 1 else values
-    return dr.block_sum(g, per_pixel), dr.block_sum(g * g, per_pixel)
+
+# ----------------------------------------------------------------------------------------
+# Accumulation
 
 
-def render(
-    scene,
-    cameras=None,
-    spp=64,
-    seed=0,
-    max_depth=5,
-    rr_depth=5,
-    time_sampling="antithetic",
-    correlation="replay",
-    correlation_depth=None,
-    n_times=2,
-    antithetic_shift=0.5,
-    stratify_intervals=True,
-    exposure=None,
-    exposure_start=0.0,
-    hide_emitters=False,
-    reconnection_threshold=0.5,
-    lanes_per_pass=DEFAULT_LANES_PER_PASS,
-    progress=False,
-) -> RenderResult:
+class Accumulator:
+    """Float64 per-pixel sums (module docstring); ``state`` is what a checkpoint holds."""
+
+    def __init__(self, n_pixels, color_channels, n_cameras, n_groups, replicates):
+        from .tracing.lanes import replicate_bounds
+
+        self.bounds = replicate_bounds(n_groups, replicates)
+        self.estimate_channels = color_channels + n_cameras
+        self.color_channels = color_channels
+        c, n = self.estimate_channels, n_pixels
+        self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int64)}
+        self.pairs = []
+        if len(self.bounds) > 1:
+            self.state.update(open_sum=np.zeros((c, n)), rep_sum=np.zeros((c, n)), rep_sq=np.zeros((c, n)), reps_closed=np.zeros(n, np.int64))
+            if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:  # cameras share paths: their errors correlate
+                self.pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
+                self.state["rep_cross"] = np.zeros((len(self.pairs), n))
+        truth_channels = sum(o.channels for o in TRUTH)
+        self.state.update(truth_sum=np.zeros((truth_channels, n)), hits=np.zeros(n), samples=np.zeros(n, np.int64))
+        self.state["instance_id"] = np.full(n, -1, np.int32)
+
+    def add(self, p: Pass, out: dict, group: int, lanes_per_group: int):
+        """Add one pass's per-lane outputs (Dr.Jit arrays)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        lanes_per_pixel = p.samples // group * lanes_per_group
+        intensity = out["intensity"]
+        channels = [intensity[c] for c in range(self.color_channels)] + list(out["measurements"])
+        # One kernel traces every output; the reductions below would otherwise each re-run
+        # the whole path tracer for their own input (DESIGN §3.3).
+        truth = [x for o in TRUTH for x in _components(out[o.name], o.channels)]
+        dr.eval(channels, truth, out["hits"], out["instance_id"])
+        group_means = [dr.block_sum(mi.Float64(x), lanes_per_group) * (1.0 / lanes_per_group) if lanes_per_group > 1 else mi.Float64(x) for x in channels]
+        truth_sums = [dr.block_sum(mi.Float64(x), lanes_per_pixel) for x in truth + [out["hits"]]]
+        dr.eval(group_means, truth_sums)
+
+        s = self.state
+        pix = slice(p.pixel_start, p.pixel_start + p.n_pixels)
+        g0, g1 = p.first_sample // group, (p.first_sample + p.samples) // group
+        means = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in group_means])  # (c, pixels, groups)
+        s["group_sum"][:, pix] += means.sum(axis=2)
+        s["groups_done"][pix] += g1 - g0
+        if "rep_sum" in s:
+            for start, size in self.bounds:
+                a, b = max(start, g0), min(start + size, g1)
+                if a >= b:
+                    continue
+                s["open_sum"][:, pix] += means[:, :, a - g0 : b - g0].sum(axis=2)
+                if b == start + size:  # the replicate is complete: its mean is one independent unit
+                    rep_mean = s["open_sum"][:, pix] / size
+                    s["rep_sum"][:, pix] += rep_mean
+                    s["rep_sq"][:, pix] += rep_mean * rep_mean
+                    cams = rep_mean[self.color_channels :]
+                    for k, (i, j) in enumerate(self.pairs):
+                        s["rep_cross"][k, pix] += cams[i] * cams[j]
+                    s["open_sum"][:, pix] = 0.0
+                    s["reps_closed"][pix] += 1
+        sums = [np.asarray(t.numpy(), dtype=np.float64) for t in truth_sums]
+        s["truth_sum"][:, pix] += np.stack(sums[:-1])
+        s["hits"][pix] += sums[-1]
+        s["samples"][pix] += p.samples
+        if p.first_sample == 0:  # the label of the pixel's first sample
+            labels = np.asarray(out["instance_id"].numpy()).reshape(p.n_pixels, lanes_per_pixel)[:, 0]
+            s["instance_id"][pix] = labels.astype(np.int32)
+        s["passes_done"][0] += 1
+
+    def finish(self, height, width, n_cameras) -> dict:
+        s = self.state
+        maps = {}
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = s["group_sum"] / s["groups_done"]
+            covariance = None
+            if "rep_sum" in s:
+                n = s["reps_closed"].astype(np.float64)
+                rep_mean = s["rep_sum"] / n
+                var = np.maximum(s["rep_sq"] / n - rep_mean * rep_mean, 0.0) * n / (n - 1)
+                err = np.where(n >= 2, np.sqrt(var / n), np.nan)
+                if self.pairs:  # covariance of the cameras' means, from the same replicates
+                    cc = self.color_channels
+                    covariance = np.zeros((n_cameras, n_cameras, height * width))
+                    for i in range(n_cameras):
+                        covariance[i, i] = err[cc + i] ** 2
+                    for k, (i, j) in enumerate(self.pairs):
+                        cross = (s["rep_cross"][k] / n - rep_mean[cc + i] * rep_mean[cc + j]) * n / (n - 1) / n
+                        covariance[i, j] = covariance[j, i] = np.where(n >= 2, cross, np.nan)
+            else:
+                err = np.full_like(mean, np.nan)
+            truth = s["truth_sum"] / s["hits"]
+            coverage = s["hits"] / s["samples"]
+        cc = self.color_channels
+        for o in ESTIMATES:
+            if o.channels == "color":
+                values, errors = mean[:cc], err[:cc]
+                shape = (height, width, cc) if cc > 1 else (height, width)
+                maps[o.name] = np.moveaxis(values, 0, -1).reshape(shape).astype(np.float32)
+                maps[o.stderr_name] = np.moveaxis(errors, 0, -1).reshape(shape).astype(np.float32)
+            else:
+                maps[o.name] = mean[cc:].reshape(n_cameras, height, width).astype(np.float32)
+                maps[o.stderr_name] = err[cc:].reshape(n_cameras, height, width).astype(np.float32)
+        k = 0
+        for o in TRUTH:
+            part = truth[k : k + o.channels]
+            k += o.channels
+            maps[o.name] = (part[0].reshape(height, width) if o.channels == 1 else np.moveaxis(part, 0, -1).reshape(height, width, o.channels)).astype(np.float32)
+        maps["coverage"] = coverage.reshape(height, width).astype(np.float32)
+        maps["instance_id"] = s["instance_id"].reshape(height, width)
+        if covariance is not None:
+            maps["measurement_covariance"] = covariance.reshape(n_cameras, n_cameras, height, width).astype(np.float32)
+        return maps
+
+
+def _components(value, channels):
+    return [value] if channels == 1 else [value[i] for i in range(channels)]
+
+
+def host_bytes_per_pixel(n_cameras: int) -> int:
+    """Host memory of the film's Float64 sums and the float32 result, per pixel (bytes)."""
+    estimates = 3 + n_cameras
+    truth = sum(o.channels for o in TRUTH) + 2
+    covariance = n_cameras * n_cameras if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS else 0
+    return 8 * (5 * estimates + truth + 3 + covariance) + 4 * (2 * estimates + truth + covariance)
+
+
+def check_film_memory(width: int, height: int, n_cameras: int) -> None:
+    """ValueError for an empty film, or one whose buffers need more than the available memory."""
+    if width < 1 or height < 1:
+        raise ValueError(f"the film must be at least 1x1 pixels, got {width}x{height}")
+    need = width * height * host_bytes_per_pixel(n_cameras)
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            available = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
+    except (OSError, StopIteration, ValueError):
+        return  # not Linux: no check
+    if need > available:
+        raise ValueError(f"a {width}x{height} film with {n_cameras} camera(s) needs about {need / 2**30:.1f} GiB of memory for its buffers; {available / 2**30:.1f} GiB are available")
+
+
+# ----------------------------------------------------------------------------------------
+# Checkpoints
+
+
+def fingerprint(scene, settings: RenderSettings) -> str:
+    """What a checkpoint must match to be continued: the settings, the film and the scene."""
+    text = json.dumps({"settings": settings.as_dict(), "film": list(scene.resolution), "scene": scene.source, "bodies": len(scene.bodies)}, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _load_checkpoint(path, acc: Accumulator, key: str):
+    with np.load(path, allow_pickle=False) as data:
+        if str(data["fingerprint"]) != key:
+            raise ValueError(f"{path}: the checkpoint belongs to a render with other settings or another scene; remove it or render into another folder")
+        for name in acc.state:
+            if name not in data or data[name].shape != acc.state[name].shape:
+                raise ValueError(f"{path}: the checkpoint is damaged ({name!r} missing or of another shape)")
+            acc.state[name] = data[name].copy()
+
+
+def save_checkpoint(path, acc: Accumulator, key: str):
+    """Write the accumulator atomically (temporary name, then rename)."""
+    from .io import atomic_path
+
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, fingerprint=np.array(key), **acc.state)
+
+
+# ----------------------------------------------------------------------------------------
+# render()
+
+
+def render(scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None, stop=None, **overrides) -> RenderResult:
     """Render the intensity, ground truth and D-ToF measurements of a dynamic scene.
 
     Parameters
     ----------
-    scene : DynamicScene (from :func:`dopplertof.load_scene`) or a path / dict to load
-    cameras : list of :class:`Camera`, optional. All share one exposure T.
-    spp : int. Paths per pixel (a group of ``n_times`` correlated times uses ``n_times``).
-    seed : int. Same seed, same image, whatever the pass split.
-    max_depth, rr_depth : int. Path depth (Mitsuba semantics) and Russian-roulette start.
-    time_sampling : str or :class:`TimeSampling`. ``uniform``, ``stratified``,
-        ``antithetic`` (default), ``antithetic_mirror``, or ``analytic`` (biased closed-form
-        integration between the exposure's ends, low-pass sinusoid only; see
-        :mod:`dopplertof.paired`).
-    correlation : str or :class:`Correlation`. ``none``, ``pixel``, ``replay`` (default),
-        ``reconnection`` or ``adaptive`` (the last two trace primal and partner together,
-        :mod:`dopplertof.paired`; they need pairs of times, ``n_times = 2``, and use no
-        Russian roulette).
-    correlation_depth : int, optional. Replay cut-off (see :mod:`dopplertof.correlation`).
-    reconnection_threshold : float. ``adaptive``: reconnect where both surfaces are rougher
-        than this GGX/Beckmann α (diffuse counts as ∞). Default 0.5.
-    n_times, antithetic_shift, stratify_intervals : see :class:`TimeSampling`.
-    exposure : float, s. Exposure T when no camera is given (default 1.5 ms).
-    exposure_start : float, s. Scene time at which the exposure opens (default 0).
-    lanes_per_pass : int. Lanes per kernel launch (≥ 2M recommended on CPU).
+    scene : DynamicScene (from :func:`dopplertof.load_scene`), or a path / dict to load.
+    cameras : list of :class:`~dopplertof.Camera`, optional. Replaces the scene's.
+    settings : :class:`RenderSettings`, optional. The settings to start from; by default
+        the scene's own (:func:`dopplertof.settings.scene_layer`: its ``<integrator>``
+        cameras and settings, its sampler's ``sample_count``, its sensor's shutter).
+    **overrides
+        Any :class:`RenderSettings` field (``spp``, ``seed``, ``max_depth``,
+        ``time_sampling``, ``correlation``, …), applied on top.
     progress : bool. Show a progress bar.
+    checkpoint : path, optional. Continue from this checkpoint if it exists (same
+        settings, else ValueError); save the sums there if the render stops early.
+    stop : callable, optional. Checked after every pass; True stops the render there.
+
+    Returns
+    -------
+    RenderResult
     """
+    import time
+
     from .backend import ensure_variant
-    from .integrator import LaneSetup, trace
-    from .loader import load_scene
+    from .tracing import trace_pass
+    from .tracing.lanes import LaneSetup
+    from .tracing.materials import MaterialTables
 
     ensure_variant()
     if not hasattr(scene, "static"):
+        from .loader import load_scene  # a path or dict: the API's convenience
+
         scene = load_scene(scene)
-    cameras = list(cameras or [])
-    for c in cameras:
-        if not isinstance(c, Camera):
-            raise ValueError(f"cameras must be dopplertof.Camera objects, got {type(c).__name__}")
-    spp = _validate_positive_int("spp", spp)
-    max_depth = int(max_depth)
-    if max_depth == 0 or max_depth < -1:
-        raise ValueError(f"max_depth must be positive or -1 (unbounded), got {max_depth}")
-    if cameras:
-        exposures = {c.exposure for c in cameras}
-        if len(exposures) > 1:
-            raise ValueError(f"all cameras of one render must share the exposure, got {sorted(exposures)}")
-        if exposure is not None and float(exposure) not in exposures:
-            raise ValueError(f"exposure={exposure!r} differs from the cameras' exposure {exposures.pop()!r}")
-        exposure = cameras[0].exposure
-    exposure = DEFAULT_EXPOSURE_S if exposure is None else exposure
-    if not isinstance(exposure, (int, float)) or not math.isfinite(exposure) or exposure <= 0:
-        raise ValueError(f"exposure must be > 0 seconds, got {exposure!r}")
-    if isinstance(correlation, str):
-        correlation = Correlation(correlation, correlation_depth, reconnection_threshold)
-    if isinstance(time_sampling, str):
-        if time_sampling == "uniform" and n_times == 2 and not correlation.paired:
-            n_times = 1  # independent times need no grouping
-        time_sampling = TimeSampling(time_sampling, n_times, antithetic_shift, stratify_intervals)
-    n = time_sampling.n_times
-    analytic = time_sampling.method == ANALYTIC
-    paired = correlation.paired or analytic
-    if analytic:
-        if correlation.mode not in ("replay", "reconnection", "adaptive") or correlation.depth is not None:
-            raise ValueError(f"analytic time integration needs a fully correlated partner (replay, reconnection or adaptive), got {correlation.mode!r}")
-        bad = [f"{c.label()} ({c.waveform}{'' if c.low_pass else ', full waveform'})" for c in cameras if not (c.low_pass and c.waveform == "sinusoidal")]
-        if bad:
-            raise ValueError(f"analytic time integration is implemented for the low-pass sinusoid only; cameras {', '.join(bad)} are not")
-    if correlation.paired and n != 2:
-        raise ValueError(f"correlation={correlation.mode!r} pairs two times (n_times=2), got n_times={n}")
-    if spp % n:
-        raise ValueError(f"spp={spp} must be a multiple of the {n} correlated times per group ({time_sampling.method})")
+    if cameras is not None:
+        overrides["cameras"] = cameras
+    base = scene_layer(scene) if settings is None else {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
+    settings = RenderSettings.build(base, overrides)
 
     width, height = scene.resolution
     n_pixels = width * height
-    scene.set_time_window(exposure_start, exposure_start + exposure)
-    spp_pass = max(n, min(spp, (lanes_per_pass // n_pixels) // n * n))
-    channels = 3 if _is_rgb() else 1
-    acc = _Accumulator(n_pixels, len(cameras), channels)
-    roughness = None
-    if paired:
-        from .paired import roughness_table, trace_pair
-
-        roughness = roughness_table(scene)
+    check_film_memory(width, height, len(settings.cameras))
+    group = settings.group_size
+    exposure = settings.exposure_s
+    scene.set_time_window(settings.exposure_start, settings.exposure_start + exposure)
+    tables = MaterialTables.of(scene)
+    color_channels = 3 if _is_rgb() else 1
+    acc = Accumulator(n_pixels, color_channels, len(settings.cameras), max(settings.spp // group, 1), settings.replicates)
+    key = fingerprint(scene, settings)
+    if checkpoint is not None and os.path.exists(checkpoint):
+        _load_checkpoint(checkpoint, acc, key)
+    passes = schedule(n_pixels, settings.spp, group, settings.lanes_per_pass)
+    lanes_per_group = 1 if settings.paired else group
 
     bar = None
+    done = int(acc.state["passes_done"][0])
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=spp, unit="spp", desc="render", leave=False)
+        bar = tqdm(total=len(passes), initial=done, unit="pass", desc="render", leave=False)
     interrupted = False
+    start = time.perf_counter()
     try:
-        done = 0
-        while done < spp:
-            this_pass = min(spp_pass, spp - done)
+        for p in passes[done:]:
+            if stop is not None and stop():
+                interrupted = True
+                break
             setup = LaneSetup(
-                n_pixels=n_pixels,
-                width=width,
-                height=height,
-                samples_per_pixel_pass=this_pass,
-                first_sample=done,
-                spp_total=spp,
-                n_times=n,
-                exposure_start_s=float(exposure_start),
-                exposure_s=float(exposure),
-                seed=int(seed),
-            )
-            if paired:  # one lane per pair, holding the pair's mean
-                out = trace_pair(scene, setup, cameras, time_sampling, correlation, max_depth, hide_emitters, roughness)
-                _accumulate_pass(acc, out, 1, this_pass // n, this_pass, channels)
-            else:
-                out = trace(scene, setup, cameras, time_sampling, correlation, max_depth, rr_depth, hide_emitters)
-                _accumulate_pass(acc, out, n, this_pass, this_pass, channels)
-            done += this_pass
+                width=width, height=height, pixel_start=p.pixel_start, n_pixels=p.n_pixels, first_sample=p.first_sample,
+                samples=p.samples, spp_total=settings.spp, n_times=group, replicates=settings.replicates,
+                exposure_start_s=float(settings.exposure_start), exposure_s=float(exposure), seed=settings.seed,
+            )  # fmt: skip
+            acc.add(p, trace_pass(scene, settings, setup, tables), group, lanes_per_group)
             if bar is not None:
-                bar.update(this_pass)
+                bar.update(1)
     except KeyboardInterrupt:
         interrupted = True
     finally:
         if bar is not None:
             bar.close()
-    if acc.units == 0:
+    done = int(acc.state["passes_done"][0])
+    if done == 0:
         raise KeyboardInterrupt("render interrupted before the first pass finished")
-    settings = dict(
-        max_depth=max_depth,
-        time_sampling=time_sampling.method,
-        n_times=n,
-        antithetic_shift=time_sampling.shift,
-        stratify_intervals=time_sampling.stratify_intervals,
-        correlation=correlation.mode,
-        correlation_depth=correlation.depth,
-        reconnection_threshold=correlation.threshold,
-        rr_depth=rr_depth,
-        hide_emitters=hide_emitters,
-        exposure=exposure,
-        exposure_start=exposure_start,
-    )
-    return _finish(acc, cameras, height, width, seed, settings, interrupted)
+    if checkpoint is not None:
+        if interrupted:
+            save_checkpoint(checkpoint, acc, key)
+        elif os.path.exists(checkpoint):
+            os.remove(checkpoint)
+    spp_done = int(acc.state["samples"].min())
+    info = {"render_seconds": time.perf_counter() - start, "passes": len(passes), "passes_done": done}
+    return RenderResult(maps=acc.finish(height, width, len(settings.cameras)), settings=settings, spp=spp_done, interrupted=interrupted, info=info)
 
 
 def _is_rgb():
@@ -267,76 +369,3 @@ def _is_rgb():
 
     return mi.is_rgb
 
-
-def _accumulate_pass(acc, out, n, lanes_per_pixel, samples_per_pixel, channels):
-    """Add one pass: ``n`` consecutive lanes form an independent unit (their mean)."""
-    import drjit as dr
-
-    per_pixel = lanes_per_pixel // n
-    # One kernel traces every output; the block reductions below would otherwise each
-    # re-run the whole path tracer for their own input (DESIGN §3.3).
-    dr.eval(out["intensity"], out["measurements"], out["hit"], out["depth"], out["velocity"], out["point_velocity"])
-    intensity = out["intensity"]
-    parts = []
-    for c in range(channels):
-        parts.extend(_block_moments(intensity[c], n, per_pixel))
-    for m in out["measurements"]:
-        parts.extend(_block_moments(m, n, per_pixel))
-    hit = out["hit"]
-    gts = [dr.block_sum(hit, lanes_per_pixel)] + [dr.block_sum(out[k] * hit, lanes_per_pixel) for k in ("depth", "velocity", "point_velocity")]
-    parts.extend(gts)
-    dr.eval(parts)
-    arrays = [np.asarray(p.numpy(), dtype=np.float64) for p in parts]
-    k = 0
-    for c in range(channels):
-        acc.sum_i[:, c] += arrays[k]
-        acc.sq_i[:, c] += arrays[k + 1]
-        k += 2
-    for i in range(acc.sum_m.shape[0]):
-        acc.sum_m[i] += arrays[k]
-        acc.sq_m[i] += arrays[k + 1]
-        k += 2
-    for j in range(4):
-        acc.gt[j] += arrays[k + j]
-    acc.units += per_pixel
-    acc.samples += samples_per_pixel
-
-
-def _mean_and_stderr(total, total_sq, units):
-    mean = total / units
-    if units < 2:
-        return mean, np.full_like(mean, np.nan)
-    var = np.maximum(total_sq / units - mean * mean, 0.0) * units / (units - 1)
-    return mean, np.sqrt(var / units)
-
-
-def _finish(acc, cameras, height, width, seed, settings, interrupted):
-    mean_i, err_i = _mean_and_stderr(acc.sum_i, acc.sq_i, acc.units)
-    mean_m, err_m = _mean_and_stderr(acc.sum_m, acc.sq_m, acc.units)
-    hits = acc.gt[0]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        gt = np.where(hits > 0, acc.gt[1:] / hits, np.nan)
-    channels = mean_i.shape[1]
-    shape = (height, width, channels) if channels > 1 else (height, width)
-
-    def img(a):
-        return a.reshape(shape).astype(np.float32)
-
-    return RenderResult(
-        intensity=img(mean_i),
-        stderr=img(err_i),
-        measurements=mean_m.reshape(len(cameras), height, width).astype(np.float32),
-        measurement_stderr=err_m.reshape(len(cameras), height, width).astype(np.float32),
-        depth=gt[0].reshape(height, width).astype(np.float32),
-        velocity=gt[1].reshape(height, width).astype(np.float32),
-        point_velocity=gt[2].reshape(height, width).astype(np.float32),
-        coverage=(hits / acc.samples).reshape(height, width).astype(np.float32),
-        cameras=cameras,
-        spp=acc.samples,
-        seed=seed,
-        settings=settings,
-        interrupted=interrupted,
-    )
-
-
-__all__ = ["render", "RenderResult", "TimeSampling", "METHODS"]

@@ -39,6 +39,7 @@ import click
 import numpy as np
 
 from . import io, viz
+from .clitools import fail
 from . import reconstruct as rc
 from .modulation import Camera
 
@@ -76,7 +77,7 @@ def resolve_method(cameras, method: str | None = None) -> str:
         return rc.velocity(np.zeros((len(cameras), 1, 1)), cameras, method=method or "auto").method
 
 
-def reconstruct(measurements, cameras, method: str | None = None) -> rc.VelocityResult:
+def reconstruct(measurements, cameras, method: str | None = None, stderr=None, covariance=None) -> rc.VelocityResult:
     """:func:`dopplertof.reconstruct.velocity` with the default method of this module.
 
     Parameters
@@ -84,10 +85,12 @@ def reconstruct(measurements, cameras, method: str | None = None) -> rc.Velocity
     measurements : array_like, shape (n_cameras, H, W)
     cameras : sequence of n_cameras :class:`Camera`
     method : {None, "auto", "ratio", "fit"}, see :func:`resolve_method`
+    stderr, covariance : the measurements' standard errors (n_cameras, H, W) and covariance
+        (n_cameras, n_cameras, H, W), optional: propagated to velocity_stderr / depth_stderr
     """
     method = resolve_method(cameras, method)
     with np.errstate(all="ignore"):  # invalid pixels come back as NaN with valid == False
-        return rc.velocity(measurements, cameras, method=method)
+        return rc.velocity(measurements, cameras, method=method, measurement_stderr=stderr, measurement_covariance=covariance)
 
 
 def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s) -> dict:
@@ -157,6 +160,10 @@ def write_reconstruction(folder: str, reconstruction: rc.VelocityResult, ground_
     viz.save_velocity_png(path("velocity_reconstructed.png"), velocity, vmax=vmax_m_s,
                           title=f"reconstructed ({reconstruction.method})")
     viz.save_png(path("velocity_valid.png"), np.where(reconstruction.valid, 255, 0).astype(np.uint8))
+    for name in ("velocity_stderr", "depth_stderr"):
+        error = getattr(reconstruction, name)
+        if error is not None and np.isfinite(error).any():
+            io.write_exr(path(f"{name}.exr"), error.astype(np.float32))
     if np.isfinite(reconstruction.depth).any():
         depth = reconstruction.depth.astype(np.float32)
         io.write_exr(path("depth_reconstructed.exr"), depth)
@@ -189,6 +196,9 @@ def read_render_folder(folder: str):
     cameras : list of :class:`Camera`
     measurements : ndarray, shape (n_cameras, H, W)
     ground_truth_m_s : ndarray, shape (H, W), or None when ``velocity.exr`` is absent
+    stderr : ndarray, shape (n_cameras, H, W), or None (no ``*_stderr.exr``)
+    covariance : ndarray, shape (n_cameras, n_cameras, H, W), or None (no
+        ``measurement_covariance.npy``)
 
     Raises
     ------
@@ -218,7 +228,11 @@ def read_render_folder(folder: str):
     truth = io.read_exr(truth_path) if os.path.isfile(truth_path) else None
     if truth is not None and truth.shape != images[0].shape:
         raise ValueError(f"{truth_path}: shape {truth.shape} differs from the measurements' {images[0].shape}")
-    return cameras, np.stack(images), truth
+    stderr_paths = [_measurement_file(folder, i)[: -len(".exr")] + "_stderr.exr" for i in range(len(cameras))]
+    stderr = np.stack([io.read_exr(p) for p in stderr_paths]) if all(os.path.isfile(p) for p in stderr_paths) else None
+    covariance_path = os.path.join(folder, "measurement_covariance.npy")
+    covariance = io.read_npy(covariance_path) if os.path.isfile(covariance_path) else None
+    return cameras, np.stack(images), truth, stderr, covariance
 
 
 def reconstruct_folder(folder: str, output: str | None = None, method: str | None = None):
@@ -236,8 +250,8 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
     -------
     (VelocityResult, list of written paths, error dict or None)
     """
-    cameras, measurements, truth = read_render_folder(folder)
-    result = reconstruct(measurements, cameras, method)
+    cameras, measurements, truth, stderr, covariance = read_render_folder(folder)
+    result = reconstruct(measurements, cameras, method, stderr, covariance)
     written = write_reconstruction(output or folder, result, truth)
     return result, written, None if truth is None else velocity_error(result, truth)
 
@@ -249,12 +263,11 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
               help="Estimator (default: auto, the ratio for matched h=0/h=1 pairs, else the fit).")
 def reconstruct_command(folder, output, method):
     """Reconstruct radial velocity (and depth) from the measurements in FOLDER, the output of 'dopplertof render'."""
-    from .cli import _fail
 
     try:
         result, written, error = reconstruct_folder(folder, output, method)
     except (ValueError, FileNotFoundError) as exc:
-        _fail(str(exc))
+        fail(str(exc))
     summary = f"; {describe_error(error)}" if error else ""
     click.echo(f"reconstructed velocity ({result.method}) of {folder}{summary}")
     for path in written:

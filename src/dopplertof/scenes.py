@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import os
 
 import numpy as np
 
@@ -564,3 +565,49 @@ def clip_duration(name: str, **kwargs) -> float:
     values.update(kwargs)
     values.pop("resolution", None)
     return float(_CLIPS[name](**values))
+
+
+# ----------------------------------------------------------------------------------------
+# Opening a scene as the commands do
+
+
+def parse_resolution(text):
+    """``"N"`` (or an int) → N, square; ``"WxH"`` → (W, H); None stays None."""
+    if text is None:
+        return None
+    try:
+        size = (text,) if isinstance(text, int) else tuple(int(v) for v in text.lower().split("x"))
+    except ValueError:
+        size = ()
+    if len(size) not in (1, 2) or min(size) <= 0:
+        raise ValueError(f"--resolution {text!r}: expected N or WxH (positive integers)")
+    return size[0] if len(size) == 1 else size
+
+
+def parse_defines(items) -> dict:
+    """``-D name=value`` options as ``{name: value}``."""
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not name.strip().replace("_", "a").isalnum():
+            raise ValueError(f"-D {item!r}: expected name=value (name: letters, digits, _)")
+        out[name.strip()] = value
+    return out
+
+
+def open_scene(scene_arg: str, resolution=None, defines=()):
+    """A scene by built-in name or XML file path, as the commands take it: ``resolution``
+    (N or "WxH") replaces the film size, ``defines`` (``"name=value"`` strings) set a
+    file's ``$name`` values. ValueError (or SceneError) for anything unusable."""
+    from .loader import load_scene
+
+    size, params = parse_resolution(resolution), parse_defines(defines)
+    if scene_arg in SCENES:
+        if params:
+            raise ValueError(f"-D applies to scene files; {scene_arg!r} is a built-in scene")
+        if isinstance(size, tuple) and size[0] != size[1]:
+            raise ValueError(f"--resolution {resolution!r}: built-in scenes are square; give one number")
+        return build(scene_arg, **({} if size is None else {"resolution": size if isinstance(size, int) else size[0]}))
+    if not os.path.exists(scene_arg):
+        raise ValueError(f"{scene_arg}: no such scene file or built-in scene (see 'dopplertof scenes')")
+    return load_scene(scene_arg, film_resolution=size, **params)

@@ -44,6 +44,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from .io import atomic_path
+
 PathLike = Union[str, "os.PathLike[str]"]
 
 #: Colour of NaN pixels in signed maps, uint8 RGB (mid grey).
@@ -123,7 +125,8 @@ def _panel_size_in(shape: tuple[int, int], height_in: float = 3.5) -> tuple[floa
 
 def _save_figure(figure: Figure, path: Path) -> None:
     FigureCanvasAgg(figure)  # attaches itself to the figure; no pyplot, no global backend
-    figure.savefig(path, dpi=FIGURE_DPI, format="png")
+    with atomic_path(path) as tmp:
+        figure.savefig(tmp, dpi=FIGURE_DPI, format="png")
 
 
 def _add_colorbar(figure: Figure, mappable, axes, vmax: float, data: list[np.ndarray],
@@ -305,7 +308,8 @@ def save_png(path: PathLike, rgb8: np.ndarray) -> Path:
     if picture.size == 0:
         raise ValueError(f"picture must not be empty, got shape {picture.shape}")
     path = _prepare_output(path, ".png")
-    iio.imwrite(path, picture, extension=".png")
+    with atomic_path(path) as tmp:
+        iio.imwrite(tmp, picture, extension=".png")
     return path
 
 
@@ -617,5 +621,6 @@ def write_gif(path: PathLike, frames: Sequence[np.ndarray], fps: float) -> Path:
                 f"frame {index} has shape {frame.shape}, frame 0 has shape {first_shape}"
             )
     path = _prepare_output(path, ".gif")
-    iio.imwrite(path, np.stack(frames), extension=".gif", duration=1000.0 / fps, loop=0)
+    with atomic_path(path) as tmp:
+        iio.imwrite(tmp, np.stack(frames), extension=".gif", duration=1000.0 / fps, loop=0)
     return path

@@ -12,14 +12,10 @@ import sys
 
 import click
 
+from ..clitools import fail as _fail
 from .generate import DEFAULT_SHARD_SIZE
 
 EXIT_INTERRUPTED = 130
-
-
-def _fail(message: str):
-    click.echo(f"error: {message}", err=True)
-    sys.exit(2)
 
 
 @click.group("dataset")

@@ -96,10 +96,9 @@ def _sigterm_as_interrupt():
 
 def header_for(cfg: dict, samples: int, seed: int, shard_size: int, variant: str) -> dict:
     """The manifest's fixed part: identity, schema, record documentation."""
-    from ..render import RenderResult
     from .sample import versions
 
-    fields, missing = schema.available_fields(RenderResult)
+    fields, missing = schema.available_fields()
     res = cfg["render"]["resolution"]
     n_cameras = len(cfg["camera"]["heterodyne"])
     return {

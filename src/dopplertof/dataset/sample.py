@@ -146,21 +146,20 @@ def render_record(record: dict, fields=schema.FIELD_NAMES) -> tuple[dict, dict, 
     seconds : dict
         Wall time of ``scene`` (building), ``render`` (both renders) and ``sensor``.
     """
-    import dopplertof as dt
-
+    from ..backend import set_variant
     from ..modulation import Camera
+    from ..render import render
     from ..sensor import luminance
 
-    variant = record["versions"]["variant"]
-    dt.set_variant(variant)
+    set_variant(record["versions"]["variant"])
     r = record["render"]
     t0 = time.perf_counter()
     scene = randomize.build_scene(record["scene"], r["resolution"])
     cameras = [Camera(**c) for c in record["cameras"]]
     t1 = time.perf_counter()
     common = dict(cameras=cameras, spp=r["spp"], time_sampling=r["time_sampling"], correlation=r["correlation"])
-    full = dt.render(scene, seed=r["seed"], max_depth=r["max_depth"], **common)
-    direct = dt.render(scene, seed=r["direct_seed"], max_depth=r["direct_max_depth"], **common)
+    full = render(scene, seed=r["seed"], max_depth=r["max_depth"], **common)
+    direct = render(scene, seed=r["direct_seed"], max_depth=r["direct_max_depth"], **common)
     if full.interrupted or direct.interrupted:
         raise KeyboardInterrupt("render interrupted")
     t2 = time.perf_counter()

@@ -5,8 +5,8 @@ Every sample of a shard has one ``<key>.<field>.npy`` member per field below (``
 Shapes use ``C`` for the number of cameras of the capture set, ``H`` × ``W`` for the film.
 ``dataset.json`` carries this table under ``schema`` (with ``C``, ``H``, ``W`` filled in).
 
-Fields whose ``needs`` names a :class:`dopplertof.RenderResult` attribute are written only
-when the renderer provides it; ``dataset.json`` lists the others under ``missing_fields``.
+Fields whose ``needs`` names a render output (:data:`dopplertof.outputs.OUTPUTS`) are written
+only when the renderer provides it; ``dataset.json`` lists the others under ``missing_fields``.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ FIELDS: tuple[Field, ...] = (
     Field("depth", "float32", ("H", "W"), "m", "camera-ray hit distance from the aperture (NaN: no hit)"),
     Field("velocity", "float32", ("H", "W"), "m/s",
           "radial velocity seen by the pixel: d/dt of the hit distance along the fixed camera ray, positive receding (NaN: no hit)"),
-    Field("velocity_3d", "float32", ("H", "W", 3), "m/s", "velocity of the hit point relative to the camera, camera frame", needs="velocity_3d"),
+    Field("velocity_3d", "float32", ("H", "W", 3), "m/s", "velocity of the hit point relative to the camera, camera frame (x left, y up, z forward)", needs="velocity_3d"),
     Field("flow", "float32", ("H", "W", 2), "px/s", "image-plane motion of the hit point (x right, y down)", needs="flow"),
     Field("instance_id", "int32", ("H", "W"), "-", "moving body hit (index into the record's scene.bodies), −1 static or background", needs="instance_id"),
     Field("moving_mask", "uint8", ("H", "W"), "-", "1 where instance_id ≥ 0 and that body moves during the exposure", needs="instance_id"),
@@ -71,13 +71,13 @@ def resolve(shape: tuple, cameras: int, height: int, width: int) -> list:
     return [sizes.get(s, s) for s in shape]
 
 
-def available_fields(result_type) -> tuple[list[str], list[str]]:
-    """(fields written, fields missing) given the renderer's result class."""
-    import dataclasses
+def available_fields() -> tuple[list[str], list[str]]:
+    """(fields written, fields missing): those whose ``needs`` the renderer does not output
+    (:data:`dopplertof.outputs.OUTPUTS`) are missing."""
+    from ..outputs import OUTPUTS
 
-    attrs = {f.name for f in dataclasses.fields(result_type)} if dataclasses.is_dataclass(result_type) else set()
-    attrs |= set(dir(result_type))
-    present = [f.name for f in FIELDS if f.needs is None or f.needs in attrs]
+    outputs = {o.name for o in OUTPUTS}
+    present = [f.name for f in FIELDS if f.needs is None or f.needs in outputs]
     return present, [f.name for f in FIELDS if f.name not in present]
 
 

@@ -12,6 +12,7 @@ import os
 
 import click
 
+from ..clitools import fail
 from ..correlation import MODES
 from ..timesampling import METHODS
 
@@ -25,14 +26,8 @@ class _ExperimentGroup(click.Group):
 
     def resolve_command(self, ctx, args):
         if args and not args[0].startswith("-") and self.get_command(ctx, args[0]) is None:
-            _fail(f"unknown experiment {args[0]!r}; choose one of {', '.join(self.list_commands(ctx))}")
+            fail(f"unknown experiment {args[0]!r}; choose one of {', '.join(self.list_commands(ctx))}")
         return super().resolve_command(ctx, args)
-
-
-def _fail(message: str):
-    from ..cli import _fail as fail  # imported here: cli imports this module at its end
-
-    fail(message)
 
 
 @contextlib.contextmanager
@@ -43,7 +38,7 @@ def _one_line_errors():
     try:
         yield
     except (ValueError, SceneError, BackendError, OSError) as exc:
-        _fail(str(exc))
+        fail(str(exc))
 
 
 def _common_options(command):

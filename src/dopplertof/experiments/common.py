@@ -26,9 +26,10 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .. import __version__
-from ..correlation import Correlation
 from ..modulation import Camera
-from ..render import RenderResult, TimeSampling, render
+from ..outputs import OUTPUTS
+from ..render import RenderResult, render
+from ..settings import FIELDS, RenderSettings
 
 CACHE_ENV_VAR = "DOPPLERTOF_CACHE"
 N_TIMES = 2
@@ -36,8 +37,8 @@ N_TIMES = 2
 stratified sampling also draw pairs, so that the correlation mode means the same thing for
 all of them: the second path of a pair replays the first at an independent time."""
 
-DEFAULT_MAX_DEPTH = 4
-"""Path depth when the scene gives none: the original experiment scripts' Cornell box."""
+DEFAULT_MAX_DEPTH = FIELDS["max_depth"].default
+"""Path depth when the scene gives none: the render default."""
 
 _DEFAULT_SHIFT = {"antithetic": 0.5, "antithetic_mirror": 0.0}
 """The original scripts' antithetic shift per method (a = T/2, and the plain mirror 1 − t)."""
@@ -77,14 +78,13 @@ class ExperimentScene:
 def open_scene(scene_arg: str, resolution: int | None) -> ExperimentScene:
     """Load a built-in scene by name or a Mitsuba XML file, as ``dopplertof render`` does.
 
-    Raises ValueError (or SceneError) for an unknown scene, a missing file, bad
-    ``<integrator>`` parameters, or a ``resolution`` given for a file.
+    Raises ValueError (or SceneError) for an unknown scene, a missing file or bad
+    ``<integrator>`` parameters; ``resolution`` replaces a file's film size too.
     """
     from .. import scenes
-    from ..cli import _load  # imported here: cli imports this package at its end
-    from ..plugin import render_settings
+    from ..settings import scene_layer
 
-    dyn = _load(scene_arg, resolution)
+    dyn = scenes.open_scene(scene_arg, resolution)
     width, height = dyn.resolution
     if scene_arg in scenes.SCENES:
         identity = {"builtin": scene_arg, "kwargs": {"resolution": resolution}}
@@ -93,8 +93,7 @@ def open_scene(scene_arg: str, resolution: int | None) -> ExperimentScene:
         identity = {"file_sha256": hashlib.sha256(Path(scene_arg).read_bytes()).hexdigest()}
         label = Path(scene_arg).stem
     identity["film"] = [width, height]
-    params = dyn.integrator_params
-    settings = render_settings(params, f"{scene_arg}: <integrator>") if params else {}
+    settings = scene_layer(dyn, scene_arg)
     base = settings["cameras"][0] if settings.get("cameras") else Camera()
     max_depth = settings.get("max_depth", DEFAULT_MAX_DEPTH)
     kept = {k: settings[k] for k in _SCENE_RENDER_SETTINGS if k in settings}
@@ -137,11 +136,12 @@ class Estimator:
         return f"{self.time_sampling}/{self.correlation}"
 
     def render_settings(self) -> dict:
-        """Keyword arguments of :func:`dopplertof.render` for this estimator."""
-        return {
-            "time_sampling": TimeSampling(self.time_sampling, N_TIMES, self.antithetic_shift, True),
-            "correlation": Correlation(self.correlation),
-        }
+        """Render settings (:class:`~dopplertof.settings.RenderSettings` fields) of this estimator."""
+        settings = {"time_sampling": self.time_sampling, "n_times": N_TIMES, "stratify_intervals": True, "correlation": self.correlation}
+        if self.time_sampling in _DEFAULT_SHIFT:
+            settings["antithetic_shift"] = self.antithetic_shift
+        RenderSettings.build(settings)  # validates the combination now
+        return settings
 
 
 REFERENCE_ESTIMATOR = Estimator("antithetic", "replay")
@@ -177,7 +177,7 @@ def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
 """The ``dopplertof`` package folder."""
 
-_NOT_RENDERING = {"cli.py", "animate.py", "render_folder.py", "viz.py", "io.py", "reconstruct.py", "sensor.py"}
+_NOT_RENDERING = {"cli.py", "clitools.py", "folder.py", "animate.py", "render_folder.py", "viz.py", "io.py", "reconstruct.py", "sensor.py"}
 """Package modules that only read, post-process or show renders; with the ``experiments``
 subpackage they cannot change a render's pixels. Everything else (integrator, render, scene,
 motion, modulation, time sampling, correlation, loader, scenes, and any new module) can."""
@@ -211,7 +211,7 @@ def default_cache_dir() -> Path:
     return Path(base) / "dopplertof" / "references"
 
 
-_ARRAY_FIELDS = ("intensity", "stderr", "measurements", "measurement_stderr", "depth", "velocity", "point_velocity", "coverage")
+_ARRAY_FIELDS = tuple(name for o in OUTPUTS for name in (o.name, o.stderr_name) if name)
 
 
 class ReferenceCache:
@@ -233,8 +233,7 @@ class ReferenceCache:
             "seed": seed,
             "max_depth": max_depth,
             "scene_settings": scene.render_settings,
-            "time_sampling": dataclasses.asdict(settings["time_sampling"]),
-            "correlation": dataclasses.asdict(settings["correlation"]),
+            "estimator": settings,
             "variant": mi.variant(),
             "version": __version__,
             "source": rendering_source_digest(),
@@ -252,14 +251,15 @@ class ReferenceCache:
                 arrays = {name: data[name] for name in _ARRAY_FIELDS}
         except (OSError, KeyError, ValueError):
             return None
-        return RenderResult(**arrays, cameras=list(cameras), spp=meta["spp"], seed=meta["seed"], settings=meta["settings"])
+        settings = RenderSettings.build({**meta["settings"], "cameras": list(cameras)})
+        return RenderResult(maps=arrays, settings=settings, spp=meta["spp"])
 
     def store(self, key: str, result: RenderResult) -> Path:
         """Write atomically, so that an interrupted write never leaves a readable bad file."""
         self.folder.mkdir(parents=True, exist_ok=True)
         final = self.path(key)
         partial = final.with_name(f"{key}.{os.getpid()}.partial.npz")
-        meta = json.dumps({"spp": result.spp, "seed": result.seed, "settings": result.settings})
+        meta = json.dumps({"spp": result.spp, "settings": result.settings.as_dict()})
         np.savez_compressed(partial, meta=np.array(meta), **{name: getattr(result, name) for name in _ARRAY_FIELDS})
         os.replace(partial, final)
         return final

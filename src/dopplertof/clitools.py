@@ -1,0 +1,112 @@
+"""What every command-line command shares: one-line errors, stopping on signals, and the
+render-setting options generated from :class:`dopplertof.settings.RenderSettings`.
+
+Bad input prints one line ``error: …`` and exits with status 2, no traceback.
+SIGINT, SIGTERM and SIGHUP stop a render at the end of the pass in progress
+(:class:`StopOnSignal`); the command then writes what is done and exits with 128 + the
+signal's number (130, 143, 129). A second signal of the same kind acts at once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import signal
+import sys
+
+import click
+
+from .settings import FIELDS
+
+EXIT_BAD_INPUT = 2
+
+
+def fail(message: str):
+    """Print ``error: message`` on stderr and exit with status 2."""
+    click.echo(f"error: {' '.join(str(message).split())}", err=True)
+    sys.exit(EXIT_BAD_INPUT)
+
+
+class StopOnSignal:
+    """A ``stop()`` callable for :func:`dopplertof.render` that turns true on a signal."""
+
+    SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s is not None)
+
+    def __init__(self):
+        self.signum = None
+        self._saved = {}
+
+    def _handle(self, signum, frame):
+        if self.signum == signum:  # asked twice: stop now
+            signal.signal(signum, self._saved.get(signum, signal.SIG_DFL))
+            raise KeyboardInterrupt
+        self.signum = signum
+        click.echo(f"\n{signal.Signals(signum).name}: stopping after the pass in progress (again to stop at once)", err=True)
+
+    def __enter__(self):
+        for s in self.SIGNALS:
+            self._saved[s] = signal.signal(s, self._handle)
+        return self
+
+    def __exit__(self, *exc):
+        for s, handler in self._saved.items():
+            signal.signal(s, handler)
+        return False
+
+    def __call__(self) -> bool:
+        return self.signum is not None
+
+    @property
+    def exit_status(self) -> int:
+        return 128 + (self.signum or signal.SIGINT)
+
+    @property
+    def name(self) -> str:
+        return signal.Signals(self.signum or signal.SIGINT).name
+
+
+# Settings the command line sets through options of its own (cameras) or not at all.
+_NOT_OPTIONS = ("cameras",)
+
+
+def _option_for(name, f):
+    meta = f.metadata
+    flag = "--" + name.replace("_", "-")
+    unit = f" [{meta['unit']}]" if meta["unit"] else ""
+    default = "the scene's, else " + repr(f.default) if f.default is not None else "see meaning"
+    text = f"{meta['doc']}{unit} (default: {default})"
+    if meta["kind"] == "bool":
+        return click.option(f"{flag}/--no-{flag[2:]}", name, default=None, help=text)
+    kind = {"int": int, "float": float}.get(meta["kind"])
+    if meta["choices"]:
+        kind = click.Choice(meta["choices"])
+    return click.option(flag, name, type=kind, default=None, help=text)
+
+
+def settings_options(exclude=()):
+    """A decorator adding one option per render setting (:data:`dopplertof.settings.FIELDS`)
+    but ``cameras`` (``--camera``) and ``exclude``; their values arrive under the
+    settings' names, None where not given."""
+
+    def decorate(function):
+        for name, f in reversed(list(FIELDS.items())):
+            if name not in _NOT_OPTIONS and name not in exclude:
+                function = _option_for(name, f)(function)
+        return function
+
+    return decorate
+
+
+def given_settings(options: dict) -> dict:
+    """The settings layer of the options the user gave (not None)."""
+    return {k: v for k, v in options.items() if k in FIELDS and v is not None}
+
+
+def cameras_layer(camera_specs, exposure, scene_layer: dict) -> dict:
+    """``--camera`` specs (T from ``--exposure``), or the scene's cameras with ``--exposure``."""
+    from .modulation import parse_camera
+
+    if camera_specs:
+        return {"cameras": [parse_camera(c, exposure) for c in camera_specs]}
+    if exposure is not None and scene_layer.get("cameras"):
+        return {"cameras": [dataclasses.replace(c, exposure=exposure) for c in scene_layer["cameras"]]}
+    return {}

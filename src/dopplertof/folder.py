@@ -1,0 +1,172 @@
+"""A render's output folder: checked before rendering, written atomically, metadata last.
+
+=====================  ==================================================================
+file                   content
+=====================  ==================================================================
+``<output>.exr``       one float32 EXR per output of :data:`dopplertof.outputs.OUTPUTS`
+                       (and ``stderr.exr``); per camera ``measurement_<i>_h<h>_psi<deg>deg``
+                       ``.exr`` with its ``_stderr.exr``
+``*.png``              previews (diverging colour maps with a symmetric range for signed
+                       images)
+``measurement_``       the covariance of the cameras' means (n, n, H, W), 2 to 8 cameras
+``covariance.npy``
+``checkpoint.npz``     the Float64 sums of an interrupted render (``--resume`` continues)
+``metadata.json``      written last: scene, film, settings, cameras, spp done and asked,
+                       versions, variant, device, render time, command line, the files
+=====================  ==================================================================
+
+Every file is written under a temporary name and renamed (:func:`dopplertof.io.atomic_path`),
+so a fault never leaves a partial file. A folder holding another render's files is refused
+unless ``overwrite``, which removes exactly the files that render's ``metadata.json`` (or
+checkpoint) names and nothing else.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+
+import numpy as np
+
+from .outputs import OUTPUTS
+
+METADATA = "metadata.json"
+CHECKPOINT = "checkpoint.npz"
+_PREVIEWS = {"intensity": "save_intensity_png", "signed": "save_signed_png", "velocity": "save_velocity_png"}
+
+
+def measurement_stem(index: int, camera) -> str:
+    return f"measurement_{index}_h{camera.heterodyne:g}_psi{math.degrees(camera.phase):g}deg"
+
+
+def _owned_files(folder: str) -> list[str]:
+    """The files of the render in ``folder`` (from its metadata), checkpoint included."""
+    files = []
+    meta = os.path.join(folder, METADATA)
+    if os.path.isfile(meta):
+        try:
+            with open(meta, encoding="utf-8") as f:
+                files = list(json.load(f).get("files", []))
+        except (OSError, ValueError):
+            files = []
+        files.append(METADATA)
+    if os.path.isfile(os.path.join(folder, CHECKPOINT)):
+        files.append(CHECKPOINT)
+    return files
+
+
+def check_writable(folder: str, bytes_needed: int = 0) -> str:
+    """Create ``folder`` and make sure files can be written there; its absolute path.
+
+    ValueError for a path that is a file or lies under one, a folder that cannot be
+    written (read-only, no permission) and one without ``bytes_needed`` free bytes.
+    """
+    parts = os.path.abspath(folder)
+    probe = parts
+    while probe and not os.path.exists(probe):
+        probe = os.path.dirname(probe)
+    if os.path.exists(parts) and not os.path.isdir(parts):
+        raise ValueError(f"output {folder!r} exists and is not a folder")
+    if probe != parts and not os.path.isdir(probe):
+        raise ValueError(f"output {folder!r} lies under {probe!r}, which is a file")
+    try:
+        os.makedirs(parts, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=parts, prefix=".write-test-"):
+            pass
+    except OSError as exc:
+        raise ValueError(f"output folder {folder!r} is not writable ({exc.strerror or exc})") from None
+    free = shutil.disk_usage(parts).free
+    if bytes_needed and free < bytes_needed:
+        raise ValueError(f"output folder {folder!r} has {free / 1e6:.1f} MB free; this render writes about {bytes_needed / 1e6:.1f} MB")
+    return parts
+
+
+def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes_needed: int = 0) -> None:
+    """Check (and create) a render's output folder before any rendering; ValueError if
+    unusable (:func:`check_writable`) or holding another render (its ``metadata.json``
+    or checkpoint), unless ``overwrite`` (which removes that render's files) or
+    ``resume`` (which continues its checkpoint)."""
+    parts = check_writable(folder, bytes_needed)
+    owned = _owned_files(parts)
+    if not owned:
+        return
+    if resume and os.path.isfile(os.path.join(parts, CHECKPOINT)):
+        return
+    if not overwrite:
+        what = "an interrupted render (continue it with --resume)" if CHECKPOINT in owned and METADATA not in owned else "another render's files"
+        raise ValueError(f"output folder {folder!r} holds {what}; use --overwrite to replace them, or another folder")
+    for name in owned:
+        path = os.path.join(parts, name)
+        if os.path.isfile(path) and os.path.dirname(os.path.abspath(path)) == parts:
+            os.remove(path)
+
+
+def estimated_bytes(width: int, height: int, n_cameras: int) -> int:
+    """About what :func:`write_result` writes (EXR float32 before compression, PNGs)."""
+    channels = 3 + 3 + 2 * n_cameras + 1 + 1 + 1 + 3 + 2 + 1 + 1
+    return width * height * (channels * 4 + (3 + n_cameras + 1) * 3) + (1 << 16)
+
+
+def write_result(result, folder: str, metadata: dict | None = None) -> list[str]:
+    """Write a :class:`~dopplertof.render.RenderResult` (module table); returns the paths.
+
+    ``metadata`` (scene, command line, …) is merged into ``metadata.json``, which is
+    written last and lists the files.
+    """
+    from . import io, viz
+
+    written: list[str] = []
+
+    def path(name):
+        written.append(name)
+        return os.path.join(folder, name)
+
+    for o in OUTPUTS:
+        if o.channels == "cameras":
+            for i, cam in enumerate(result.cameras):
+                stem = measurement_stem(i, cam)
+                io.write_exr(path(f"{stem}.exr"), result.measurements[i])
+                io.write_exr(path(f"{stem}_stderr.exr"), result.measurement_stderr[i])
+                viz.save_signed_png(path(f"{stem}.png"), result.measurements[i], colorbar=True, title=cam.label())
+            if "measurement_covariance" in result.maps:
+                io.write_npy(path("measurement_covariance.npy"), result.measurement_covariance)
+            continue
+        image = getattr(result, o.name)
+        channels = [f"{o.name}.{c}" for c in o.components] if o.components else None
+        io.write_exr(path(f"{o.name}.exr"), image.astype(np.float32), channels)
+        if o.stderr_name:
+            io.write_exr(path(f"{o.stderr_name}.exr"), getattr(result, o.stderr_name))
+        if o.preview in _PREVIEWS:
+            getattr(viz, _PREVIEWS[o.preview])(path(f"{o.name}.png"), image)
+    meta = {
+        **(metadata or {}),
+        "spp": result.spp,
+        "spp_requested": result.settings.spp,
+        "seed": result.seed,
+        "interrupted": result.interrupted,
+        "settings": result.settings.as_dict(),
+        "cameras": [vars(c) for c in result.cameras],
+        "render": result.info,
+        "versions": versions(),
+        "files": written + ([CHECKPOINT] if result.interrupted and os.path.isfile(os.path.join(folder, CHECKPOINT)) else []),
+    }
+    io.write_json(os.path.join(folder, METADATA), meta)
+    return [os.path.join(folder, name) for name in written + [METADATA]]
+
+
+def versions() -> dict:
+    """Package, Mitsuba and Dr.Jit versions, the variant and the device."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from . import __version__
+
+    variant = mi.variant()
+    device = "cpu (LLVM)"
+    if variant and variant.startswith("cuda"):
+        device = "cuda"
+    return {"dopplertof": __version__, "mitsuba": mi.__version__, "drjit": dr.__version__, "numpy": np.__version__, "python": sys.version.split()[0], "variant": variant, "device": device}

@@ -1,0 +1,357 @@
+"""Every render setting, once: its type, default, unit, validation and original name.
+
+:class:`RenderSettings` is frozen and validated when built. The API
+(:func:`dopplertof.render`), the command line, the Mitsuba plugin, ``animate`` and the
+experiments all build it the same way, from *layers* of given values, later layers
+winning (:meth:`RenderSettings.build`):
+
+1. the scene (:func:`scene_layer`): its ``<integrator>`` (dict ``"integrator"``), the
+   sampler's ``sample_count`` and the sensor's shutter interval;
+2. what the caller gives (keyword arguments, command-line options).
+
+A layer that sets a setting discards what earlier layers said about the settings that
+depend on it (``correlation_depth`` and ``reconnection_threshold`` follow
+``correlation``; ``antithetic_shift`` and ``n_times`` follow ``time_sampling``), so
+``--correlation reconnection`` on a file that asks for replay to depth 3 is reconnection,
+not an error.
+
+Each field of :class:`RenderSettings` declares its kind, unit, default, meaning and range
+in its metadata; :meth:`RenderSettings.table` lists them (the README's table and the
+command-line help come from it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .correlation import MODES, PAIRED, Correlation
+from .modulation import Camera
+from .timesampling import ANALYTIC, METHODS
+from .validation import checked
+
+DEFAULT_EXPOSURE_S = 1.5e-3
+DEFAULT_LANES_PER_PASS = 1 << 21
+PLUGIN_NAMES = ("dopplertof", "dopplertofpath")
+
+
+def _setting(default, kind, unit, doc, *, choices=None, follows=None, minimum=None, optional=False):
+    """A dataclass field with the setting's declaration in its metadata."""
+    meta = dict(kind=kind, unit=unit, doc=doc, choices=choices, follows=follows, minimum=minimum, optional=optional)
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """All settings of one render (module docstring). Build with :meth:`build`."""
+
+    spp: int = _setting(64, "int", "paths/pixel", "paths per pixel (a group of n_times correlated times uses n_times)", minimum=1)
+    seed: int = _setting(0, "int", "", "random seed: same seed, same image, whatever the pass split", minimum=0)
+    cameras: tuple = _setting((), "cameras", "", "D-ToF camera configurations (dopplertof.Camera); none: intensity only")
+    exposure: float | None = _setting(None, "float", "s", f"exposure T when no camera is given (default {DEFAULT_EXPOSURE_S})", optional=True)
+    exposure_start: float = _setting(0.0, "float", "s", "scene time at which the exposure opens")
+    max_depth: int = _setting(5, "int", "", "longest path, Mitsuba semantics (1 emitters only, 2 direct light, -1 unbounded)")
+    rr_depth: int = _setting(5, "int", "", "depth at which Russian roulette starts", minimum=1)
+    hide_emitters: bool = _setting(False, "bool", "", "hide directly visible emitters (as stock path)")
+    time_sampling: str = _setting("antithetic", "str", "", "how path times are drawn", choices=METHODS + (ANALYTIC,))
+    n_times: int | None = _setting(
+        None, "int", "", "correlated times per group (default 1 for uniform with unpaired correlation, else 2)",
+        minimum=1, follows="time_sampling", optional=True,
+    )  # fmt: skip
+    antithetic_shift: float | None = _setting(
+        None, "float", "T", "antithetic shift a (default 0.5 for antithetic, 0 for antithetic_mirror)",
+        follows="time_sampling", optional=True,
+    )  # fmt: skip
+    stratify_intervals: bool = _setting(True, "bool", "", "stratify each time interval over the pixel's groups (within each replicate)")
+    correlation: str = _setting("replay", "str", "", "how the paths of a group are correlated", choices=MODES)
+    correlation_depth: int | None = _setting(
+        None, "int", "", "replay cut-off: 0 none, 1 pixel, k: pixel + k-1 bounces (replay only)",
+        minimum=0, follows="correlation", optional=True,
+    )  # fmt: skip
+    reconnection_threshold: float | None = _setting(
+        None, "float", "", "adaptive: reconnect where both surfaces are rougher than this GGX/Beckmann alpha (default 0.5)",
+        minimum=0.0, follows="correlation", optional=True,
+    )  # fmt: skip
+    replicates: int = _setting(16, "int", "", "independent replicates per pixel that the standard errors are estimated from", minimum=2)
+    lanes_per_pass: int = _setting(DEFAULT_LANES_PER_PASS, "int", "lanes", "lanes per kernel launch: bounds the tracing memory whatever the film size", minimum=1024)
+
+    # ------------------------------------------------------------------------------ build
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, _validated(f, getattr(self, f.name)))
+        self._check_combination()
+
+    @classmethod
+    def build(cls, *layers: dict, where: str = "") -> "RenderSettings":
+        """Settings from layers of given values (dicts of setting names), later ones winning.
+
+        A layer that gives a setting drops the earlier layers' values of the settings that
+        follow it (module docstring). Unknown names are a ValueError naming them.
+        """
+        merged: dict = {}
+        for layer in layers:
+            unknown = [k for k in layer if k not in FIELDS]
+            if unknown:
+                raise _unknown(unknown[0], where)
+            for name in layer:
+                for dependent, f in FIELDS.items():
+                    if f.metadata["follows"] == name and dependent not in layer:
+                        merged.pop(dependent, None)
+            merged.update(layer)
+        try:
+            return cls(**merged)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}" if where else str(exc)) from None
+
+    def replace(self, **changes) -> "RenderSettings":
+        """A copy with ``changes`` applied as a new layer (dependent settings follow)."""
+        given = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if getattr(self, f.name) != f.default}
+        return RenderSettings.build(given, changes)
+
+    def as_dict(self) -> dict:
+        """JSON-friendly values (cameras as dicts)."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out["cameras"] = [dataclasses.asdict(c) for c in self.cameras]
+        return out
+
+    # ------------------------------------------------------------------------------ derived
+    @property
+    def paired(self) -> bool:
+        """Primal and partner traced in one lane (:mod:`dopplertof.tracing.paired`)."""
+        return self.correlation in PAIRED or self.time_sampling == ANALYTIC
+
+    @property
+    def group_size(self) -> int:
+        """Correlated times per group (``n_times`` resolved)."""
+        if self.n_times is not None:
+            return self.n_times
+        return 1 if self.time_sampling == "uniform" and self.correlation not in PAIRED else 2
+
+    @property
+    def shift(self) -> float:
+        if self.antithetic_shift is not None:
+            return self.antithetic_shift
+        return 0.0 if self.time_sampling == "antithetic_mirror" else 0.5
+
+    @property
+    def threshold(self) -> float:
+        return 0.5 if self.reconnection_threshold is None else self.reconnection_threshold
+
+    @property
+    def exposure_s(self) -> float:
+        """The exposure T (s): the cameras', else ``exposure``, else the default."""
+        if self.cameras:
+            return self.cameras[0].exposure
+        return DEFAULT_EXPOSURE_S if self.exposure is None else self.exposure
+
+    @property
+    def correlation_spec(self) -> Correlation:
+        return Correlation(self.correlation, self.correlation_depth, self.threshold)
+
+    def _check_combination(self):
+        n = self.group_size
+        if self.max_depth == 0 or self.max_depth < -1:
+            raise ValueError(f"'max_depth' must be >= 1 or -1 (unbounded), got {self.max_depth}")
+        if self.seed >= 1 << 32:
+            raise ValueError(f"'seed' must be < 2**32, got {self.seed}")
+        if self.time_sampling in ("antithetic_mirror", ANALYTIC) and n != 2:
+            raise ValueError(f"{self.time_sampling} pairs exactly 2 times, got n_times={n}")
+        if self.time_sampling == "antithetic" and n < 2:
+            raise ValueError(f"antithetic needs n_times >= 2, got {n}")
+        if not 0.0 <= self.shift <= 1.0:
+            raise ValueError(f"'antithetic_shift' must be in [0, 1] (units of T), got {self.shift!r}")
+        if self.antithetic_shift is not None and self.time_sampling not in ("antithetic", "antithetic_mirror"):
+            raise ValueError(f"'antithetic_shift' applies to antithetic sampling, not {self.time_sampling}")
+        if self.correlation_depth is not None and self.correlation != "replay":
+            raise ValueError(f"'correlation_depth' applies to replay; {self.correlation!r} does not use it")
+        if self.reconnection_threshold is not None and self.correlation != "adaptive":
+            raise ValueError(f"'reconnection_threshold' applies to adaptive correlation, not {self.correlation!r}")
+        if self.correlation in PAIRED and n != 2:
+            raise ValueError(f"correlation={self.correlation!r} pairs two times (n_times=2), got n_times={n}")
+        if self.spp % n:
+            raise ValueError(f"spp={self.spp} must be a multiple of the {n} correlated times per group ({self.time_sampling})")
+        if self.time_sampling == ANALYTIC:
+            if self.correlation not in ("replay", "reconnection", "adaptive") or self.correlation_depth is not None:
+                raise ValueError(f"analytic time integration needs a fully correlated partner (replay, reconnection or adaptive), got {self.correlation!r}")
+            bad = [f"{c.label()} ({c.waveform}{'' if c.low_pass else ', full waveform'})" for c in self.cameras if not (c.low_pass and c.waveform == "sinusoidal")]
+            if bad:
+                raise ValueError(f"analytic time integration is implemented for the low-pass sinusoid only; cameras {', '.join(bad)} are not")
+        exposures = sorted({c.exposure for c in self.cameras})
+        if len(exposures) > 1:
+            raise ValueError(f"all cameras of one render must share the exposure, got {exposures} s")
+        if self.exposure is not None:
+            if self.exposure <= 0:
+                raise ValueError(f"'exposure' must be > 0 seconds, got {self.exposure!r}")
+            if exposures and self.exposure != exposures[0]:
+                raise ValueError(f"exposure={self.exposure!r} s differs from the cameras' exposure {exposures[0]!r} s")
+
+    @staticmethod
+    def table() -> list[tuple[str, str, str, str]]:
+        """(name, unit, default, meaning) of every setting, for help texts and the README."""
+        return [(name, f.metadata["unit"], repr(f.default), f.metadata["doc"]) for name, f in FIELDS.items()]
+
+
+FIELDS = {f.name: f for f in dataclasses.fields(RenderSettings)}
+
+
+def _validated(f, value):
+    meta = f.metadata
+    if value is None and meta["optional"]:
+        return None
+    if meta["kind"] == "cameras":
+        cameras = tuple(value) if isinstance(value, (list, tuple)) else None
+        if cameras is None or not all(isinstance(c, Camera) for c in cameras):
+            raise ValueError(f"'cameras' must be a list of dopplertof.Camera, got {value!r}")
+        return cameras
+    value = checked(f.name, value, meta["kind"])
+    if meta["choices"] and value not in meta["choices"]:
+        raise ValueError(f"unknown {f.name} {value!r}; choose one of {', '.join(meta['choices'])}")
+    if meta["minimum"] is not None and value < meta["minimum"]:
+        raise ValueError(f"{f.name!r} must be >= {meta['minimum']}, got {value!r}")
+    return value
+
+
+def _unknown(key: str, where: str, known=None) -> ValueError:
+    known = sorted(known if known is not None else FIELDS)
+    close = difflib.get_close_matches(key, known, n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else f"; known: {', '.join(known)}"
+    return ValueError(f"{where + ': ' if where else ''}unknown setting {key!r}{hint}")
+
+
+# ----------------------------------------------------------------------------------------
+# The original code's integrator parameters (reference §8.2) -> a layer of settings
+
+# original key -> type; camera keys go through Camera.from_original
+_ORIGINAL_CAMERA_KEYS = {
+    "time": "float", "w_g": "float", "w_s": "float", "hetero_frequency": "float", "sensor_phase_offset": "float",
+    "hetero_offset": "float", "g_1": "float", "g_0": "float", "wave_function_type": "str",
+    "low_frequency_component_only": "bool",
+}  # fmt: skip
+# original key -> (type, our setting)
+_ORIGINAL_KEYS = {
+    "time_sampling_method": ("str", "time_sampling"),
+    "antithetic_shift": ("float", "antithetic_shift"),
+    "use_stratified_sampling_for_each_interval": ("bool", "stratify_intervals"),
+    "path_correlation_depth": ("int", None),  # -> correlation (+ correlation_depth)
+    "max_depth": ("int", "max_depth"),
+    "rr_depth": ("int", "rr_depth"),
+    "hide_emitters": ("bool", "hide_emitters"),
+    "m_reconnection_threshold": ("float", "reconnection_threshold"),  # M06 (§8.1); the prefix is the original's
+}
+# SI camera names -> the original names they replace
+_CAMERA_SI_KEYS = {
+    "exposure": ("time", "w_s"), "modulation_frequency": ("w_g", "w_s"), "heterodyne": ("hetero_frequency", "w_s"),
+    "phase": ("sensor_phase_offset", "hetero_offset"), "g1": ("g_1",), "g0": ("g_0",),
+    "waveform": ("wave_function_type",), "low_pass": ("low_frequency_component_only",),
+}  # fmt: skip
+_CAMERA_SI_KINDS = {"waveform": "str", "low_pass": "bool"}
+# Keys that change nothing here (the original's or Mitsuba's scheduling knobs).
+_NO_EFFECT_KEYS = {"is_doppler_integrator": "bool", "samples_per_pass": "int", "block_size": "int", "timeout": "float"}
+# Stock Mitsuba integrators that estimate the same radiance as our path tracer, and the
+# keys of theirs we honour; any other stock integrator computes something else.
+STOCK_PATH_INTEGRATORS = ("path", "volpath", "volpathmis", "prb", "prb_basic", "prbvolpath")
+_GENERIC_KEYS = ("max_depth", "rr_depth", "hide_emitters")
+_STOCK_OTHER = ("direct", "aov", "depth", "moment", "stokes", "ptracer", "direct_projective", "prb_projective", "adjoint")
+
+
+def integrator_layer(params: dict, where: str = "integrator") -> dict:
+    """A settings layer from a scene's ``<integrator>`` parameters (with ``"type"``).
+
+    ``dopplertof``/``dopplertofpath`` take the original M3 names (reference §8.2) and the
+    SI names (an SI name together with the original one it replaces is an error); the
+    original names accepted are listed in the README. A stock path-tracing integrator
+    (:data:`STOCK_PATH_INTEGRATORS`) gives ``max_depth``, ``rr_depth``,
+    ``hide_emitters`` and nothing else: D-ToF keys on it are an error naming them. Any
+    other integrator type is an error.
+    """
+    params = dict(params)
+    kind = params.pop("type", PLUGIN_NAMES[0])
+    if kind not in PLUGIN_NAMES:
+        if kind not in STOCK_PATH_INTEGRATORS:
+            what = "a stock Mitsuba integrator that computes something other than path-traced radiance" if kind in _STOCK_OTHER else "an unknown integrator type"
+            raise ValueError(
+                f"{where}: <integrator type={kind!r}> is {what}; use type 'dopplertof' (or the original 'dopplertofpath') or one of {', '.join(STOCK_PATH_INTEGRATORS)}"
+            )
+        foreign = sorted(k for k in params if k not in _GENERIC_KEYS and k not in _NO_EFFECT_KEYS)
+        if foreign:
+            raise ValueError(f"{where}: <integrator type={kind!r}> does not take {', '.join(map(repr, foreign))}; D-ToF parameters belong to <integrator type=\"dopplertof\">")
+        return {k: checked(k, params[k], _ORIGINAL_KEYS[k][0], where) for k in _GENERIC_KEYS if k in params}
+
+    layer: dict = {}
+    camera_params: dict = {}
+    for key, value in params.items():
+        if key in _ORIGINAL_CAMERA_KEYS:
+            camera_params[key] = checked(key, value, _ORIGINAL_CAMERA_KEYS[key], where)
+        elif key in _CAMERA_SI_KEYS:
+            clash = [k for k in _CAMERA_SI_KEYS[key] if k in params]
+            if clash:
+                raise ValueError(f"{where}: give either {key!r} or {clash[0]!r}, not both")
+        elif key in _ORIGINAL_KEYS:
+            kind_, name = _ORIGINAL_KEYS[key]
+            value = checked(key, value, kind_, where)
+            if name is not None:
+                if name != key and name in params:
+                    raise ValueError(f"{where}: give either {name!r} or {key!r}, not both")
+                layer[name] = value
+        elif key in _NO_EFFECT_KEYS:
+            checked(key, value, _NO_EFFECT_KEYS[key], where)
+        elif key in FIELDS and key != "cameras":
+            layer[key] = value
+        else:
+            raise _unknown(key, where, [*FIELDS, *_ORIGINAL_CAMERA_KEYS, *_ORIGINAL_KEYS, *_CAMERA_SI_KEYS, *_NO_EFFECT_KEYS])
+    if "path_correlation_depth" in params:
+        if "correlation" in params or "correlation_depth" in params:
+            raise ValueError(f"{where}: give either 'correlation'/'correlation_depth' or 'path_correlation_depth', not both")
+        depth = checked("path_correlation_depth", params["path_correlation_depth"], "int", where)
+        if depth < 0:
+            raise ValueError(f"{where}: 'path_correlation_depth' must be >= 0, got {depth}")
+        layer["correlation"] = {0: "none", 1: "pixel"}.get(depth, "replay")
+        if depth >= 2:
+            layer["correlation_depth"] = depth
+    if "m_reconnection_threshold" in params and layer.get("correlation") != "adaptive":
+        layer.pop("reconnection_threshold")  # the M06 key travels with every mode; only adaptive uses it
+    camera = Camera.from_original(camera_params, where)
+    si = {k: checked(k, params[k], _CAMERA_SI_KINDS.get(k, "float"), where) for k in _CAMERA_SI_KEYS if k in params}
+    try:
+        layer["cameras"] = (dataclasses.replace(camera, **si),)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+    RenderSettings.build(layer, where=where)  # validate the file's own combination now
+    return layer
+
+
+def scene_layer(scene, where: str | None = None) -> dict:
+    """The settings a :class:`~dopplertof.scene.DynamicScene` asks for: its integrator's,
+    its sampler's ``sample_count`` (spp) and its sensor's shutter interval.
+
+    A shutter interval (``shutter_open``, ``shutter_close``) is the exposure window: it
+    sets ``exposure_start`` and T; an ``<integrator>`` exposure that contradicts it is an
+    error.
+    """
+    where = where or f"{scene.source}"
+    layer = integrator_layer(scene.integrator_params, f"{where}: <integrator>") if scene.integrator_params else {}
+    if scene.spp_hint is not None:
+        layer["spp"] = scene.spp_hint
+    sensor = scene.sensor
+    open_s, length_s = float(sensor.shutter_open()), float(sensor.shutter_open_time())
+    if length_s > 0:
+        cameras = layer.get("cameras", ())
+        given_t = [k for k in ("time", "exposure") if k in scene.integrator_params]
+        # Mitsuba keeps shutter times in float32: agreeing means agreeing to a few of its ulps.
+        tolerance = 4.0 * float(np.spacing(np.float32(abs(open_s) + length_s)))
+        if cameras and given_t and abs(cameras[0].exposure - length_s) > tolerance:
+            raise ValueError(
+                f"{where}: the sensor's shutter is open for {length_s!r} s but the <integrator> exposure "
+                f"{given_t[0]!r} is {cameras[0].exposure!r} s; make them agree or remove one"
+            )
+        if cameras and not given_t:
+            layer["cameras"] = tuple(dataclasses.replace(c, exposure=length_s) for c in cameras)
+        elif not cameras:
+            layer["exposure"] = length_s
+        if "exposure_start" in scene.integrator_params and scene.integrator_params["exposure_start"] != open_s:
+            raise ValueError(f"{where}: the sensor's shutter opens at {open_s!r} s but the <integrator> exposure_start is {scene.integrator_params['exposure_start']!r} s")
+        layer["exposure_start"] = open_s
+    return layer

@@ -1,0 +1,36 @@
+"""The D-ToF path tracer, written once (DESIGN §5.1).
+
+=============  ===========================================================================
+module         owns
+=============  ===========================================================================
+``lanes``      which pixel, group, member and replicate a lane is; its replayable random
+               streams; its exposure time
+``film``       the film position of a camera sample, drawn from the film's
+               reconstruction filter
+``materials``  per-BSDF tables the paired shift and the optical length need (roughness,
+               relative index of refraction)
+``path``       the phases of a bounce: camera vertex (+ ground truth), extending the
+               Float64 optical length by η·d, emitter hit, emitter sampling
+``sink``       the per-lane outputs: intensity and the modulation weight W(u, L) of every
+               camera, ground truth
+``single``     :func:`trace`: one path per lane, the phases in a loop (power-heuristic MIS,
+               Russian roulette)
+``paired``     :func:`trace_pair`: a primal path and its shifted partner per lane
+               (reconnection, adaptive, analytic)
+=============  ===========================================================================
+
+:func:`trace_pass` runs one pass with the tracer the settings ask for.
+"""
+
+from __future__ import annotations
+
+
+def trace_pass(scene, settings, setup, tables):
+    """Per-lane outputs of one pass (:class:`~dopplertof.tracing.sink.Sink` layout)."""
+    if settings.paired:
+        from .paired import trace_pair
+
+        return trace_pair(scene, settings, setup, tables)
+    from .single import trace
+
+    return trace(scene, settings, setup, tables)

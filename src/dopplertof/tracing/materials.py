@@ -1,0 +1,90 @@
+"""Constant data the tracer reads: per-BSDF tables, indexed by the BSDF's Dr.Jit registry
+id, and the film's filter sampler.
+
+* ``roughness``: how rough a surface is for the adaptive shift (paired tracing): diffuse
+  = ∞, rough conductor / dielectric / plastic = the mean of their α, anything with a delta
+  lobe = 0.
+* ``relative_ior``: η = n_inside / n_outside of a surface that refracts (``dielectric``,
+  ``roughdielectric``), 1 elsewhere (``thindielectric`` does not bend or enter). Crossing
+  it multiplies the index of the medium a path travels in by η entering, 1/η leaving;
+  the optical length of a segment is that index times its length
+  (:func:`dopplertof.tracing.path.segment_index`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+_REFRACTING = ("SmoothDielectric", "RoughDielectric")
+_STRAIGHT_THROUGH = ("ThinDielectric", "MaskBSDF", "NullBSDF")  # transmit without entering a medium
+
+
+@dataclass
+class MaterialTables:
+    roughness: object  # mi.Float indexed by BSDF id
+    relative_ior: object  # mi.Float indexed by BSDF id
+    film: object = None  # the FilterSampler of the scene's film (dopplertof.tracing.film)
+
+    @classmethod
+    def of(cls, scene) -> "MaterialTables":
+        import drjit as dr
+        import mitsuba as mi
+
+        rough, ior = {}, {}
+        for mi_scene in [scene.static] + [body.scene for body in scene.bodies]:
+            for shape in mi_scene.shapes():
+                bsdf = shape.bsdf()
+                if bsdf is None:
+                    continue
+                index = int(dr.reinterpret_array(mi.UInt32, mi.BSDFPtr(bsdf))[0])
+                rough[index] = _roughness(bsdf)
+                ior[index] = _relative_ior(bsdf)
+        size = max(rough, default=0) + 1
+        arrays = []
+        for values, fill in ((rough, 0.0), (ior, 1.0)):
+            table = np.full(size, fill)
+            for index, value in values.items():
+                table[index] = value
+            array = mi.Float(np.minimum(table, 1e30).astype(np.float32))
+            dr.make_opaque(array)
+            arrays.append(array)
+        from .film import FilterSampler
+
+        return cls(*arrays, film=FilterSampler(scene.sensor.film()))
+
+    def gather(self, table, bsdf, active):
+        import drjit as dr
+        import mitsuba as mi
+
+        return dr.gather(mi.Float, table, dr.reinterpret_array(mi.UInt32, bsdf), active)
+
+
+def _roughness(bsdf) -> float:
+    import mitsuba as mi
+
+    flags = bsdf.flags()
+    if flags & int(mi.BSDFFlags.Delta):
+        return 0.0
+    if flags & int(mi.BSDFFlags.Glossy):
+        params = mi.traverse(bsdf)
+        alphas = [float(np.mean(np.asarray(params[k]))) for k in params.keys() if k.split(".")[-2 if k.endswith(".value") else -1].startswith("alpha")]
+        return sum(alphas) / len(alphas) if alphas else 0.0
+    return math.inf
+
+
+def _relative_ior(bsdf) -> float:
+    import mitsuba as mi
+
+    name = bsdf.class_name()
+    transmits = bsdf.flags() & int(mi.BSDFFlags.Transmission)
+    if transmits and name not in _REFRACTING + _STRAIGHT_THROUGH:
+        raise ValueError(
+            f"BSDF {bsdf.id() or name!r} ({name}) transmits light, and the optical path length through it "
+            f"is not known here; use dielectric, roughdielectric or thindielectric directly (not inside {name})"
+        )
+    if name not in _REFRACTING:
+        return 1.0
+    return float(np.asarray(mi.traverse(bsdf)["eta"]).ravel()[0])

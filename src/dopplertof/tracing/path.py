@@ -1,0 +1,231 @@
+"""The phases of a bounce, shared by the independent and the paired tracer.
+
+======================  =================================================================
+phase                   what it does
+======================  =================================================================
+:func:`camera_ray`      the camera ray of a pixel sample (film position from the filter,
+                        aperture, wavelength), its weight, and its Float64 origin on the
+                        aperture
+:func:`first_hit`       the camera ray's first surface at the lane's time; with
+                        ``hide_emitters`` it passes through emitter surfaces (stock path)
+:func:`extend`          the Float64 optical length to a new vertex: index × distance, the
+                        distance recomputed against the hit primitive's plane in the body's
+                        frame (DESIGN §3.5). **The one place the refractive index enters**,
+                        with :func:`segment_index` for the index of a segment
+:func:`emitter_hit`     the emitted radiance where a path hits (or escapes to) an emitter,
+                        and the density with which emitter sampling would have found it
+:func:`sample_emitter`  next-event estimation: a light sample, its visibility at the
+                        lane's time, the BSDF value and density towards it and the optical
+                        length of the path through it
+:func:`ground_truth`    depth, radial velocities, camera-frame velocity, optical flow and
+                        body id of the camera ray's hit
+======================  =================================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+ESCAPED_LENGTH_M = 1e6  # optical length given to light arriving from infinity (environment)
+MAX_HIDDEN_LAYERS = 4  # hidden emitter surfaces a camera ray may pass through
+
+
+def aperture_point(sensor, ray):
+    """Float64 point where the camera ray leaves the aperture (the camera plane z = 0).
+
+    Mitsuba's perspective cameras start rays at the near-clip plane; optical path lengths
+    and depths are measured from the aperture instead.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    to_world = sensor.world_transform()
+    eye = to_world.translation()
+    forward = dr.normalize(to_world @ mi.Vector3f(0, 0, 1))
+    back = dr.dot(ray.o - eye, forward) / dr.dot(ray.d, forward)
+    return mi.Vector3d(ray.o) - mi.Vector3d(ray.d) * mi.Float64(back)
+
+
+def camera_ray(sensor, filter_sampler, setup, pixel, time_s, next_1d, next_2d):
+    """(ray, weight, Float64 aperture point) of ``pixel``'s sample at ``time_s``."""
+    import mitsuba as mi
+
+    px, py = pixel % setup.width, pixel // setup.width
+    offset, filter_weight = filter_sampler.offset(next_2d(), px, py)
+    aperture = next_2d()
+    wavelength_sample = next_1d()
+    film_pos = (mi.Point2f(mi.Float(px), mi.Float(py)) + 0.5 + offset) / mi.ScalarVector2f(setup.width, setup.height)
+    ray, weight = sensor.sample_ray(mi.Float(time_s), wavelength_sample, film_pos, aperture)
+    return ray, weight * filter_weight, aperture_point(sensor, ray)
+
+
+def first_hit(scene, ray, time_s, poses, hide_emitters):
+    """First hit of the camera ray (a :class:`~dopplertof.scene.Hit`); with
+    ``hide_emitters`` it passes through up to ``MAX_HIDDEN_LAYERS`` emitter surfaces."""
+    import drjit as dr
+
+    hit = scene.intersect(ray, time_s, True, poses=poses)
+    for _ in range(MAX_HIDDEN_LAYERS if hide_emitters else 0):
+        hidden = hit.si.is_valid() & (hit.si.emitter(scene.static) != None)  # noqa: E711 - Dr.Jit pointer test
+        beyond = scene.intersect(hit.si.spawn_ray(ray.d), time_s, hidden, poses=poses)
+        hit = dr.select(hidden, beyond, hit)
+    return hit
+
+
+def hit_distance64(scene, poses64, hit, x_prev, direction):
+    """Float64 distance from ``x_prev`` (mi.Vector3d) along ``direction`` to ``hit``, and the point.
+
+    Recomputed against the hit primitive's plane in the body's frame, so two correlated
+    paths hitting the same primitive at different times differ by the motion alone.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    pose64 = scene.select_pose(poses64, hit.body)
+    d64 = dr.normalize(mi.Vector3d(direction))
+    o_local = pose64.point_to_local(x_prev)
+    d_local = pose64.vector_to_local(d64)
+    n_local = mi.Vector3d(hit.n_local)
+    t64 = dr.dot(n_local, mi.Vector3d(hit.plane_local) - o_local) / dr.dot(n_local, d_local)
+    t64 = dr.select(dr.isfinite(t64) & (t64 > 0), t64, mi.Float64(hit.si.t))
+    return t64, x_prev + d64 * t64
+
+
+def extend(scene, poses64, hit, x_prev, direction, length_m, index, active, precise=True):
+    """(optical length to ``hit``, Float64 hit point, Float64 distance): ``length_m`` plus
+    ``index`` × the distance from ``x_prev``, where ``active`` and the ray hit.
+
+    ``precise``: the distance from the primitive's plane in Float64 (needed for phases);
+    else the float32 hit distance (intensity only).
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    if precise:
+        t64, x_hit = hit_distance64(scene, poses64, hit, x_prev, direction)
+    else:  # from x_prev, not the ray's origin: camera rays start at the near-clip plane
+        t64, x_hit = mi.Float64(dr.norm(hit.si.p - mi.Point3f(x_prev))), mi.Vector3d(hit.si.p)
+    grown = dr.select(active & hit.si.is_valid(), length_m + mi.Float64(index) * t64, length_m)
+    return grown, x_hit, t64
+
+
+def segment_index(index, relative_ior, wi_local, wo_local):
+    """Refractive index of the segment leaving a vertex towards ``wo_local``, arriving from
+    ``wi_local`` in a medium of ``index``: times η entering, 1/η leaving a refracting
+    surface (:mod:`dopplertof.tracing.materials`), unchanged on reflection."""
+    import drjit as dr
+
+    transmits = wi_local.z * wo_local.z < 0
+    factor = dr.select(wi_local.z > 0, relative_ior, dr.rcp(relative_ior))
+    return dr.select(transmits, index * factor, index)
+
+
+def vertex_interaction(si):
+    """The part of a vertex that the density of emitter sampling from it needs."""
+    import drjit as dr
+    import mitsuba as mi
+
+    return mi.Interaction3f(dr.detach(si.t), si.time, si.wavelengths, dr.detach(si.p), dr.detach(si.n))
+
+
+def emitter_hit(scene, si, prev_it, prev_delta, active):
+    """(Le, emitter-sampling density of this direction from ``prev_it``, mask).
+
+    ``si`` may be invalid (an escaped ray meets the environment). The density is 0 after
+    a delta lobe, where emitter sampling cannot produce the direction.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    static = scene.static
+    emitter = si.emitter(static)
+    visible = active & (emitter != None)  # noqa: E711 - Dr.Jit pointer test
+    ds = mi.DirectionSample3f(static, si, prev_it)
+    pdf = dr.select(prev_delta, 0.0, static.pdf_emitter_direction(prev_it, ds, visible & ~prev_delta))
+    return emitter.eval(si, visible), pdf, visible
+
+
+def length_to_emitter(length_m, index, x, ds):
+    """Optical length of a path whose last vertex ``x`` (Float64) connects to ``ds.p``."""
+    import drjit as dr
+    import mitsuba as mi
+
+    distance = dr.norm(mi.Vector3d(ds.p) - x)
+    return length_m + mi.Float64(index) * distance
+
+
+@dataclass
+class LightSample:
+    """Result of :func:`sample_emitter` (all per lane)."""
+
+    ds: object  # mi.DirectionSample3f
+    weight: object  # emitter weight Le/p (mi.Spectrum)
+    bsdf_value: object  # f·cos towards the light
+    bsdf_pdf: object  # BSDF density of that direction (0 for delta lights)
+    length_m: object  # Float64 optical length of the path through the light point
+    active: object  # the sample counts (smooth BSDF, non-zero density, unoccluded)
+
+
+def sample_emitter(scene, si, bsdf, bsdf_ctx, sample, time_s, poses, length_m, index, x, tables, active):
+    """Next-event estimation at ``si`` with the uniform ``sample`` (mi.Point2f)."""
+    import mitsuba as mi
+
+    active = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+    ds, weight = scene.static.sample_emitter_direction(si, sample, False, active)
+    active &= ds.pdf != 0
+    active &= ~scene.occluded(si.spawn_ray_to(ds.p), time_s, active, poses=poses)
+    wo = si.to_local(ds.d)
+    value, pdf = bsdf.eval_pdf(mi.BSDFContext(), si, wo, active)
+    index_out = segment_index(index, tables.gather(tables.relative_ior, bsdf, active), si.wi, wo)
+    length = length_to_emitter(length_m, index_out, x, ds)
+    return LightSample(ds, weight, value, pdf, length, active)
+
+
+def camera_frame_velocity(sensor, v_world):
+    """World velocity in the sensor's frame (Mitsuba's: x left, y up, z forward)."""
+    import mitsuba as mi
+
+    return sensor.world_transform().inverse() @ mi.Vector3f(v_world)
+
+
+def image_position(sensor, p_world):
+    """Film position (pixels) of world points, through the sensor's own projection."""
+    import drjit as dr
+    import mitsuba as mi
+
+    it = dr.zeros(mi.Interaction3f)
+    it.p = p_world
+    ds, _ = sensor.sample_direction(it, mi.Point2f(0.5, 0.5))
+    return ds.uv
+
+
+FLOW_STEP = 1e-3  # central difference over ±1e-3 of the depth of apparent motion
+
+
+def ground_truth(scene, hit, ray_d, depth_m, time_s, poses):
+    """Ground-truth maps of the camera ray's hit: a dict of per-lane values (0 where no hit)
+    and the hit mask. See :data:`dopplertof.outputs.OUTPUTS` for their meaning."""
+    import drjit as dr
+    import mitsuba as mi
+
+    si = hit.si
+    valid = si.is_valid()
+    sensor = scene.sensor
+    v = scene.surface_velocity(si.p, hit.body, time_s, poses=poses) if scene.bodies else mi.Vector3f(0)
+    ray_fixed = dr.dot(si.n, v) / dr.dot(si.n, ray_d)
+    speed = dr.norm(v)
+    step = FLOW_STEP * mi.Float(depth_m) / dr.maximum(speed, 1e-30)
+    moving = valid & (speed > 0)
+    ahead = image_position(sensor, dr.select(moving, si.p + v * step, si.p))
+    behind = image_position(sensor, dr.select(moving, si.p - v * step, si.p))
+    flow = dr.select(moving, (ahead - behind) / (2.0 * step), 0.0)
+    values = {
+        "depth": mi.Float(depth_m),
+        "velocity": dr.select(dr.isfinite(ray_fixed), ray_fixed, 0.0),
+        "point_velocity": dr.dot(v, ray_d),
+        "velocity_3d": camera_frame_velocity(sensor, v),
+        "flow": mi.Vector2f(flow),
+    }
+    values = {k: dr.select(valid, x, 0.0) for k, x in values.items()}
+    values["instance_id"] = dr.select(valid, mi.Float(mi.Int32(hit.body)) - 1.0, -1.0)
+    return values, valid

@@ -1,0 +1,42 @@
+"""Strict conversion of user-given values to the Python type a setting declares.
+
+One rule everywhere (API, CLI, scene files, the Mitsuba plugin): a bool is a bool (not a
+string, not a number), an integer is an integral number (``3.0`` passes, ``2.5`` does not),
+a float is a finite real number, a string is a string. The error names the setting and
+the value.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+KINDS = ("int", "float", "bool", "str")
+_NOUNS = {"int": "an integer", "float": "a finite number", "bool": "a boolean (true/false)", "str": "a string"}
+
+
+def checked(name: str, value, kind: str, where: str = ""):
+    """``value`` as the Python ``kind`` (``int``, ``float``, ``bool`` or ``str``), else ValueError."""
+    is_bool = isinstance(value, (bool, np.bool_))
+    is_real = isinstance(value, (int, float, np.integer, np.floating)) and not is_bool
+    if kind == "bool" and is_bool:
+        return bool(value)
+    if kind == "str" and isinstance(value, str):
+        return value
+    if kind == "float" and is_real and math.isfinite(value):
+        return float(value)
+    if kind == "int" and is_real and math.isfinite(value) and float(value).is_integer():
+        return int(value)
+    prefix = f"{where}: " if where else ""
+    raise ValueError(f"{prefix}{name!r} must be {_NOUNS[kind]}, got {value!r}")
+
+
+def parse_bool(text: str, name: str) -> bool:
+    """A boolean written as text (CLI, XML): true/false, yes/no, 1/0, on/off; else ValueError."""
+    lowered = str(text).strip().lower()
+    if lowered in ("true", "yes", "1", "on"):
+        return True
+    if lowered in ("false", "no", "0", "off"):
+        return False
+    raise ValueError(f"{name!r} must be true or false, got {text!r}")
