@@ -1,0 +1,127 @@
+"""``dopplertof dataset generate | config | verify | info``.
+
+Bad input (configuration, arguments, an unwritable or foreign folder) prints one line
+``error: …`` and exits with status 2; ``verify`` exits 1 when a shard is bad; an interrupted
+``generate`` (Ctrl-C, SIGTERM) keeps its finished shards and exits 130.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import click
+
+from ..clitools import fail as _fail
+from .generate import DEFAULT_SHARD_SIZE
+
+EXIT_INTERRUPTED = 130
+
+
+@click.group("dataset")
+def dataset_group():
+    """Datasets for learning: randomized scenes rendered into WebDataset shards."""
+
+
+@dataset_group.command("generate")
+@click.option("-o", "--output", required=True, help="Dataset folder (created; a rerun resumes it).")
+@click.option("--samples", type=int, required=True, help="Number of samples.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Dataset seed: sample i depends only on (seed, i).")
+@click.option("--config", "config_path", default=None, help="TOML file overriding the defaults ('dopplertof dataset config --print').")
+@click.option("--resolution", type=int, default=None, help="Override render.resolution (pixels).")
+@click.option("--spp", type=int, default=None, help="Override render.spp (paths per pixel).")
+@click.option("--shard-size", type=int, default=DEFAULT_SHARD_SIZE, show_default=True, help="Samples per shard.")
+@click.option("--workers", type=int, default=1, show_default=True, help="Local worker processes (spawned).")
+@click.option("--ray", "use_ray", is_flag=True, help="Render on Ray: one task per shard (one actor per GPU with a cuda variant).")
+@click.option("--address", default=None, help="Ray cluster address (with --ray; default: a local Ray).")
+@click.option("--shards", "shard_range", default=None, help="Only shards a:b (b excluded), e.g. one Slurm array task.")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def generate_command(output, samples, seed, config_path, resolution, spp, shard_size, workers, use_ray, address, shard_range, quiet):
+    """Generate (or resume) a dataset in OUTPUT."""
+    from ..backend import BackendError
+    from .generate import generate
+
+    if address and not use_ray:
+        _fail("--address needs --ray")
+    try:
+        result = generate(output, samples, seed, config_path, resolution=resolution, spp=spp, shard_size=shard_size, workers=workers,
+                          ray=use_ray, address=address, shards_range=shard_range, progress=not quiet)
+    except (ValueError, BackendError) as exc:
+        _fail(str(exc))
+    except KeyboardInterrupt:
+        from .shards import read_manifest
+
+        m = read_manifest(output) or {"shards_done": 0, "shards": []}
+        click.echo(f"interrupted: {m['shards_done']} of {len(m['shards'])} shards done in {output}; run the same command again to resume",
+                   err=True)
+        sys.exit(EXIT_INTERRUPTED)
+    m = result["manifest"]
+    click.echo(f"{len(result['generated'])} shards generated, {len(result['skipped'])} already complete; "
+               f"{m['shards_done']}/{len(m['shards'])} shards ({m['samples_done']} samples) in {os.path.abspath(output)}"
+               f"{'' if m['complete'] else ' (incomplete)'}; {result['wall_s']:.1f} s")
+    if m["missing_fields"]:
+        click.echo(f"note: fields not written (the renderer lacks them): {', '.join(m['missing_fields'])}")
+
+
+@dataset_group.command("config")
+@click.option("--print", "print_", is_flag=True, help="Print the default configuration (TOML, commented).")
+@click.option("--markdown", is_flag=True, help="Print the configuration keys as a Markdown table.")
+@click.option("--check", "check_path", default=None, help="Validate a TOML file and print the full configuration it gives.")
+def config_command(print_, markdown, check_path):
+    """The dataset configuration: defaults, documentation, validation."""
+    from . import config
+
+    if check_path:
+        try:
+            cfg = config.load_config(check_path)
+        except ValueError as exc:
+            _fail(str(exc))
+        import json
+
+        click.echo(json.dumps(cfg, indent=1))
+    elif markdown:
+        click.echo(config.markdown_table())
+    elif print_:
+        click.echo(config.default_toml(), nl=False)
+    else:
+        _fail("say what to do: --print, --markdown or --check FILE")
+
+
+@dataset_group.command("verify")
+@click.argument("folder")
+def verify_command(folder):
+    """Check every shard of FOLDER against its manifest (exit 1 naming the bad shards)."""
+    from .shards import verify
+
+    try:
+        report = verify(folder)
+    except ValueError as exc:
+        _fail(str(exc))
+    if report["bad"]:
+        for name, status in sorted(report["bad"].items()):
+            click.echo(f"{name}: {status}")
+        click.echo(f"{len(report['bad'])} bad shard(s), {len(report['ok'])} ok; rerun 'dopplertof dataset generate' with the same "
+                   f"arguments to regenerate them", err=True)
+        sys.exit(1)
+    click.echo(f"ok: {len(report['ok'])} shards match the manifest")
+
+
+@dataset_group.command("info")
+@click.argument("folder")
+@click.option("--sheet", default=None, help="Contact sheet PNG (default FOLDER/contact_sheet.png; 'none' for none).")
+@click.option("--sheet-samples", type=int, default=4, show_default=True, help="Samples on the contact sheet.")
+@click.option("--max-samples", type=int, default=None, help="Summarise only the first N samples.")
+def info_command(folder, sheet, sheet_samples, max_samples):
+    """Counts, ranges and histograms of the ground truth, and a contact sheet."""
+    from .info import summarize
+
+    if sheet is None:
+        sheet = os.path.join(folder, "contact_sheet.png")
+    elif sheet.lower() == "none":
+        sheet = None
+    try:
+        report = summarize(folder, sheet=sheet, sheet_samples=sheet_samples, max_samples=max_samples)
+    except ValueError as exc:
+        _fail(str(exc))
+    for line in report["lines"]:
+        click.echo(line)

@@ -1,0 +1,214 @@
+"""Executors: who renders which shard. Each worker renders whole shards (:func:`render_shard`).
+
+* local, one worker: in this process;
+* local, W workers: W processes of the *spawn* start method (Dr.Jit's LLVM/CUDA state must
+  never be forked), each with ``cpu_count // W`` Dr.Jit threads; a worker that dies (killed,
+  out of memory) breaks the pool, which is restarted with the unfinished shards, up to
+  ``max_retries`` times;
+* Ray: one task per shard (``max_retries`` retries of a killed worker), the driver
+  collecting results as they finish; on a cluster with GPUs and a ``cuda_*`` variant, one
+  long-lived actor per GPU instead, each importing Mitsuba inside the actor after Ray has
+  set ``CUDA_VISIBLE_DEVICES``. Ray workers keep Dr.Jit's kernel cache on node-local disk
+  (``DRJIT_CACHE_DIR``, default ``$TMPDIR/drjit-cache-<user>``) unless it is set.
+
+Every executor calls ``on_done(result)`` in the driver for each finished shard, in
+completion order, and stops on KeyboardInterrupt (SIGINT, or SIGTERM turned into one by
+:func:`dopplertof.dataset.generate`): finished shards stay, unfinished ones are abandoned.
+
+Test hook (fault injection): a job with ``"fault": "<shard index>:<marker path>"`` (from
+the environment variable ``DOPPLERTOF_DATASET_FAULT``) makes the worker that starts that
+shard while the marker file does not exist create it and exit at once (``os._exit(1)``),
+as a killed worker would; the retried attempt finds the marker and renders normally.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import getpass
+import os
+import tempfile
+import time
+
+from . import shards
+
+FAULT_ENV = "DOPPLERTOF_DATASET_FAULT"
+
+
+def _fault(job: dict) -> None:
+    spec = job.get("fault")
+    if not spec:
+        return
+    index, _, marker = spec.partition(":")
+    if int(index) == job["index"] and not os.path.exists(marker):
+        with open(marker, "w") as f:
+            f.write(f"worker {os.getpid()} killed itself at the start of shard {job['index']}\n")
+        os._exit(1)
+
+
+def render_shard(job: dict) -> dict:
+    """Render and write one shard (runs in a worker).
+
+    ``job``: ``folder``, ``index``, ``first``, ``count``, ``config``, ``seed``, ``variant``,
+    ``fields``, and optionally ``threads`` (Dr.Jit threads), ``fault`` (test hook).
+    Returns ``{"record": shard record, "seconds": {...}, "pid": …}``: wall seconds of
+    ``startup`` (imports and backend start: in a fresh worker, once), then per phase summed
+    over the shard's samples (``record``, ``scene``, ``render``, ``sensor``, ``write``) and
+    their ``total`` (start-up excluded).
+    """
+    _fault(job)
+    t_start = time.perf_counter()
+    import dopplertof as dt
+
+    from . import sample
+
+    dt.set_variant(job["variant"])
+    if job.get("threads"):
+        import drjit as dr
+
+        dr.set_thread_count(int(job["threads"]))
+    # once per worker process (imports, backend start), not per shard
+    seconds = {"startup": time.perf_counter() - t_start, "record": 0.0, "scene": 0.0, "render": 0.0, "sensor": 0.0, "write": 0.0}
+    t_start = time.perf_counter()
+    samples = []
+    for i in range(job["first"], job["first"] + job["count"]):
+        t0 = time.perf_counter()
+        record = sample.make_record(job["config"], job["seed"], i, job["variant"])
+        seconds["record"] += time.perf_counter() - t0
+        arrays, derived, spent = sample.render_record(record, job["fields"])
+        for k, v in spent.items():
+            seconds[k] += v
+        samples.append((record["key"], arrays, {**record, "sensor_derived": derived}))
+    t0 = time.perf_counter()
+    rec = shards.write_shard(job["folder"], job["index"], job["first"], samples)
+    seconds["write"] += time.perf_counter() - t0
+    seconds["total"] = time.perf_counter() - t_start
+    return {"record": rec, "seconds": seconds, "pid": os.getpid()}
+
+
+# ------------------------------------------------------------------------------------------
+# Local
+
+
+def _ignore_sigint():
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the driver decides; SIGTERM still kills
+
+
+def run_local(jobs: list[dict], workers: int, on_done, max_retries: int = 3) -> None:
+    """Render ``jobs`` in this process (``workers == 1``) or in ``workers`` spawned processes."""
+    if workers == 1:
+        for job in jobs:
+            on_done(render_shard(job))
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    pending = {job["index"]: {**job, "threads": job.get("threads") or threads} for job in jobs}
+    attempts = 0
+    context = multiprocessing.get_context("spawn")
+    while pending:
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=context, initializer=_ignore_sigint)
+        try:
+            futures = {pool.submit(render_shard, job): index for index, job in sorted(pending.items())}
+            for future in as_completed(futures):
+                result = future.result()
+                del pending[futures[future]]
+                on_done(result)
+        except BrokenProcessPool:
+            attempts += 1
+            # Shards other workers wrote before the pool broke are on disk: keep them.
+            for index, job in sorted(pending.items()):
+                if shards.shard_status(job["folder"], index, job["count"]) == "ok":
+                    del pending[index]
+                    on_done({"record": shards.read_record(job["folder"], index), "seconds": {}, "pid": None})
+            if attempts > max_retries and pending:
+                raise RuntimeError(f"a worker process died {attempts} times; shards left: {sorted(pending)}") from None
+        except BaseException:
+            # Interrupted (or a shard failed): stop now, keep what is finished.
+            for process in list(getattr(pool, "_processes", {}).values()):  # no public kill on Python < 3.14
+                with contextlib.suppress(Exception):
+                    process.kill()
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+# ------------------------------------------------------------------------------------------
+# Ray
+
+
+def _node_local_cache() -> None:
+    os.environ.setdefault("DRJIT_CACHE_DIR", os.path.join(tempfile.gettempdir(), f"drjit-cache-{getpass.getuser()}"))
+
+
+def _ray_render_shard(job: dict) -> dict:
+    _node_local_cache()  # before the first import of Dr.Jit in this worker
+    return render_shard(job)
+
+
+class _ShardActor:
+    """One per GPU: imports Mitsuba once, after Ray has set CUDA_VISIBLE_DEVICES."""
+
+    def __init__(self, variant: str):
+        _node_local_cache()
+        import dopplertof as dt
+
+        dt.set_variant(variant)
+
+    def render(self, job: dict) -> dict:
+        return render_shard(job)
+
+
+def run_ray(jobs: list[dict], on_done, address: str | None = None, max_retries: int = 3, cpus_per_task: int = 1) -> None:
+    """Render ``jobs`` on a Ray cluster (``address``; None: the running one, else a local one).
+
+    Tasks (CPU): ``num_cpus=cpus_per_task``, each using that many Dr.Jit threads. With a
+    ``cuda_*`` variant and GPUs in the cluster: one actor per GPU (``num_gpus=1``,
+    restarted up to ``max_retries`` times), each kept busy with up to two shards.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("--ray needs the 'ray' package: pip install 'dopplertof[ray]'") from None
+    if not ray.is_initialized():
+        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+    variant = jobs[0]["variant"] if jobs else ""
+    gpus = int(ray.cluster_resources().get("GPU", 0))
+    refs: dict = {}
+    try:
+        if variant.startswith("cuda") and gpus > 0:
+            actor_cls = ray.remote(num_gpus=1, max_restarts=max_retries, max_task_retries=max_retries)(_ShardActor)
+            actors = [actor_cls.remote(variant) for _ in range(gpus)]
+            queue = list(jobs)
+            load = {i: 0 for i in range(len(actors))}
+
+            def feed():
+                for i, actor in enumerate(actors):
+                    while queue and load[i] < 2:
+                        refs[actor.render.remote(queue.pop(0))] = i
+                        load[i] += 1
+
+            feed()
+            while refs:
+                done, _ = ray.wait(list(refs), num_returns=1, timeout=1.0)
+                for ref in done:
+                    load[refs.pop(ref)] -= 1
+                    on_done(ray.get(ref))
+                feed()
+        else:
+            task = ray.remote(num_cpus=cpus_per_task, max_retries=max_retries)(_ray_render_shard)
+            refs = {task.remote({**job, "threads": job.get("threads") or cpus_per_task}): job["index"] for job in jobs}
+            while refs:
+                done, _ = ray.wait(list(refs), num_returns=1, timeout=1.0)
+                for ref in done:
+                    refs.pop(ref)
+                    on_done(ray.get(ref))
+    except BaseException:
+        for ref in refs:
+            with contextlib.suppress(Exception):
+                ray.cancel(ref, force=True)
+        raise

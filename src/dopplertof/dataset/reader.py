@@ -1,0 +1,167 @@
+"""Reading a dataset: :func:`open_dataset` (``dopplertof.dataset.open``) and a PyTorch adapter.
+
+The shards are plain tar files of ``.npy`` and ``.json`` members, so ``tarfile`` and numpy
+alone read them (README, "Datasets"), and so does the ``webdataset`` package::
+
+    import webdataset as wds
+    ds = wds.WebDataset("DIR/shard-{000000..000003}.tar").decode()   # sample["measurements.npy"], sample["json"]
+"""
+
+from __future__ import annotations
+
+import bisect
+import io
+import itertools
+import json
+import os
+import tarfile
+
+import numpy as np
+
+from . import shards
+
+
+def decode_member(name: str, data: bytes):
+    """The value of a tar member: a numpy array (``.npy``) or the JSON record."""
+    if name.endswith(".npy"):
+        return np.load(io.BytesIO(data), allow_pickle=False)
+    if name.endswith(".json"):
+        return json.loads(data)
+    raise ValueError(f"unexpected member {name!r}")
+
+
+def _samples_of(path: str):
+    """Yield ``(key, {field: array, "json": record})`` from one shard, in order."""
+    with tarfile.open(path) as tar:
+        current, sample = None, {}
+        for member in tar:
+            key, rest = member.name.split(".", 1)
+            if key != current:
+                if current is not None:
+                    yield current, sample
+                current, sample = key, {}
+            field = "json" if rest == "json" else rest[: -len(".npy")]
+            sample[field] = decode_member(member.name, tar.extractfile(member).read())
+        if current is not None:
+            yield current, sample
+
+
+class Dataset:
+    """A dataset folder written by :func:`dopplertof.dataset.generate`.
+
+    ``len(ds)`` is the number of samples in finished shards; ``ds[i]`` and iteration give a
+    dict ``{field: numpy array, "json": record, "__key__": key}`` (fields as in
+    ``ds.schema``). Indexing opens the sample's shard (the member offsets of each shard
+    are read once); iteration streams shard by shard.
+
+    Attributes
+    ----------
+    folder : str
+    manifest : dict
+        The content of ``dataset.json``.
+    schema : dict
+        ``{field: {dtype, shape, unit, meaning}}``.
+    fields : list of str
+    """
+
+    def __init__(self, folder):
+        self.folder = os.fspath(folder)
+        manifest = shards.read_manifest(self.folder)
+        if manifest is None:
+            raise ValueError(f"{self.folder}: no {shards.MANIFEST}; not a dopplertof dataset folder")
+        self.manifest = manifest
+        self.schema = manifest["schema"]
+        self.fields = list(manifest["fields"])
+        self._shards = [s for s in manifest["shards"] if s["sha256"]]
+        self._ends = list(itertools.accumulate(s["count"] for s in self._shards))  # cumulative sample counts
+        self._index: dict = {}
+        self._len = self._ends[-1] if self._ends else 0
+
+    def __len__(self) -> int:
+        return self._len
+
+    @property
+    def complete(self) -> bool:
+        return bool(self.manifest.get("complete"))
+
+    def _locate(self, i: int) -> tuple[dict, int]:
+        """(shard, sample index) of the i-th available sample."""
+        if not -self._len <= i < self._len:
+            raise IndexError(f"sample {i} out of range for a dataset of {self._len} finished samples")
+        i %= self._len
+        k = bisect.bisect_right(self._ends, i)
+        shard = self._shards[k]
+        return shard, shard["first"] + i - (self._ends[k] - shard["count"])
+
+    def _members(self, shard: dict) -> dict:
+        name = shard["name"]
+        if name not in self._index:
+            with tarfile.open(os.path.join(self.folder, name)) as tar:
+                self._index[name] = {m.name: (m.offset_data, m.size) for m in tar.getmembers()}
+        return self._index[name]
+
+    def __getitem__(self, i: int) -> dict:
+        shard, index = self._locate(int(i))
+        key = shards.sample_key(index)
+        members = self._members(shard)
+        out = {"__key__": key}
+        with open(os.path.join(self.folder, shard["name"]), "rb") as f:
+            for field in [*self.fields, "json"]:
+                name = f"{key}.json" if field == "json" else f"{key}.{field}.npy"
+                offset, size = members[name]
+                f.seek(offset)
+                out[field] = decode_member(name, f.read(size))
+        return out
+
+    def __iter__(self):
+        for shard in self._shards:
+            for key, sample in _samples_of(os.path.join(self.folder, shard["name"])):
+                yield {"__key__": key, **sample}
+
+    def torch(self):
+        """A ``torch.utils.data.Dataset`` over this dataset (needs PyTorch).
+
+        Items are dicts of ``torch.Tensor`` (numpy arrays converted with
+        ``torch.from_numpy``; ``uint16`` raw taps widened to int32, which torch lacks) and
+        the JSON record under ``"json"``.
+        """
+        return TorchDataset(self)
+
+    def __repr__(self):
+        return f"Dataset({self.folder!r}, samples={self._len}, fields={self.fields})"
+
+
+def open_dataset(folder) -> Dataset:
+    """Open the dataset in ``folder`` (see :class:`Dataset`); ``dopplertof.dataset.open``."""
+    return Dataset(folder)
+
+
+def TorchDataset(dataset: Dataset):  # noqa: N802 - a class factory: torch is imported lazily
+    """A map-style ``torch.utils.data.Dataset`` of ``dataset`` (see :meth:`Dataset.torch`)."""
+    try:
+        import torch
+        from torch.utils.data import Dataset as _TorchBase
+    except ImportError:
+        raise ImportError("the PyTorch adapter needs torch (pip install torch); dopplertof does not depend on it") from None
+
+    class _Adapter(_TorchBase):
+        def __init__(self, ds):
+            self.ds = ds
+
+        def __len__(self):
+            return len(self.ds)
+
+        def __getitem__(self, i):
+            sample = self.ds[i]
+            out = {}
+            for k, v in sample.items():
+                if isinstance(v, np.ndarray):
+                    out[k] = torch.from_numpy(v.astype(np.int32) if v.dtype == np.uint16 else v)
+                else:
+                    out[k] = v
+            return out
+
+    return _Adapter(dataset)
+
+
+__all__ = ["Dataset", "TorchDataset", "open_dataset", "decode_member"]

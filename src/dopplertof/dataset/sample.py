@@ -1,0 +1,198 @@
+"""One dataset sample: its record (a pure function of the dataset seed and the index) and
+its arrays (rendered from the record alone).
+
+:func:`make_record` draws everything random about sample ``i`` of a dataset with seed ``S``
+from counter-based streams, ``numpy.random.SeedSequence(S, spawn_key=(i,))`` spawned into
+four independent children (scene, render seeds, sensor settings, sensor noise): the sample
+depends on (S, i) and the configuration only, never on which worker renders it, in which
+order, or how many samples came before. :func:`render_record` renders a record; the JSON
+record stored next to a sample's arrays is that record, so it re-renders the sample.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from . import randomize, schema
+from .config import draw
+
+DIRECT_MAX_DEPTH = 2  # Mitsuba semantics: emitter hits + one bounce, i.e. direct light only
+_STREAMS = ("scene", "render", "sensor_settings", "sensor_noise")
+_SEED_MASK = 0x7FFFFFFF  # render seeds are 31-bit non-negative integers
+
+
+def streams(seed: int, index: int) -> dict:
+    """The four independent ``SeedSequence`` streams of sample ``index`` of dataset ``seed``."""
+    root = np.random.SeedSequence(int(seed), spawn_key=(int(index),))
+    return dict(zip(_STREAMS, root.spawn(len(_STREAMS))))
+
+
+def versions(variant: str) -> dict:
+    import drjit
+    import mitsuba
+
+    import dopplertof
+
+    return {"dopplertof": dopplertof.__version__, "mitsuba": mitsuba.__version__, "drjit": drjit.__version__, "numpy": np.__version__,
+            "variant": variant}
+
+
+def cameras_of(config: dict) -> list[dict]:
+    """The capture set of ``config`` as :class:`dopplertof.Camera` keyword dicts."""
+    from ..modulation import Camera
+
+    cam = config["camera"]
+    out = []
+    for h, psi_deg in zip(cam["heterodyne"], cam["phase_deg"]):
+        camera = Camera(modulation_frequency=cam["modulation_frequency_hz"], exposure=cam["exposure_s"], heterodyne=h,
+                        phase=math.radians(psi_deg), waveform=cam["waveform"], g1=cam["g1"], g0=cam["g0"])
+        out.append(dataclasses.asdict(camera))
+    return out
+
+
+def make_record(config: dict, seed: int, index: int, variant: str) -> dict:
+    """The JSON record of sample ``index``: everything needed to render it (no Mitsuba call).
+
+    Parameters
+    ----------
+    config : dict
+        Validated configuration (:func:`dopplertof.dataset.config.load_config`).
+    seed : int
+        Dataset seed S (≥ 0).
+    index : int
+        Sample index i (≥ 0).
+    variant : str
+        Mitsuba variant the sample is rendered with (part of its identity: CPU and GPU
+        backends round differently).
+    """
+    s = streams(seed, index)
+    scene = randomize.sample_scene(np.random.default_rng(s["scene"]), config)
+    render_seed, direct_seed = (int(x) & _SEED_MASK for x in s["render"].generate_state(2, np.uint32))
+    settings = np.random.default_rng(s["sensor_settings"])
+    sen = config["sensor"]
+    sensor = {
+        "signal_electrons": draw(settings, config, "sensor.signal_electrons"),
+        "ambient_electrons_per_s": draw(settings, config, "sensor.ambient_electrons_per_s"),
+        "read_noise_e": draw(settings, config, "sensor.read_noise_e"),
+        "full_well_e": sen["full_well_e"],
+        "adc_bits": sen["adc_bits"],
+        "gain_e_per_dn": sen["full_well_e"] / ((1 << sen["adc_bits"]) - 1),
+        "black_level_dn": sen["black_level_dn"],
+        "noise_seed": int(s["sensor_noise"].generate_state(1, np.uint64)[0]),
+    }
+    r = config["render"]
+    bodies = [
+        {"instance_id": k, "name": b["name"], "shape": b["shape"], "speed_m_s": float(np.linalg.norm(b["linear_velocity_m_s"])),
+         "spin_rad_s": float(np.linalg.norm(b["angular_velocity_rad_s"])), "moving": True}
+        for k, b in enumerate(scene["bodies"])
+    ]
+    return {
+        "key": f"sample-{index:08d}",
+        "index": int(index),
+        "dataset_seed": int(seed),
+        "scene": scene,
+        "cameras": cameras_of(config),
+        "render": {"resolution": r["resolution"], "spp": r["spp"], "max_depth": r["max_depth"], "direct_max_depth": DIRECT_MAX_DEPTH,
+                   "time_sampling": r["time_sampling"], "correlation": r["correlation"], "seed": render_seed, "direct_seed": direct_seed},
+        "sensor": sensor,
+        "bodies": bodies,
+        "versions": versions(variant),
+    }
+
+
+def sensor_model(record: dict, intensity_luminance: np.ndarray):
+    """The :class:`dopplertof.sensor.SensorModel` of a record, given the clean luminance:
+    both taps of the 99th-percentile pixel collect ``signal_electrons`` per exposure."""
+    from ..sensor import SensorModel
+
+    sen = record["sensor"]
+    cam = record["cameras"][0]
+    finite = intensity_luminance[np.isfinite(intensity_luminance)]
+    bright = float(np.percentile(finite, 99)) if finite.size else 0.0
+    if not bright > 0:  # a black image: no light, any scale gives zero signal
+        bright = 1.0
+    return SensorModel(
+        electrons_per_unit=sen["signal_electrons"] / (cam["exposure"] * cam["g0"] * bright),
+        ambient_electrons_per_s=sen["ambient_electrons_per_s"],
+        read_noise_e=sen["read_noise_e"],
+        full_well_e=sen["full_well_e"],
+        adc_bits=sen["adc_bits"],
+        gain_e_per_dn=sen["gain_e_per_dn"],
+        black_level_dn=sen["black_level_dn"],
+    )
+
+
+def render_record(record: dict, fields=schema.FIELD_NAMES) -> tuple[dict, dict, dict]:
+    """Render a sample from its record.
+
+    Parameters
+    ----------
+    record : dict
+        From :func:`make_record` (or a sample's ``<key>.json``).
+    fields : sequence of str
+        The fields to return; a field the renderer cannot provide is a ValueError.
+
+    Returns
+    -------
+    arrays : dict
+        ``{field: numpy array}`` in the order of :data:`dopplertof.dataset.schema.FIELDS`.
+    derived : dict
+        Values computed while rendering (the sensor's ``electrons_per_unit``), added to
+        the stored record under ``sensor_derived``.
+    seconds : dict
+        Wall time of ``scene`` (building), ``render`` (both renders) and ``sensor``.
+    """
+    from ..backend import set_variant
+    from ..modulation import Camera
+    from ..render import render
+    from ..sensor import luminance
+
+    set_variant(record["versions"]["variant"])
+    r = record["render"]
+    t0 = time.perf_counter()
+    scene = randomize.build_scene(record["scene"], r["resolution"])
+    cameras = [Camera(**c) for c in record["cameras"]]
+    t1 = time.perf_counter()
+    common = dict(cameras=cameras, spp=r["spp"], time_sampling=r["time_sampling"], correlation=r["correlation"])
+    full = render(scene, seed=r["seed"], max_depth=r["max_depth"], **common)
+    direct = render(scene, seed=r["direct_seed"], max_depth=r["direct_max_depth"], **common)
+    if full.interrupted or direct.interrupted:
+        raise KeyboardInterrupt("render interrupted")
+    t2 = time.perf_counter()
+
+    lum = luminance(full.intensity)
+    model = sensor_model(record, lum)
+    rng = np.random.default_rng(record["sensor"]["noise_seed"])
+    raw = np.stack([np.stack(model.sample_taps(lum, m, cam, rng)) for m, cam in zip(full.measurements, cameras)]).astype(np.uint16)
+    t3 = time.perf_counter()
+
+    out = {
+        "measurements": full.measurements,
+        "measurement_stderr": full.measurement_stderr,
+        "measurements_direct": direct.measurements,
+        "measurements_direct_stderr": direct.measurement_stderr,
+        "raw": raw,
+        "intensity": full.intensity,
+        "depth": full.depth,
+        "velocity": full.velocity,
+    }
+    for name in ("velocity_3d", "flow", "instance_id"):
+        if name in fields:
+            value = getattr(full, name, None)
+            if value is None:
+                raise ValueError(f"field {name!r} needs RenderResult.{name}, which this dopplertof's renderer does not provide")
+            out[name] = value
+    if "moving_mask" in fields:
+        moving = np.array([not b.motion.is_static() for b in scene.bodies] + [False], dtype=bool)
+        ids = np.asarray(out["instance_id"])
+        out["moving_mask"] = ((ids >= 0) & moving[np.where(ids >= 0, ids, len(scene.bodies))]).astype(np.uint8)
+    arrays = {}
+    for name in fields:
+        spec = schema.BY_NAME[name]
+        arrays[name] = np.ascontiguousarray(np.asarray(out[name]).astype(spec.dtype, copy=False))
+    derived = {"electrons_per_unit": model.electrons_per_unit}
+    return arrays, derived, {"scene": t1 - t0, "render": t2 - t1, "sensor": t3 - t2}

@@ -1,0 +1,100 @@
+"""The fields of a dataset sample: name, dtype, shape, unit and meaning (one table).
+
+Every sample of a shard has one ``<key>.<field>.npy`` member per field below (``key`` is
+``sample-%08d`` of the sample index) and one ``<key>.json`` record (:data:`RECORD`).
+Shapes use ``C`` for the number of cameras of the capture set, ``H`` × ``W`` for the film.
+``dataset.json`` carries this table under ``schema`` (with ``C``, ``H``, ``W`` filled in).
+
+Fields whose ``needs`` names a render output (:data:`dopplertof.outputs.OUTPUTS`) are written
+only when the renderer provides it; ``dataset.json`` lists the others under ``missing_fields``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+FORMAT_NAME = "dopplertof-dataset"
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Field:
+    """One array of a sample."""
+
+    name: str
+    dtype: str
+    shape: tuple
+    unit: str
+    meaning: str
+    needs: str | None = None  # RenderResult attribute the field needs, if not always present
+
+
+FIELDS: tuple[Field, ...] = (
+    Field("measurements", "float32", ("C", "H", "W"), "radiance × g1/2",
+          "clean D-ToF measurement per camera of the capture set, (1/T)∫W f dt, full global illumination (render.max_depth)"),
+    Field("measurement_stderr", "float32", ("C", "H", "W"), "radiance × g1/2", "Monte Carlo standard error of `measurements`"),
+    Field("measurements_direct", "float32", ("C", "H", "W"), "radiance × g1/2",
+          "the same cameras, single-bounce (direct) light only: max_depth = 2"),
+    Field("measurements_direct_stderr", "float32", ("C", "H", "W"), "radiance × g1/2", "Monte Carlo standard error of `measurements_direct`"),
+    Field("raw", "uint16", ("C", 2, "H", "W"), "DN",
+          "noisy raw taps A, B of a 2-tap pixel per camera (dopplertof.sensor: shot, read noise, ambient, full well, ADC); "
+          "(A − B) · gain_e_per_dn / (electrons_per_unit · T) is the measurement (record: sensor)"),
+    Field("intensity", "float32", ("H", "W", 3), "radiance", "standard (intensity) image, linear RGB"),
+    Field("depth", "float32", ("H", "W"), "m", "camera-ray hit distance from the aperture (NaN: no hit)"),
+    Field("velocity", "float32", ("H", "W"), "m/s",
+          "radial velocity seen by the pixel: d/dt of the hit distance along the fixed camera ray, positive receding (NaN: no hit)"),
+    Field("velocity_3d", "float32", ("H", "W", 3), "m/s", "velocity of the hit point relative to the camera, camera frame (x left, y up, z forward)", needs="velocity_3d"),
+    Field("flow", "float32", ("H", "W", 2), "px/s", "image-plane motion of the hit point (x right, y down)", needs="flow"),
+    Field("instance_id", "int32", ("H", "W"), "-", "moving body hit (index into the record's scene.bodies), −1 static or background", needs="instance_id"),
+    Field("moving_mask", "uint8", ("H", "W"), "-", "1 where instance_id ≥ 0 and that body moves during the exposure", needs="instance_id"),
+)
+
+FIELD_NAMES = tuple(f.name for f in FIELDS)
+BY_NAME = {f.name: f for f in FIELDS}
+
+RECORD = {
+    "key": "sample key, sample-%08d of the index",
+    "index": "sample index in the dataset",
+    "dataset_seed": "the dataset seed S; the sample depends only on (S, index)",
+    "scene": "scene description (dopplertof.dataset.randomize): camera, light, static primitives, moving bodies in instance order",
+    "cameras": "the capture set: dopplertof.Camera parameters per measurement",
+    "render": "resolution, spp, max_depth, time sampling, correlation, and the seeds of the full and direct renders",
+    "sensor": "sensor parameters of `raw` (dopplertof.sensor.SensorModel arguments) and its noise seed",
+    "bodies": "per moving body: instance id, shape, speed (m/s), spin rate (rad/s), moving",
+    "versions": "dopplertof, mitsuba, drjit, numpy and the Mitsuba variant",
+}
+
+
+def resolve(shape: tuple, cameras: int, height: int, width: int) -> list:
+    """A shape template with ``C``, ``H``, ``W`` replaced by numbers."""
+    sizes = {"C": cameras, "H": height, "W": width}
+    return [sizes.get(s, s) for s in shape]
+
+
+def available_fields() -> tuple[list[str], list[str]]:
+    """(fields written, fields missing): those whose ``needs`` the renderer does not output
+    (:data:`dopplertof.outputs.OUTPUTS`) are missing."""
+    from ..outputs import OUTPUTS
+
+    outputs = {o.name for o in OUTPUTS}
+    present = [f.name for f in FIELDS if f.needs is None or f.needs in outputs]
+    return present, [f.name for f in FIELDS if f.name not in present]
+
+
+def schema_table(fields, cameras: int, height: int, width: int) -> dict:
+    """``{field: {dtype, shape, unit, meaning}}`` of the written ``fields``."""
+    return {
+        name: {"dtype": BY_NAME[name].dtype, "shape": resolve(BY_NAME[name].shape, cameras, height, width), "unit": BY_NAME[name].unit,
+               "meaning": BY_NAME[name].meaning}
+        for name in fields
+    }
+
+
+def markdown_table() -> str:
+    """The fields as a Markdown table (the README's)."""
+    rows = ["| field | dtype | shape | unit | meaning |", "|---|---|---|---|---|"]
+    for f in FIELDS:
+        shape = "(" + ", ".join(str(s) for s in f.shape) + ")"
+        note = " (needs the renderer's `" + f.needs + "`)" if f.needs else ""
+        rows.append(f"| `{f.name}` | {f.dtype} | {shape} | {f.unit} | {f.meaning}{note} |")
+    return "\n".join(rows)

@@ -1,0 +1,392 @@
+"""Datasets (dopplertof.dataset): determinism across executors, faults, resume, verify,
+readers, bad input, and the ground truth against the reconstruction.
+
+One tiny reference dataset (8 samples, 4 shards of 2, 16², 4 spp) is generated once per
+module in this process; every other generation must reproduce its bytes.
+"""
+
+import hashlib
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import dopplertof as dt
+from dopplertof.cli import main
+from dopplertof.dataset import config as config_mod
+from dopplertof.dataset import execute, schema, shards
+from dopplertof.dataset.generate import parse_shard_range
+from dopplertof.dataset.sample import make_record, render_record
+
+SMALL = dict(samples=8, seed=5, resolution=16, spp=4, shard_size=2)
+SRC = str(Path(dt.__file__).resolve().parents[1])
+
+
+def _run_env():
+    """Environment for a subprocess that imports this checkout's dopplertof."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = SRC + os.pathsep + env.get("PYTHONPATH", "")
+    env.setdefault("DOPPLERTOF_VARIANT", "llvm_ad_rgb")
+    return env
+
+
+def _cli_args(folder):
+    return ["dataset", "generate", "-o", str(folder), "--samples", "8", "--seed", "5", "--resolution", "16", "--spp", "4",
+            "--shard-size", "2", "--quiet"]
+
+
+def digests(folder) -> dict:
+    """sha256 of every shard and of dataset.json."""
+    folder = Path(folder)
+    names = sorted(p.name for p in folder.glob("shard-*.tar")) + ["dataset.json"]
+    return {n: hashlib.sha256((folder / n).read_bytes()).hexdigest() for n in names}
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("reference")
+    result = dt.dataset.generate(folder, **SMALL)
+    assert result["manifest"]["complete"] and len(result["generated"]) == 4
+    return folder
+
+
+def test_reference_layout_and_manifest(reference):
+    m = json.loads((reference / "dataset.json").read_text())
+    assert [s["name"] for s in m["shards"]] == [f"shard-{k:06d}.tar" for k in range(4)]
+    assert m["complete"] and m["samples_done"] == 8 and m["seed"] == 5
+    assert set(m["versions"]) >= {"dopplertof", "mitsuba", "drjit", "numpy"}
+    assert m["config"]["render"] == {**config_mod.defaults()["render"], "resolution": 16, "spp": 4}
+    for s in m["shards"]:
+        assert s["sha256"] == hashlib.sha256((reference / s["name"]).read_bytes()).hexdigest()
+    assert set(m["fields"]) | set(m["missing_fields"]) == set(schema.FIELD_NAMES)
+    assert {"measurements", "measurement_stderr", "measurements_direct", "raw", "intensity", "depth", "velocity"} <= set(m["fields"])
+    assert not list(reference.glob(".*.tmp"))
+    # a rerun skips every (checked) shard and rewrites nothing
+    before = digests(reference)
+    again = dt.dataset.generate(reference, **SMALL)
+    assert again["generated"] == [] and len(again["skipped"]) == 4
+    assert digests(reference) == before
+
+
+def test_two_workers_and_a_killed_worker_give_the_same_bytes(reference, tmp_path, monkeypatch):
+    marker = tmp_path / "killed"
+    monkeypatch.setenv(execute.FAULT_ENV, f"2:{marker}")
+    folder = tmp_path / "w2"
+    dt.dataset.generate(folder, **SMALL, workers=2)
+    assert marker.exists(), "the fault hook did not fire"
+    assert digests(folder) == digests(reference)
+
+
+@pytest.mark.slow
+def test_ray_with_a_killed_worker_gives_the_same_bytes(reference, tmp_path, monkeypatch):
+    ray = pytest.importorskip("ray")
+    marker = tmp_path / "killed"
+    monkeypatch.setenv(execute.FAULT_ENV, f"1:{marker}")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": {"PYTHONPATH": SRC}})
+    try:
+        folder = tmp_path / "ray"
+        result = dt.dataset.generate(folder, **SMALL, ray=True)
+    finally:
+        ray.shutdown()
+    assert marker.exists(), "the fault hook did not fire: no Ray worker was killed"
+    assert len(result["generated"]) == 4
+    assert digests(folder) == digests(reference)
+
+
+def test_shard_range_then_the_rest(reference, tmp_path):
+    folder = tmp_path / "ranges"
+    first = dt.dataset.generate(folder, **SMALL, shards_range="3:4")
+    assert first["generated"] == ["shard-000003.tar"] and not first["manifest"]["complete"]
+    assert digests(folder)["shard-000003.tar"] == digests(reference)["shard-000003.tar"]
+    rest = dt.dataset.generate(folder, **SMALL)
+    assert rest["skipped"] == ["shard-000003.tar"] and len(rest["generated"]) == 3
+    assert digests(folder) == digests(reference)
+
+
+@pytest.mark.slow
+def test_sigterm_keeps_finished_shards_and_a_rerun_resumes_byte_identically(reference, tmp_path):
+    folder = tmp_path / "interrupted"
+    cmd = [sys.executable, "-m", "dopplertof.cli", *_cli_args(folder)]
+    proc = subprocess.Popen(cmd, env=_run_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not (folder / shards.RECORDS / "shard-000000.json").exists():
+        assert proc.poll() is None and time.time() < deadline, proc.communicate()
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=120)
+    if proc.returncode == 0:
+        pytest.skip("the run finished before SIGTERM arrived")  # the machine outran the poll
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "resume" in err
+    assert not list(folder.glob(".*.tmp")), "a killed shard left its temporary file"
+    manifest = json.loads((folder / "dataset.json").read_text())
+    assert 1 <= manifest["shards_done"] < 4 and not manifest["complete"]
+    done = [s["name"] for s in manifest["shards"] if s["sha256"]]
+    assert all(digests(folder)[n] == digests(reference)[n] for n in done)
+    # verify names the missing shards
+    res = CliRunner().invoke(main, ["dataset", "verify", str(folder)])
+    assert res.exit_code == 1 and "missing" in res.output
+    subprocess.run(cmd, env=_run_env(), check=True, capture_output=True, timeout=300)
+    assert digests(folder) == digests(reference)
+
+
+def test_corrupt_shard_is_found_by_verify_and_regenerated(reference, tmp_path):
+    folder = tmp_path / "corrupt"
+    shutil.copytree(reference, folder)
+    shard = folder / "shard-000001.tar"
+    data = bytearray(shard.read_bytes())
+    data[700] ^= 0xFF
+    shard.write_bytes(bytes(data))
+    (folder / "shard-000002.tar").write_bytes(bytes(data[:1000]))  # truncated
+    runner = CliRunner()
+    res = runner.invoke(main, ["dataset", "verify", str(folder)])
+    assert res.exit_code == 1
+    assert "shard-000001.tar: corrupt" in res.output and "shard-000002.tar: corrupt" in res.output
+    assert "shard-000000.tar" not in res.output
+    result = dt.dataset.generate(folder, **SMALL)
+    assert result["generated"] == ["shard-000001.tar", "shard-000002.tar"]
+    assert digests(folder) == digests(reference)
+    assert runner.invoke(main, ["dataset", "verify", str(folder)]).exit_code == 0
+
+
+def test_reader_without_dopplertof_matches_the_schema(reference):
+    """The README's reader: tarfile + numpy only, in a process that never imports dopplertof."""
+    script = textwrap.dedent(
+        """
+        import io, json, sys, tarfile, glob
+        import numpy as np
+        samples = {}
+        for path in sorted(glob.glob(sys.argv[1] + "/shard-*.tar")):
+            with tarfile.open(path) as tar:
+                for member in tar:
+                    key, field = member.name.split(".", 1)
+                    data = tar.extractfile(member).read()
+                    value = json.loads(data) if field == "json" else np.load(io.BytesIO(data))
+                    samples.setdefault(key, {})[field.removesuffix(".npy")] = value
+        assert "dopplertof" not in sys.modules
+        out = {k: {f: ([str(v.dtype), list(v.shape)] if hasattr(v, "dtype") else v["key"]) for f, v in s.items()} for k, s in samples.items()}
+        print(json.dumps(out))
+        """
+    )
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    res = subprocess.run([sys.executable, "-c", script, str(reference)], env=env, capture_output=True, text=True, timeout=60, cwd="/")
+    assert res.returncode == 0, res.stderr
+    got = json.loads(res.stdout)
+    manifest = json.loads((reference / "dataset.json").read_text())
+    assert sorted(got) == [f"sample-{i:08d}" for i in range(8)]
+    for key, fields in got.items():
+        assert fields.pop("json") == key
+        assert fields == {f: [manifest["schema"][f]["dtype"], manifest["schema"][f]["shape"]] for f in manifest["fields"]}
+
+
+def test_open_indexing_iteration_and_webdataset(reference):
+    ds = dt.dataset.open(reference)
+    assert len(ds) == 8 and ds.complete
+    items = list(ds)
+    assert [s["__key__"] for s in items] == [f"sample-{i:08d}" for i in range(8)]
+    for i in (0, 3, 5, -1):
+        one = ds[i]
+        ref = items[i]
+        assert one["__key__"] == ref["__key__"] and one["json"] == ref["json"]
+        for f in ds.fields:
+            assert one[f].dtype == np.dtype(ds.schema[f]["dtype"]) and list(one[f].shape) == ds.schema[f]["shape"]
+            np.testing.assert_array_equal(one[f], ref[f])
+    with pytest.raises(IndexError):
+        ds[8]
+    assert items[2]["json"]["index"] == 2 and items[2]["json"]["dataset_seed"] == 5
+
+    wds = pytest.importorskip("webdataset")
+    urls = [str(reference / f"shard-{k:06d}.tar") for k in range(4)]
+    loaded = list(wds.WebDataset(urls, shardshuffle=False, empty_check=False).decode())
+    assert [s["__key__"] for s in loaded] == [f"sample-{i:08d}" for i in range(8)]
+    np.testing.assert_array_equal(loaded[5]["measurements.npy"], items[5]["measurements"])
+    assert loaded[5]["json"]["key"] == "sample-00000005"
+
+
+def test_torch_adapter(reference):
+    torch = pytest.importorskip("torch")
+    ds = dt.dataset.open(reference).torch()
+    assert len(ds) == 8
+    item = ds[1]
+    assert isinstance(item["measurements"], torch.Tensor) and item["raw"].dtype == torch.int32
+
+
+def test_record_rerenders_its_sample(reference):
+    ds = dt.dataset.open(reference)
+    stored = ds[3]
+    record = {k: v for k, v in stored["json"].items() if k != "sensor_derived"}
+    assert record == make_record(config_mod.validate(ds.manifest["config"]), 5, 3, ds.manifest["variant"])  # a function of (S, i)
+    arrays, derived, _ = render_record(record, ds.fields)
+    assert derived == stored["json"]["sensor_derived"]
+    for f in ds.fields:
+        assert arrays[f].tobytes() == stored[f].tobytes(), f
+
+
+def test_new_ground_truth_fields(reference):
+    ds = dt.dataset.open(reference)
+    assert {"velocity_3d", "flow", "instance_id", "moving_mask"} <= set(ds.fields)
+    assert ds.manifest["missing_fields"] == []
+    for sample in ds:
+        h = w = 16
+        assert sample["velocity_3d"].shape == (h, w, 3) and sample["flow"].shape == (h, w, 2)
+        ids = sample["instance_id"]
+        assert ids.dtype == np.int32 and ids.min() >= -1 and ids.max() < len(sample["json"]["bodies"])
+        bodies = sample["json"]["bodies"]
+        moving = np.array([b["speed_m_s"] > 0 or b["spin_rad_s"] > 0 for b in bodies] + [False])
+        np.testing.assert_array_equal(sample["moving_mask"], ((ids >= 0) & moving[np.where(ids >= 0, ids, len(bodies))]).astype(np.uint8))
+
+
+# ------------------------------------------------------------------------------------------
+# Ground truth against the reconstruction
+
+GT_CONFIG = {
+    "scene": {"kinds": {"indoor": 1.0, "street": 0.0}, "indoor_furniture": [0, 0]},
+    "bodies": {"count": [2, 2], "moving_probability": 1.0, "shapes": {"box": 1.0}, "spin_rad_s": [0.0, 0.0], "size_m": [0.8, 1.0],
+               "distance_m": [2.5, 4.0], "speed_m_s": [5.0, 10.0]},
+    "materials": {"weights": {"diffuse": 1.0}},
+}
+
+
+def test_direct_light_measurements_reconstruct_the_ground_truth_velocity(tmp_path):
+    """On a direct-light-only sample (translating diffuse boxes), the ratio reconstruction
+    from the clean ``measurements_direct`` matches the ground-truth radial ``velocity`` on
+    the moving pixels away from silhouettes, within the error propagated from
+    ``measurements_direct_stderr`` (z-test, errors of E and H taken as independent)."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    from dopplertof import reconstruct
+    from dopplertof.modulation import SPEED_OF_LIGHT_M_S
+
+    dt.dataset.generate(tmp_path, 1, seed=7, config=GT_CONFIG, resolution=32, spp=32)
+    s = dt.dataset.open(tmp_path)[0]
+    cams = [dt.Camera(**c) for c in s["json"]["cameras"]]
+    assert [(c.heterodyne, round(np.degrees(c.phase))) for c in cams] == [(0, 0), (0, 90), (1, 0), (1, 90)]
+    m = s["measurements_direct"].astype(np.float64)
+    err = s["measurements_direct_stderr"].astype(np.float64)
+    rec = reconstruct.velocity(m, cams, method="ratio")
+    # propagate: r = Σ E_i H_i / Σ H_i², v = c r / (2 f T (1 − r))
+    hom, het, s_hom, s_het = m[:2], m[2:], err[:2], err[2:]
+    sum_h2 = (hom * hom).sum(0)
+    r = (het * hom).sum(0) / sum_h2
+    var_r = ((hom / sum_h2) ** 2 * s_het**2).sum(0) + (((het - 2 * r * hom) / sum_h2) ** 2 * s_hom**2).sum(0)
+    sigma_v = SPEED_OF_LIGHT_M_S / (2 * cams[0].modulation_frequency * cams[0].exposure) / (1 - r) ** 2 * np.sqrt(var_r)
+    truth = s["velocity"].astype(np.float64)
+    # moving pixels whose 3x3 neighbourhood sees the same velocity (no silhouettes / mixed pixels)
+    padded = np.pad(np.nan_to_num(truth, nan=1e9), 1, constant_values=1e9)
+    window = sliding_window_view(padded, (3, 3))
+    spread = window.max(axis=(-1, -2)) - window.min(axis=(-1, -2))
+    interior = np.isfinite(truth) & (np.abs(truth) > 0.1) & rec.valid & (spread < 0.05 * np.abs(truth) + 0.05)
+    assert interior.sum() >= 30, interior.sum()
+    z = (rec.velocity[interior] - truth[interior]) / sigma_v[interior]
+    assert np.mean(z**2) < 2.0, np.mean(z**2)  # calibrated on average (E, H correlations ignored)
+    assert np.all(np.abs(z) < 5), np.sort(np.abs(z))[-5:]  # no pixel off: |z| < 5 over ~100 pixels (Bonferroni, α ≈ 1e-4)
+    # and no gross error (a sign or camera mix-up is off by ~100 %): 32 spp leaves ~10 % noise
+    assert np.median(np.abs(rec.velocity[interior] - truth[interior])) < 0.25 * np.median(np.abs(truth[interior]))
+    # and the full-GI measurements are a different image (indirect light is there)
+    assert not np.array_equal(s["measurements"], s["measurements_direct"])
+
+
+# ------------------------------------------------------------------------------------------
+# Configuration and bad input
+
+
+def test_default_config_is_printed_and_round_trips():
+    import tomllib
+
+    res = CliRunner().invoke(main, ["dataset", "config", "--print"])
+    assert res.exit_code == 0
+    assert res.output == config_mod.default_toml()
+    assert config_mod.validate(tomllib.loads(res.output)) == config_mod.validate({})
+    assert config_mod.validate({}) == config_mod.load_config()
+
+
+@pytest.mark.parametrize(
+    "toml, message",
+    [
+        ("[bodies]\nsped_m_s = [1.0, 2.0]\n", "unknown config key 'bodies.sped_m_s'"),
+        ("[bodies]\nspeed_m_s = [5.0, 1.0]\n", "range min 5.0 > max 1.0"),
+        ("[render]\nresolution = 'big'\n", "'render.resolution' must be an integer"),
+        ("[nope]\nx = 1\n", "unknown config section [nope]"),
+        ("[camera]\nheterodyne = [0.0, 1.0]\n", "same length"),
+        ("[scene]\nkinds = { forest = 1.0 }\n", "unknown name(s) ['forest']"),
+        ("render = [\n", "not valid TOML"),
+    ],
+)
+def test_bad_config_is_one_error_line_and_exit_2(tmp_path, toml, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(toml)
+    res = CliRunner().invoke(main, ["dataset", "generate", "-o", str(tmp_path / "out"), "--samples", "2", "--config", str(path)])
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], res.output
+    with pytest.raises(ValueError, match="config"):
+        config_mod.load_config(path)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--samples", "0"], "samples must be an integer ≥ 1, got 0"),
+        (["--samples", "4", "--shard-size", "0"], "shard_size must be"),
+        (["--samples", "4", "--shards", "3:9"], "shard range '3:9'"),
+        (["--samples", "4", "--spp", "3"], "'render.spp' must be a multiple of 2"),
+        (["--samples", "4", "--address", "ray://x:1"], "--address needs --ray"),
+    ],
+)
+def test_bad_arguments_are_one_error_line_and_exit_2(tmp_path, args, message):
+    res = CliRunner().invoke(main, ["dataset", "generate", "-o", str(tmp_path / "out"), *args])
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], res.output
+
+
+def test_unwritable_or_foreign_folder_is_an_error(tmp_path, reference):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    res = CliRunner().invoke(main, ["dataset", "generate", "-o", str(blocker / "sub"), "--samples", "2"])
+    assert res.exit_code == 2 and res.output.startswith("error: cannot write to output folder"), res.output
+    with pytest.raises(ValueError, match="samples must be an integer ≥ 1, got 0"):
+        dt.dataset.generate(tmp_path / "x", 0)
+    # a folder holding another dataset is refused, naming what differs
+    with pytest.raises(ValueError, match="differs in seed"):
+        dt.dataset.generate(reference, **{**SMALL, "seed": 6})
+    res = CliRunner().invoke(main, ["dataset", "verify", str(tmp_path)])
+    assert res.exit_code == 2 and res.output.startswith("error: ") and "dataset.json" in res.output
+
+
+def test_info_prints_statistics_and_a_contact_sheet(reference, tmp_path):
+    sheet = tmp_path / "sheet.png"
+    res = CliRunner().invoke(main, ["dataset", "info", str(reference), "--sheet", str(sheet), "--sheet-samples", "2"])
+    assert res.exit_code == 0, res.output
+    assert "8 samples read of 8 planned" in res.output and "depth (m)" in res.output and "body speed (m/s)" in res.output
+    assert "moving fraction" in res.output
+    import imageio.v3 as iio
+
+    picture = iio.imread(sheet)
+    assert picture.ndim == 3 and picture.shape[0] >= 2 * 128
+
+
+def test_sample_streams_are_counter_based():
+    cfg = config_mod.validate({})
+    forward = [make_record(cfg, 11, i, "llvm_ad_rgb") for i in range(4)]
+    backward = [make_record(cfg, 11, i, "llvm_ad_rgb") for i in reversed(range(4))][::-1]
+    assert forward == backward
+    assert forward[0]["scene"] != forward[1]["scene"]
+    assert make_record(cfg, 12, 0, "llvm_ad_rgb")["render"]["seed"] != forward[0]["render"]["seed"]
+    assert parse_shard_range("2:", 5) == range(2, 5)
+
+
+def test_readme_tables_come_from_the_one_home():
+    """The README's configuration and field tables are the generated ones (no drift)."""
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    assert config_mod.markdown_table() in readme
+    assert schema.markdown_table() in readme
