@@ -110,6 +110,15 @@ def add_sweep_options(parser, scene_names, ref_spp_help, methods=None, correlati
     )  # fmt: skip
 
 
+def paired_times(method, shift=0.5):
+    """Render settings drawing *pairs* of times of ``method`` (``n_times=2``, per-interval
+    stratification on, antithetic shift ``shift`` for the methods that take one)."""
+    settings = dict(time_sampling=method, n_times=2, stratify_intervals=True)
+    if method in ("antithetic", "antithetic_mirror"):
+        settings["antithetic_shift"] = shift
+    return settings
+
+
 def fill_defaults(args, defaults):
     """Set every option of ``defaults`` that the command line left None."""
     for key, value in defaults.items():

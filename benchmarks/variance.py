@@ -56,7 +56,7 @@ import numpy as np
 import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets the libLLVM path)
 
 import _common
-from _common import CAMERA_GRID, diffuse, transform
+from _common import CAMERA_GRID, diffuse, paired_times, transform
 
 SCENE_NAMES = ("cornell-box", "rotating")
 HETERODYNES = (0.0, 0.5, 1.0)
@@ -115,7 +115,7 @@ def moving_mask(reference):
 def render_config(scene, cameras, method, correlation, spp, seed, max_depth):
     return dopplertof.render(
         scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth,
-        time_sampling=dopplertof.TimeSampling(method, n_times=2), correlation=correlation,
+        correlation=correlation, **paired_times(method),
     )
 
 

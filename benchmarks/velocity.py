@@ -17,9 +17,10 @@ Definitions:
 
 * cameras: homodyne and heterodyne (h = 0 and 1) at ψ = 0 and 90°, all four from the
   same paths in one render (f_g = 30 MHz, T = 1.5 ms, low-pass sinusoid);
-* time sampling: every method draws *pairs* of times (``TimeSampling(method, 2, 0.5,
-  True)``), so ``uniform`` x ``replay`` is two independent times replaying one path and
-  ``adaptive`` (paired tracing, :mod:`dopplertof.paired`) gets the pairs it needs;
+* time sampling: every method draws *pairs* of times (``n_times=2``, antithetic shift ½,
+  stratified intervals: ``_common.paired_times``), so ``uniform`` x ``replay`` is two
+  independent times replaying one path and ``adaptive`` (paired tracing,
+  :mod:`dopplertof.tracing.paired`) gets the pairs it needs;
 * scenes: ``cornell-box`` (boxes at ∓10 m/s, exposure [0, T]) and ``rotating`` (the
   merry-go-round, 3 m/s at the rim, exposure opening at half its clip,
   ``clip_duration("rotating") / 2``);
@@ -137,7 +138,7 @@ def sensor_model(reference, camera, full_well_e, fill, read_noise_e):
 def render(scene, cameras, method, correlation, spp, seed, args, start_s):
     return dopplertof.render(
         scene, cameras=cameras, spp=spp, seed=seed, max_depth=args.max_depth,
-        time_sampling=dopplertof.TimeSampling(method, 2, 0.5, True), correlation=correlation,
+        correlation=correlation, **_common.paired_times(method),
         exposure_start=start_s,
     )  # fmt: skip
 

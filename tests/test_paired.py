@@ -320,7 +320,7 @@ def test_cli_correlation_replaces_the_files_correlation_depth(data_dir, tmp_path
 def test_cli_help_lists_every_correlation_mode():
     output = CliRunner().invoke(cli.main, ["render", "--help"]).output
     squeezed = " ".join(output.split())
-    assert " | ".join(MODES) in squeezed
+    assert "--correlation [" + "|".join(MODES) + "]" in squeezed
     assert "--reconnection-threshold" in output
 
 
