@@ -8,13 +8,13 @@ import pytest
 from click.testing import CliRunner
 
 import dopplertof as dt
-from dopplertof import cli, mitsuba06
+from dopplertof import cli, mitsuba06, scenes
 from dopplertof.motion import Keyframed
 from dopplertof.settings import RenderSettings, integrator_layer
 
 
 def render_settings(params):
-    return RenderSettings.build(integrator_layer(params))
+    return RenderSettings.build(integrator_layer(params), {"spp": 840})  # a multiple of any group size used here
 
 SENSOR_0_6 = """
     <sensor type="perspective">
@@ -299,10 +299,10 @@ def test_film_resolution(data_dir, tmp_path):
 
 def test_cli_load_takes_defines_and_resolution(data_dir):
     path = str(data_dir / "legacy" / "cornell_0_6.xml")
-    assert cli._load(path, None, ["res=8"]).resolution == (8, 8)
-    assert cli._load(path, None, ["res=8", "resx=6"]).resolution == (6, 8)
-    assert cli._load(path, "12x10", ["res=8"]).resolution == (12, 10)
-    assert cli._load("cornell-box", "12").resolution == (12, 12)
+    assert scenes.open_scene(path, None, ["res=8"]).resolution == (8, 8)
+    assert scenes.open_scene(path, None, ["res=8", "resx=6"]).resolution == (6, 8)
+    assert scenes.open_scene(path, "12x10", ["res=8"]).resolution == (12, 10)
+    assert scenes.open_scene("cornell-box", "12").resolution == (12, 12)
 
 
 @pytest.mark.parametrize(

@@ -136,7 +136,7 @@ def write_folder(rendered, folder, cameras):
     (lambda cams: [{**c, "heterodyne": 0.0} for c in cams], "same heterodyne ratio"),
     (lambda cams: [{**c, "heterodyne": 1.0} for c in cams[:1]], "same heterodyne ratio"),
     (lambda cams: [], "no D-ToF camera"),
-    (lambda cams: [{**c, "phase": "ninety"} for c in cams], "phase must be a finite number"),
+    (lambda cams: [{**c, "phase": "ninety"} for c in cams], "'phase' must be a finite number"),
 ], ids=["two frequencies", "homodyne only", "one heterodyne", "no camera", "bad phase"])
 def test_reconstruct_command_refuses_a_bad_camera_set(rendered, tmp_path, change, message):
     cameras = [dict(vars(c)) for c in CAMERAS]

@@ -48,6 +48,7 @@ from . import mitsuba06
 from .motion import Keyframed, Motion, Parametric
 from .settings import PLUGIN_NAMES, STOCK_PATH_INTEGRATORS, integrator_layer
 from .scene import Body, DynamicScene, SceneError
+from .xmlvalues import property_value
 
 _SHAPE_TAGS = {"shape"}
 _DEFINITION_TAGS = {"bsdf", "texture", "spectrum", "rgb", "default", "medium"}
@@ -207,25 +208,6 @@ def _parse_animation(anim, where: str) -> Keyframed:
 def _describe(el, index: int) -> str:
     ident = el.attrib.get("id") or el.attrib.get("name")
     return f"<{el.tag} type=\"{el.attrib.get('type', '?')}\"{' id=' + repr(ident) if ident else ''}> #{index}"
-
-
-def property_value(el, where: str):
-    """Python value of a Mitsuba property element (``<integer>``/``<float>``/``<boolean>``/
-    ``<string>``), parsed as Mitsuba 3 does; SceneError naming the element otherwise."""
-    value = el.attrib.get("value")
-    kind = {"integer": "an integer", "float": "a number", "boolean": "true or false"}.get(el.tag)
-    try:
-        if el.tag == "integer":
-            return int(value.strip())
-        if el.tag == "float":
-            return float(value)
-        if el.tag == "boolean":
-            return {"true": True, "false": False}[value.strip().lower()]
-    except (AttributeError, KeyError, ValueError):
-        raise SceneError(f"{where}: <{el.tag} name={el.attrib.get('name')!r} value={value!r}>: expected {kind}") from None
-    if el.tag != "string":
-        raise SceneError(f"{where}: <{el.tag} name={el.attrib.get('name')!r}> is not an integer, float, boolean or string property")
-    return value
 
 
 _TOKEN = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")

@@ -95,6 +95,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 
 from .scene import SceneError
+from .xmlvalues import property_value
 
 CORRELATION_MODES = {
     "none": "none",
@@ -331,8 +332,6 @@ def check_flat_shading(scenes, where: str) -> None:
 
 
 def _props(el, where):
-    from .loader import property_value
-
     return {p.attrib["name"]: property_value(p, where) for p in el if "name" in p.attrib}
 
 
@@ -461,14 +460,10 @@ def _sampler(sampler, n_times, where):
             sampler.remove(p)
     count = _child(sampler, "sample_count")
     if count is not None and n_times != 1:
-        from .loader import property_value
-
         count.attrib["value"] = str(property_value(count, where) * n_times)
 
 
 def _check_shutter(sensor, exposure, where):
-    from .loader import property_value
-
     shutter = {k: property_value(_child(sensor, k), where) if _child(sensor, k) is not None else 0.0 for k in ("shutter_open", "shutter_close")}
     if shutter["shutter_open"] != 0.0 or abs(shutter["shutter_close"] - exposure) > 1e-12 * max(1.0, exposure):
         raise SceneError(f"{where}: the D-ToF integrator needs shutterOpen=0 and shutterClose=time={exposure!r} (Mitsuba 0.6's default is 0, 0), "

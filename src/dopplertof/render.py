@@ -140,22 +140,29 @@ class Accumulator:
         s = self.state
         pix = slice(p.pixel_start, p.pixel_start + p.n_pixels)
         g0, g1 = p.first_sample // group, (p.first_sample + p.samples) // group
-        means = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in group_means])  # (c, pixels, groups)
-        s["group_sum"][:, pix] += means.sum(axis=2)
+        segments = [(max(a, g0), min(a + n, g1), a + n) for a, n in self.bounds if max(a, g0) < min(a + n, g1)]
+        lengths = {b - a for a, b, _ in segments}
+        if len(lengths) == 1:  # the usual pass: whole or equal runs of replicates, summed on the device
+            length = lengths.pop()
+            sums = [dr.block_sum(m, length) if length > 1 else m for m in group_means]
+            dr.eval(sums)
+            parts = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, len(segments)) for m in sums])  # (c, pixels, segments)
+        else:
+            means = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in group_means])
+            parts = np.stack([means[:, :, a - g0 : b - g0].sum(axis=2) for a, b, _ in segments], axis=2)
+        s["group_sum"][:, pix] += parts.sum(axis=2)
         s["groups_done"][pix] += g1 - g0
         if "rep_sum" in s:
-            for start, size in self.bounds:
-                a, b = max(start, g0), min(start + size, g1)
-                if a >= b:
-                    continue
-                s["open_sum"][:, pix] += means[:, :, a - g0 : b - g0].sum(axis=2)
-                if b == start + size:  # the replicate is complete: its mean is one independent unit
+            for k, (a, b, end) in enumerate(segments):
+                s["open_sum"][:, pix] += parts[:, :, k]
+                if b == end:  # the replicate is complete: its mean is one independent unit
+                    size = next(n for start, n in self.bounds if start + n == end)
                     rep_mean = s["open_sum"][:, pix] / size
                     s["rep_sum"][:, pix] += rep_mean
                     s["rep_sq"][:, pix] += rep_mean * rep_mean
                     cams = rep_mean[self.color_channels :]
-                    for k, (i, j) in enumerate(self.pairs):
-                        s["rep_cross"][k, pix] += cams[i] * cams[j]
+                    for j, (i1, i2) in enumerate(self.pairs):
+                        s["rep_cross"][j, pix] += cams[i1] * cams[i2]
                     s["open_sum"][:, pix] = 0.0
                     s["reps_closed"][pix] += 1
         sums = [np.asarray(t.numpy(), dtype=np.float64) for t in truth_sums]
@@ -276,7 +283,8 @@ def render(scene, cameras=None, *, settings: RenderSettings | None = None, progr
 
     Parameters
     ----------
-    scene : DynamicScene (from :func:`dopplertof.load_scene`), or a path / dict to load.
+    scene : DynamicScene, from :func:`dopplertof.load_scene` (a file or dict) or
+        :func:`dopplertof.scenes.build`.
     cameras : list of :class:`~dopplertof.Camera`, optional. Replaces the scene's.
     settings : :class:`RenderSettings`, optional. The settings to start from; by default
         the scene's own (:func:`dopplertof.settings.scene_layer`: its ``<integrator>``
@@ -302,9 +310,7 @@ def render(scene, cameras=None, *, settings: RenderSettings | None = None, progr
 
     ensure_variant()
     if not hasattr(scene, "static"):
-        from .loader import load_scene  # a path or dict: the API's convenience
-
-        scene = load_scene(scene)
+        raise ValueError(f"render() takes a scene from dopplertof.load_scene(...) or dopplertof.scenes.build(...), got {type(scene).__name__}")
     if cameras is not None:
         overrides["cameras"] = cameras
     base = scene_layer(scene) if settings is None else {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}

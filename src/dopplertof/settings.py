@@ -319,7 +319,8 @@ def integrator_layer(params: dict, where: str = "integrator") -> dict:
         layer["cameras"] = (dataclasses.replace(camera, **si),)
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
-    RenderSettings.build(layer, where=where)  # validate the file's own combination now
+    # Validate the file's own combination now; its spp comes from the sampler, later.
+    RenderSettings.build(layer, {"spp": 2 * (layer.get("n_times") or 2)}, where=where)
     return layer
 
 
