@@ -72,7 +72,7 @@ def test_clip_summary_and_gif(clip):
     # ground truth | gap | reconstructed, each enlarged to >= 256 px
     assert gif.shape[1] >= animate.GIF_MIN_PANEL_PX and gif.shape[2] > 2 * gif.shape[1]
     record = json.loads((folder / "animation.json").read_text())
-    assert record["fps"] == FPS and record["frames"] == 3 and len(record["settings"]["cameras"]) == 4
+    assert record["fps"] == FPS and record["frames"] == 3 and len(record["cameras"]) == 4
 
 
 def test_an_interrupted_clip_resumes_with_the_unfinished_frame(clip_copy, monkeypatch):
@@ -111,7 +111,7 @@ def test_other_settings_are_refused_unless_overwritten(clip_copy):
     code, output = run_animate(*CLIP, "--frames", 1, "-o", folder, "--spp", 8, "--overwrite")  # last --frames wins
     assert code == 0, output
     assert sorted(p.name for p in folder.glob("frame_*")) == ["frame_0000"]
-    assert json.loads((folder / "animation.json").read_text())["settings"]["spp"] == 8
+    assert json.loads((folder / "animation.json").read_text())["spp"] == 8
 
 
 @pytest.mark.parametrize("args, message", [

@@ -220,7 +220,7 @@ def test_default_cache_dir_follows_the_environment(monkeypatch, tmp_path):
         (["velocity", "no-such-scene.xml", "--quick"], "no-such-scene.xml"),
         (["time-sampling", "cornell-box", "--quick", "--spp", "3"], "spp must be a positive multiple of 2"),
         (["velocity", "cornell-box", "--quick", "--reference-spp", "0"], "reference spp"),
-        (["time-sampling", "cornell-box", "--quick", "--time-sampling", "bogus"], "unknown time sampling 'bogus'"),
+        (["time-sampling", "cornell-box", "--quick", "--time-sampling", "bogus"], "unknown time_sampling 'bogus'"),
         (["time-sampling", "cornell-box", "--quick", "--correlation", "bogus"], "unknown correlation 'bogus'"),
         (["time-sampling", "cornell-box", "--quick", "--h-steps", "1"], "--h-steps"),
         (["shifts", "cornell-box", "--quick", "--time-sampling", "uniform"], "antithetic"),

@@ -242,7 +242,7 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
     width, height = scene.resolution
     record = _jsonable({
         "scene": scene_label or scene.source, "resolution": [width, height], "frames": frames, "fps": fps,
-        "method": method, "settings": {k: v for k, v in settings.as_dict().items() if k != "exposure_start"},
+        "method": method, **{k: v for k, v in settings.as_dict().items() if k != "exposure_start"},
     })
     _prepare_output(output, record, overwrite)
 

@@ -312,6 +312,8 @@ def integrator_layer(params: dict, where: str = "integrator") -> dict:
         if depth >= 2:
             layer["correlation_depth"] = depth
     if "m_reconnection_threshold" in params and layer.get("correlation") != "adaptive":
+        if layer["reconnection_threshold"] < 0:
+            raise ValueError(f"{where}: 'm_reconnection_threshold' must be >= 0, got {layer['reconnection_threshold']!r}")
         layer.pop("reconnection_threshold")  # the M06 key travels with every mode; only adaptive uses it
     camera = Camera.from_original(camera_params, where)
     si = {k: checked(k, params[k], _CAMERA_SI_KINDS.get(k, "float"), where) for k in _CAMERA_SI_KEYS if k in params}

@@ -188,6 +188,19 @@ def camera_frame_velocity(sensor, v_world):
     return sensor.world_transform().inverse() @ mi.Vector3f(v_world)
 
 
+def has_projection(sensor) -> bool:
+    """Whether the sensor can map a world point to the film (``sample_direction``);
+    Mitsuba's orthographic camera cannot, so optical flow is NaN there."""
+    import drjit as dr
+    import mitsuba as mi
+
+    try:
+        sensor.sample_direction(dr.zeros(mi.Interaction3f, 1), mi.Point2f(0.5, 0.5))
+    except RuntimeError:
+        return False
+    return True
+
+
 def image_position(sensor, p_world):
     """Film position (pixels) of world points, through the sensor's own projection."""
     import drjit as dr
@@ -214,11 +227,14 @@ def ground_truth(scene, hit, ray_d, depth_m, time_s, poses):
     v = scene.surface_velocity(si.p, hit.body, time_s, poses=poses) if scene.bodies else mi.Vector3f(0)
     ray_fixed = dr.dot(si.n, v) / dr.dot(si.n, ray_d)
     speed = dr.norm(v)
-    step = FLOW_STEP * mi.Float(depth_m) / dr.maximum(speed, 1e-30)
-    moving = valid & (speed > 0)
-    ahead = image_position(sensor, dr.select(moving, si.p + v * step, si.p))
-    behind = image_position(sensor, dr.select(moving, si.p - v * step, si.p))
-    flow = dr.select(moving, (ahead - behind) / (2.0 * step), 0.0)
+    if has_projection(sensor):
+        step = FLOW_STEP * mi.Float(depth_m) / dr.maximum(speed, 1e-30)
+        moving = valid & (speed > 0)
+        ahead = image_position(sensor, dr.select(moving, si.p + v * step, si.p))
+        behind = image_position(sensor, dr.select(moving, si.p - v * step, si.p))
+        flow = dr.select(moving, (ahead - behind) / (2.0 * step), 0.0)
+    else:
+        flow = mi.Vector2f(dr.nan)
     values = {
         "depth": mi.Float(depth_m),
         "velocity": dr.select(dr.isfinite(ray_fixed), ray_fixed, 0.0),
