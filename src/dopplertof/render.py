@@ -122,57 +122,85 @@ class Accumulator:
         self.state["instance_id"] = np.full(n, -1, np.int32)
 
     def add(self, p: Pass, out: dict, group: int, lanes_per_group: int):
-        """Add one pass's per-lane outputs (Dr.Jit arrays)."""
+        """Add one pass's per-lane outputs (Dr.Jit arrays), reduced in Float64 on the device.
+
+        Group sums are gathers (Dr.Jit's block reductions over blocks of 2 lanes cost
+        several times the reduction itself); replicates that lie wholly in the pass are
+        reduced to per-pixel sums of their means, squares and camera products there too,
+        so only per-pixel arrays reach the host.
+        """
         import drjit as dr
         import mitsuba as mi
 
         lanes_per_pixel = p.samples // group * lanes_per_group
         intensity = out["intensity"]
         channels = [intensity[c] for c in range(self.color_channels)] + list(out["measurements"])
-        # One kernel traces every output; the reductions below would otherwise each re-run
-        # the whole path tracer for their own input (DESIGN §3.3).
-        truth = [x for o in TRUTH for x in _components(out[o.name], o.channels)]
-        dr.eval(channels, truth, out["hits"], out["instance_id"])
-        group_means = [dr.block_sum(mi.Float64(x), lanes_per_group) * (1.0 / lanes_per_group) if lanes_per_group > 1 else mi.Float64(x) for x in channels]
-        truth_sums = [dr.block_sum(mi.Float64(x), lanes_per_pixel) for x in truth + [out["hits"]]]
-        dr.eval(group_means, truth_sums)
+        truth = [x for o in TRUTH for x in _components(out[o.name], o.channels)] + [out["hits"]]
+        dr.eval(channels, truth, out["instance_id"])  # one kernel traces every output (DESIGN §3.3)
 
         s = self.state
         pix = slice(p.pixel_start, p.pixel_start + p.n_pixels)
         g0, g1 = p.first_sample // group, (p.first_sample + p.samples) // group
         segments = [(max(a, g0), min(a + n, g1), a + n) for a, n in self.bounds if max(a, g0) < min(a + n, g1)]
-        lengths = {b - a for a, b, _ in segments}
-        if len(lengths) == 1:  # the usual pass: whole or equal runs of replicates, summed on the device
-            length = lengths.pop()
-            sums = [dr.block_sum(m, length) if length > 1 else m for m in group_means]
-            dr.eval(sums)
-            parts = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, len(segments)) for m in sums])  # (c, pixels, segments)
+        sizes = {start + n: n for start, n in self.bounds}
+        n_groups = p.n_pixels * (g1 - g0)
+        first = dr.arange(mi.UInt32, n_groups) * lanes_per_group
+
+        def group_means(x):
+            total = mi.Float64(dr.gather(mi.Float, x, first))
+            for k in range(1, lanes_per_group):
+                total += mi.Float64(dr.gather(mi.Float, x, first + k))
+            return total * (1.0 / lanes_per_group)
+
+        means = [group_means(x) for x in channels]
+        truth_sums = [dr.block_sum(mi.Float64(x), lanes_per_pixel) for x in truth]
+        equal = len({b - a for a, b, _ in segments}) == 1
+        whole = "rep_sum" in s and equal and all(b - a == sizes[end] for a, b, end in segments)
+        if whole:  # the usual pass: complete replicates of one size, reduced to per-pixel sums
+            size, count = segments[0][1] - segments[0][0], len(segments)
+            reps = [dr.block_sum(m, size) * (1.0 / size) if size > 1 else m for m in means]
+            cams = reps[self.color_channels :]
+            sums = [dr.block_sum(r, count) for r in reps]
+            squares = [dr.block_sum(r * r, count) for r in reps]
+            cross = [dr.block_sum(cams[i] * cams[j], count) for i, j in self.pairs]
+            dr.eval(sums, squares, cross, truth_sums)
+            rep_sums = np.stack([np.asarray(x.numpy()) for x in sums])
+            s["group_sum"][:, pix] += rep_sums * size
+            s["rep_sum"][:, pix] += rep_sums
+            s["rep_sq"][:, pix] += np.stack([np.asarray(x.numpy()) for x in squares])
+            for k, x in enumerate(cross):
+                s["rep_cross"][k, pix] += np.asarray(x.numpy())
+            s["reps_closed"][pix] += count
         else:
-            means = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in group_means])
-            parts = np.stack([means[:, :, a - g0 : b - g0].sum(axis=2) for a, b, _ in segments], axis=2)
-        s["group_sum"][:, pix] += parts.sum(axis=2)
+            dr.eval(means, truth_sums)
+            host = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in means])  # (channels, pixels, groups)
+            parts = np.stack([host[:, :, a - g0 : b - g0].sum(axis=2) for a, b, _ in segments], axis=2)
+            s["group_sum"][:, pix] += parts.sum(axis=2)
+            if "rep_sum" in s:
+                for k, (a, b, end) in enumerate(segments):
+                    s["open_sum"][:, pix] += parts[:, :, k]
+                    if b == end:  # the replicate is complete: its mean is one independent unit
+                        self._close(pix, (s["open_sum"][:, pix] / sizes[end])[:, :, None])
+                        s["open_sum"][:, pix] = 0.0
         s["groups_done"][pix] += g1 - g0
-        if "rep_sum" in s:
-            for k, (a, b, end) in enumerate(segments):
-                s["open_sum"][:, pix] += parts[:, :, k]
-                if b == end:  # the replicate is complete: its mean is one independent unit
-                    size = next(n for start, n in self.bounds if start + n == end)
-                    rep_mean = s["open_sum"][:, pix] / size
-                    s["rep_sum"][:, pix] += rep_mean
-                    s["rep_sq"][:, pix] += rep_mean * rep_mean
-                    cams = rep_mean[self.color_channels :]
-                    for j, (i1, i2) in enumerate(self.pairs):
-                        s["rep_cross"][j, pix] += cams[i1] * cams[i2]
-                    s["open_sum"][:, pix] = 0.0
-                    s["reps_closed"][pix] += 1
-        sums = [np.asarray(t.numpy(), dtype=np.float64) for t in truth_sums]
-        s["truth_sum"][:, pix] += np.stack(sums[:-1])
-        s["hits"][pix] += sums[-1]
+        truth_sums = [np.asarray(x.numpy()) for x in truth_sums]
+        s["truth_sum"][:, pix] += np.stack(truth_sums[:-1])
+        s["hits"][pix] += truth_sums[-1]
         s["samples"][pix] += p.samples
         if p.first_sample == 0:  # the label of the pixel's first sample
             labels = np.asarray(out["instance_id"].numpy()).reshape(p.n_pixels, lanes_per_pixel)[:, 0]
             s["instance_id"][pix] = labels.astype(np.int32)
         s["passes_done"][0] += 1
+
+    def _close(self, pix, rep_means):
+        """Add complete replicates: their means, (channels, pixels, replicates)."""
+        s = self.state
+        s["rep_sum"][:, pix] += rep_means.sum(axis=2)
+        s["rep_sq"][:, pix] += np.einsum("cpr,cpr->cp", rep_means, rep_means)
+        cams = rep_means[self.color_channels :]
+        for j, (i1, i2) in enumerate(self.pairs):
+            s["rep_cross"][j, pix] += np.einsum("pr,pr->p", cams[i1], cams[i2])
+        s["reps_closed"][pix] += rep_means.shape[2]
 
     def finish(self, height, width, n_cameras) -> dict:
         s = self.state
