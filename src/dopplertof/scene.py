@@ -100,18 +100,20 @@ class LanePoses:
 
 @dataclass
 class BoxTree:
-    """Bounding-volume tree over the bodies' swept boxes, in depth-first order, as flat
-    Dr.Jit arrays (rebuilt as data when the window changes: no recompile).
+    """Bounding-volume tree over the bodies' swept boxes as flat Dr.Jit arrays, rebuilt as
+    data when the window changes (no recompile).
+
+    Its nodes are stored in depth-first order once per ray octant (the signs of the ray's
+    direction), children nearest-first for rays of that octant: a walk visits node
+    ``i + 1`` (the near child) where the ray enters node ``i``'s box, else ``skip[i]``, so
+    it needs no stack and meets the boxes roughly in the order the ray does.
 
     =========  ===========  ==============================================================
-    lo, hi     mi.Float     world-space box of node ``i`` at ``[3i, 3i + 3)`` (m)
+    lo, hi     mi.Float     box of node ``i`` of octant ``o`` at ``3 (o·size + i)`` (m)
     body       mi.UInt32    ``b + 1`` at the leaf holding ``bodies[b]``, 0 at inner nodes
     skip       mi.UInt32    the node after node ``i``'s subtree (``size`` after the last)
-    size       int          number of nodes, ``2K − 1``
+    size       int          nodes per octant, ``2K − 1``
     =========  ===========  ==============================================================
-
-    A walk visits node ``i + 1`` (its first child) where the ray enters node ``i``'s box,
-    else ``skip[i]``, so it needs no stack.
     """
 
     lo: object
@@ -129,7 +131,7 @@ class BoxTree:
         centres = 0.5 * (box_min + box_max)
         lo, hi, body, skip = [], [], [], []
 
-        def add(members):
+        def add(members, octant):
             node = len(body)
             lo.append(box_min[members].min(axis=0))
             hi.append(box_max[members].max(axis=0))
@@ -140,13 +142,203 @@ class BoxTree:
                 axis = int(np.argmax(spread.max(axis=0) - spread.min(axis=0)))
                 ordered = members[np.argsort(spread[:, axis], kind="stable")]
                 half = len(ordered) // 2
-                add(ordered[:half])
-                add(ordered[half:])
+                near, far = ordered[:half], ordered[half:]
+                if octant >> axis & 1:  # the ray runs towards −axis: the high half is nearer
+                    near, far = far, near
+                add(near, octant)
+                add(far, octant)
             skip[node] = len(body)
 
-        add(np.arange(len(box_min)))
+        size = 2 * len(box_min) - 1
+        for octant in range(8):
+            first = len(body)
+            add(np.arange(len(box_min)), octant)
+            skip[first:] = [k - first for k in skip[first:]]
         flat = lambda rows: mi.Float(np.asarray(rows, dtype=np.float32).ravel())  # noqa: E731
-        return cls(lo=flat(lo), hi=flat(hi), body=mi.UInt32(np.asarray(body, np.uint32)), skip=mi.UInt32(np.asarray(skip, np.uint32)), size=len(body))
+        return cls(lo=flat(lo), hi=flat(hi), body=mi.UInt32(np.asarray(body, np.uint32)), skip=mi.UInt32(np.asarray(skip, np.uint32)), size=size)
+
+    def walk_to_leaf(self, ray, octant, node, t_max_m, box_hit):
+        """From ``node`` on (in the order of ``octant``), the first leaf whose box ``ray``
+        enters before ``t_max_m``: (node, body index b + 1); node = ``size`` where none."""
+        import drjit as dr
+        import mitsuba as mi
+
+        base = octant * self.size
+
+        def step(node, leaf_body):
+            at = base + node
+            enters = box_hit(ray.o, ray.d, dr.gather(mi.Point3f, self.lo, at), dr.gather(mi.Point3f, self.hi, at), t_max_m)
+            leaf_body = dr.select(enters, dr.gather(mi.UInt32, self.body, at), 0)
+            node = dr.select(leaf_body > 0, node, dr.select(enters, node + 1, dr.gather(mi.UInt32, self.skip, at)))
+            return node, leaf_body
+
+        return dr.while_loop(
+            (node, mi.UInt32(0)), lambda node, leaf_body: (node < self.size) & (leaf_body == 0), step, labels=("node", "leaf_body"), label="dopplertof bodies: walk"
+        )  # fmt: skip
+
+
+class PoseTable:
+    """Pose of body ``b`` (per lane) at per-lane times, gathered from one table per motion
+    model, so a kernel holds one pose evaluation whatever the number of bodies.
+
+    The arithmetic is that of :meth:`Keyframed.pose <dopplertof.motion.Keyframed.pose>` and
+    :meth:`Parametric.pose <dopplertof.motion.Parametric.pose>`, with the motion's arrays
+    concatenated over the bodies (the results are bit-identical: tests/test_many_bodies.py);
+    other motion models go through ``dr.switch`` to their own ``pose``.
+
+    ==========  =====================================================================
+    motions     list of :class:`~dopplertof.motion.Motion`, one per body
+    ==========  =====================================================================
+    """
+
+    KEYFRAMED_FIELDS = ("t", "b0", "b1", "b2", "db0", "db1", "db2", "s0", "s1", "s2", "ds0", "ds1", "ds2", "q0", "q1", "q2", "q3", "axis0", "axis1", "axis2", "angle", "duration")
+    PARAMETRIC_FIELDS = ("v", "axis", "rate", "pivot", "b0", "q0", "s0")
+
+    def __init__(self, motions):
+        import mitsuba as mi
+
+        from .motion import Keyframed, Parametric
+
+        self.motions = list(motions)
+        models = [Keyframed if type(m) is Keyframed else Parametric if type(m) is Parametric else None for m in self.motions]
+        rows = {model: [b for b, m in enumerate(models) if m is model] for model in (Keyframed, Parametric, None)}
+        self.keyframed, self.parametric, self.other = rows[Keyframed], rows[Parametric], rows[None]
+        model_code = np.array([0 if m is Keyframed else 1 if m is Parametric else 2 for m in models], np.uint32)
+        row = np.zeros(len(models), np.uint32)
+        for members in rows.values():
+            row[members] = np.arange(len(members))
+        self.model = _opaque(mi.UInt32(model_code))
+        self.row = _opaque(mi.UInt32(row))
+
+        def cat(bodies, name, length):
+            return _opaque(mi.Float64(np.concatenate([np.asarray(self.motions[b]._data[name])[: length(b)] for b in bodies])))
+
+        if self.keyframed:
+            counts = np.array([len(self.motions[b].times) for b in self.keyframed], np.uint32)
+            self.key_offset = _opaque(mi.UInt32(np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.uint32)))
+            self.key_count = _opaque(mi.UInt32(counts))
+            # Search steps of Keyframed.pose for the longest key list; more steps leave a
+            # converged search where it is.
+            self.search_steps = int(np.floor(np.log2(counts.max() - 2))) + 1 if counts.max() > 2 else 0
+            self.keys = {f: cat(self.keyframed, f, lambda b: len(self.motions[b].times)) for f in self.KEYFRAMED_FIELDS}
+        if self.parametric:
+            self.params = {f: cat(self.parametric, f, lambda b, f=f: len(self.motions[b]._data[f])) for f in self.PARAMETRIC_FIELDS}
+
+    def pose(self, body, time_s, precise: bool, active=True):
+        """Pose of ``bodies[body]`` (mi.UInt32 per lane) at ``time_s`` (mi.Float64, s); the
+        identity where not ``active``."""
+        import drjit as dr
+        import mitsuba as mi
+
+        from .motion import Pose
+
+        active = mi.Bool(active)
+        model = dr.gather(mi.UInt32, self.model, body, active)
+        row = dr.gather(mi.UInt32, self.row, body, active)
+        out = _identity_pose(precise)
+        parts = []
+        if self.keyframed:
+            parts.append((active & (model == 0), self._keyframed(row, time_s, precise, active & (model == 0))))
+        if self.parametric:
+            parts.append((active & (model == 1), self._parametric(row, time_s, precise, active & (model == 1))))
+        if self.other:
+            targets = [lambda t, m=self.motions[b]: m.pose(t, precise) for b in self.other]
+            parts.append((active & (model == 2), dr.switch(row, targets, mi.Float64(time_s), active & (model == 2))))
+        for mask, pose in parts:
+            out = Pose(*(tuple(dr.select(mask, a, b) for a, b in zip(x, y)) if isinstance(x, tuple) else dr.select(mask, x, y) for x, y in zip(_fields(pose), _fields(out))))
+        return out
+
+    def _keyframed(self, row, time_s, precise, active):
+        """Keyframed.pose over the concatenated keys (see there)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        from .motion import Pose, _quat_mul_lanes
+
+        d = self.keys
+        first = dr.gather(mi.UInt32, self.key_offset, row, active)
+        n = dr.gather(mi.UInt32, self.key_count, row, active)
+        t = mi.Float64(time_s)
+        searching = active & (n > 1)
+        start, end = first + 1, first + dr.maximum(n, 2) - 1
+        for _ in range(self.search_steps):  # dr.binary_search with per-lane bounds
+            middle = (start + end) >> 1
+            below = dr.gather(mi.Float64, d["t"], middle, searching) <= t
+            start = dr.select(below, dr.minimum(middle + 1, end), start)
+            end = dr.select(below, end, middle)
+        idx = dr.select(n > 1, start - 1, first)
+        t0 = dr.gather(mi.Float64, d["t"], idx, active)
+        duration = dr.gather(mi.Float64, d["duration"], idx, active)
+        inside = (t >= dr.gather(mi.Float64, d["t"], first, active)) & (t < dr.gather(mi.Float64, d["t"], first + n - 1, active))
+        alpha64 = dr.clip((t - t0) / duration, 0.0, 1.0)
+        alpha64 = dr.select(n > 1, alpha64, mi.Float64(0.0))
+        F = mi.Float64 if precise else mi.Float
+        V = mi.Vector3d if precise else mi.Vector3f
+        alpha = F(alpha64)
+        rate = F(dr.select(inside, 1.0 / duration, 0.0))
+
+        def g(name):
+            return F(dr.gather(mi.Float64, d[name], idx, active))
+
+        db = V(g("db0"), g("db1"), g("db2"))
+        ds = V(g("ds0"), g("ds1"), g("ds2"))
+        translation = V(g("b0"), g("b1"), g("b2")) + alpha * db
+        scale = V(g("s0"), g("s1"), g("s2")) + alpha * ds
+        axis = V(g("axis0"), g("axis1"), g("axis2"))
+        angle = g("angle")
+        half = 0.5 * alpha * angle
+        sh, ch = dr.sincos(half)
+        q_rel = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
+        q = _quat_mul_lanes(q_rel, (g("q0"), g("q1"), g("q2"), g("q3")))
+        return Pose(q=q, scale=scale, translation=translation, omega=axis * (angle * rate), translation_rate=db * rate, scale_rate=ds * rate)
+
+    def _parametric(self, row, time_s, precise, active):
+        """Parametric.pose over the concatenated parameters (see there)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        from .motion import Pose, _quat_mul_lanes, _rotate
+
+        F = mi.Float64 if precise else mi.Float
+        V = mi.Vector3d if precise else mi.Vector3f
+        d = self.params
+
+        def at(name, k, width):
+            return dr.gather(mi.Float64, d[name], row * width + k, active)
+
+        def vec(name):
+            return V(F(at(name, 0, 3)), F(at(name, 1, 3)), F(at(name, 2, 3)))
+
+        t64 = mi.Float64(time_s)
+        rate = F(at("rate", 0, 1))
+        axis = vec("axis")
+        pivot = vec("pivot")
+        v = vec("v")
+        sh, ch = dr.sincos(F(0.5 * t64 * at("rate", 0, 1)))
+        q_rot = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
+        q0 = tuple(F(at("q0", k, 4)) for k in range(4))
+        t = F(t64)
+        translation = pivot + v * t + _rotate(q_rot, vec("b0") - pivot)
+        omega = axis * rate
+        return Pose(
+            q=_quat_mul_lanes(q_rot, q0),
+            scale=vec("s0"),
+            translation=translation,
+            omega=omega,
+            translation_rate=v + dr.cross(omega, translation - pivot - v * t),
+            scale_rate=V(0, 0, 0),
+        )
+
+
+def _fields(pose):
+    return (pose.q, pose.scale, pose.translation, pose.omega, pose.translation_rate, pose.scale_rate)
+
+
+def _opaque(array):
+    import drjit as dr
+
+    dr.make_opaque(array)
+    return array
 
 
 @dataclass
@@ -172,6 +364,7 @@ class DynamicScene:
         if self.traversal not in TRAVERSALS:
             raise ValueError(f"traversal must be one of {TRAVERSALS}, got {self.traversal!r}")
         self._tree = None
+        self._poses = None  # PoseTable of the bodies' motions, built on first use
         self._targets = {}  # dr.switch targets per query, traced once per body list
         self._fit_bounds(None, None)
 
@@ -321,86 +514,77 @@ class DynamicScene:
     # ------------------------------------------------------------------------------------
     # Tree traversal
 
+    def _pose_table(self) -> PoseTable:
+        motions = [b.motion for b in self.bodies]
+        if self._poses is None or self._poses.motions != motions:
+            self._poses = PoseTable(motions)
+        return self._poses
+
     def _switch_targets(self, query: str):
-        """One function per body for ``dr.switch`` (traced once per body list):
+        """One function per body for ``dr.switch``, traced once per body list:
+        ``"closest"``: (ray_local, active) -> the body's preliminary intersection;
+        ``"blocked"``: (ray_local, active) -> whether the body blocks the ray."""
+        scenes = [b.scene for b in self.bodies]
+        key = (query, tuple(map(id, scenes)))
+        if key not in self._targets:
+            if query == "closest":
+                targets = [lambda ray, active, s=s: s.ray_intersect_preliminary(ray, coherent=False, active=active) for s in scenes]
+            else:
+                targets = [lambda ray, active, s=s: s.ray_test(ray, active) for s in scenes]
+            self._targets = {k: v for k, v in self._targets.items() if k[1] == key[1]}  # those of an old body list go
+            self._targets[key] = targets
+        return self._targets[key]
 
-        * ``"closest"``: (ray, time_s, maxt, active) -> that body's preliminary intersection;
-        * ``"blocked"``: (ray, time_s, active) -> whether that body blocks the ray;
-        * ``"pose"``, ``"pose64"``: (time_s) -> its Float32 / Float64 pose, with the
-          identity first for static geometry (index 0).
-        """
-        key = (query, tuple(id(b) for b in self.bodies))
-        if key in self._targets:
-            return self._targets[key]
+    def _walk(self, ray, time_s, active, state, t_max_m, on_leaf, done, label):
+        """Visit, in ``ray``'s order, each body whose swept box the ray enters before
+        ``t_max_m(state)`` until ``done(state)``: ``on_leaf(state, b, ray_local, query)``
+        returns the new state (``b``: 0-based body index, ``ray_local`` the ray in its
+        frame at the lane's time, ``query`` the lanes that visit a body)."""
+        import drjit as dr
+        import mitsuba as mi
 
-        def closest(body):
-            return lambda ray, time_s, maxt, active: body.scene.ray_intersect_preliminary(
-                self._to_local(ray, body.motion.pose(time_s), maxt), coherent=False, active=active
-            )
+        tree, poses = self._tree, self._pose_table()
+        octant = mi.UInt32(ray.d.x < 0) | (mi.UInt32(ray.d.y < 0) << 1) | (mi.UInt32(ray.d.z < 0) << 2)
 
-        def blocked(body):
-            return lambda ray, time_s, active: body.scene.ray_test(self._to_local(ray, body.motion.pose(time_s), ray.maxt), active)
+        def step(node, state):
+            node, leaf_body = tree.walk_to_leaf(ray, octant, node, t_max_m(state), self._box_hit)
+            query = leaf_body > 0
+            body = dr.select(query, leaf_body - 1, 0)
+            ray_local = self._to_local(ray, poses.pose(body, time_s, False, query), t_max_m(state))
+            state = on_leaf(state, body, ray_local, query)
+            return dr.select(query, node + 1, node), state
 
-        def pose(body, precise):
-            return lambda time_s: body.motion.pose(time_s, precise)
-
-        if query == "closest":
-            targets = [closest(b) for b in self.bodies]
-        elif query == "blocked":
-            targets = [blocked(b) for b in self.bodies]
-        else:
-            precise = query == "pose64"
-            targets = [lambda time_s: _identity_pose(precise)] + [pose(b, precise) for b in self.bodies]
-        self._targets = {k: v for k, v in self._targets.items() if k[1] == key[1]}  # drop those of an old body list
-        self._targets[key] = targets
-        return targets
+        node = dr.select(active & ~done(state), mi.UInt32(0), tree.size)
+        return dr.while_loop((node, state), lambda node, state: (node < tree.size) & ~done(state), step, labels=("node", "state"), label=label)[1]
 
     def _tree_closest(self, ray, time_s, pi, active):
-        """Walk the tree: the closest of ``pi`` (the static scene's preliminary intersection)
-        and the bodies' hits; returns it and the body index (0: static)."""
+        """The closest of ``pi`` (the static scene's preliminary intersection) and the
+        bodies' hits, and the body index (0: static)."""
         import drjit as dr
         import mitsuba as mi
 
-        tree, targets = self._tree, self._switch_targets("closest")
+        targets = self._switch_targets("closest")
 
-        def step(node, pi, body_index):
-            t_best_m = dr.minimum(ray.maxt, pi.t)
-            enters = self._box_hit(ray.o, ray.d, dr.gather(mi.Point3f, tree.lo, node), dr.gather(mi.Point3f, tree.hi, node), t_best_m)
-            leaf_body = dr.gather(mi.UInt32, tree.body, node)
-            query = enters & (leaf_body > 0)
-            pib = dr.switch(dr.select(query, leaf_body - 1, 0), targets, ray, time_s, t_best_m, query)
-            closer = query & pib.is_valid() & (pib.t < t_best_m)
-            pi = dr.select(closer, pib, pi)
-            body_index = dr.select(closer, leaf_body, body_index)
-            node = dr.select(enters, node + 1, dr.gather(mi.UInt32, tree.skip, node))
-            return node, pi, body_index
+        def on_leaf(state, body, ray_local, query):
+            pi, body_index = state
+            pib = dr.switch(body, targets, ray_local, query)
+            closer = query & pib.is_valid() & (pib.t < dr.minimum(ray.maxt, pi.t))
+            return dr.select(closer, pib, pi), dr.select(closer, body + 1, body_index)
 
-        node = dr.select(active, mi.UInt32(0), tree.size)
-        _, pi, body_index = dr.while_loop(
-            (node, pi, mi.UInt32(0)), lambda node, pi, body_index: node < tree.size, step, labels=("node", "pi", "body_index"), label="dopplertof bodies: closest"
+        return self._walk(
+            ray, time_s, active, (pi, mi.UInt32(0)), lambda state: dr.minimum(ray.maxt, state[0].t), on_leaf, lambda state: mi.Bool(False), "dopplertof bodies: closest"
         )  # fmt: skip
-        return pi, body_index
 
     def _tree_blocked(self, ray, time_s, blocked, active):
-        """Walk the tree: ``blocked`` (by the static scene) or blocked by a body."""
+        """``blocked`` (by the static scene) or blocked by a body."""
         import drjit as dr
-        import mitsuba as mi
 
-        tree, targets = self._tree, self._switch_targets("blocked")
+        targets = self._switch_targets("blocked")
 
-        def step(node, blocked):
-            enters = self._box_hit(ray.o, ray.d, dr.gather(mi.Point3f, tree.lo, node), dr.gather(mi.Point3f, tree.hi, node), ray.maxt)
-            leaf_body = dr.gather(mi.UInt32, tree.body, node)
-            query = enters & (leaf_body > 0)
-            blocked |= dr.switch(dr.select(query, leaf_body - 1, 0), targets, ray, time_s, query)
-            node = dr.select(enters, node + 1, dr.gather(mi.UInt32, tree.skip, node))
-            return node, blocked
+        def on_leaf(blocked, body, ray_local, query):
+            return blocked | dr.switch(body, targets, ray_local, query)
 
-        node = dr.select(active & ~blocked, mi.UInt32(0), tree.size)
-        _, blocked = dr.while_loop(
-            (node, blocked), lambda node, blocked: (node < tree.size) & ~blocked, step, labels=("node", "blocked"), label="dopplertof bodies: blocked"
-        )  # fmt: skip
-        return blocked
+        return self._walk(ray, time_s, active, blocked, lambda blocked: ray.maxt, on_leaf, lambda blocked: blocked, "dopplertof bodies: blocked")
 
     # ------------------------------------------------------------------------------------
     def select_pose(self, poses, body_index):
@@ -411,8 +595,9 @@ class DynamicScene:
         from .motion import Pose
 
         if isinstance(poses, LanePoses):
-            targets = self._switch_targets("pose64" if poses.precise else "pose")
-            return dr.switch(mi.UInt32(body_index), targets, poses.time_s)
+            body_index = mi.UInt32(body_index)
+            moving = body_index > 0
+            return self._pose_table().pose(dr.select(moving, body_index - 1, 0), poses.time_s, poses.precise, moving)
         out = _identity_pose(bool(poses) and type(poses[0].scale.x) is mi.Float64)
         for b, pose in enumerate(poses):
             m = body_index == (b + 1)
