@@ -40,7 +40,7 @@ from .motion import Motion
 
 # Above this many bodies ``traversal="auto"`` walks the tree of swept boxes; at or below,
 # the per-body loop is as fast or faster (benchmarks/README.md, "Many moving bodies").
-PER_BODY_MAX_BODIES = 4
+PER_BODY_MAX_BODIES = 16
 
 TRAVERSALS = ("auto", "per-body", "tree")
 
@@ -539,7 +539,8 @@ class DynamicScene:
         """Visit, in ``ray``'s order, each body whose swept box the ray enters before
         ``t_max_m(state)`` until ``done(state)``: ``on_leaf(state, b, ray_local, query)``
         returns the new state (``b``: 0-based body index, ``ray_local`` the ray in its
-        frame at the lane's time, ``query`` the lanes that visit a body)."""
+        frame at the lane's time up to ``ray.maxt``, as in the per-body loop: a shorter one
+        would drop hits tied with the closest so far; ``query`` the lanes that visit a body)."""
         import drjit as dr
         import mitsuba as mi
 
@@ -550,7 +551,7 @@ class DynamicScene:
             node, leaf_body = tree.walk_to_leaf(ray, octant, node, t_max_m(state), self._box_hit)
             query = leaf_body > 0
             body = dr.select(query, leaf_body - 1, 0)
-            ray_local = self._to_local(ray, poses.pose(body, time_s, False, query), t_max_m(state))
+            ray_local = self._to_local(ray, poses.pose(body, time_s, False, query), ray.maxt)
             state = on_leaf(state, body, ray_local, query)
             return dr.select(query, node + 1, node), state
 
@@ -568,7 +569,10 @@ class DynamicScene:
         def on_leaf(state, body, ray_local, query):
             pi, body_index = state
             pib = dr.switch(body, targets, ray_local, query)
-            closer = query & pib.is_valid() & (pib.t < dr.minimum(ray.maxt, pi.t))
+            # Ties (coplanar faces of overlapping bodies) go to the lower index, as in the
+            # per-body loop, so that both traversals give the same hits.
+            tie = (pib.t == pi.t) & (body_index > 0) & (body + 1 < body_index)
+            closer = query & pib.is_valid() & ((pib.t < dr.minimum(ray.maxt, pi.t)) | tie)
             return dr.select(closer, pib, pi), dr.select(closer, body + 1, body_index)
 
         return self._walk(
