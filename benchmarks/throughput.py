@@ -11,7 +11,13 @@ Scenes (Cornell-like box, point light at the camera):
 
 * ``static``  -- the short and tall boxes at rest;
 * ``2-moving`` -- the same boxes, each translating 15 mm over the 1.5 ms exposure;
-* ``8-moving`` -- eight small cubes, each with its own 15 mm translation.
+* ``8-moving`` -- eight small cubes, each with its own 15 mm translation;
+* ``32-moving``, ``128-moving`` -- 32 or 128 cubes on a jittered lattice filling the room
+  (some on the floor), each with its own 15 mm translation; their size shrinks as
+  1/sqrt(count) so that they show as much surface as the eight.
+
+``--traversal`` picks how our renders find the moving bodies a ray hits (``auto``, the
+default, ``per-body`` or ``tree``; see :mod:`dopplertof.scene`).
 
 Configurations per scene:
 
@@ -35,6 +41,7 @@ import sys
 import time
 
 import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets the libLLVM path)
+from dopplertof.scene import TRAVERSALS
 from dopplertof.scenes import WHITE
 
 import _common
@@ -50,7 +57,9 @@ CONFIG_LABELS = {
     "dtof1": "D-ToF 1 camera (antithetic, replay)",
     "dtof4": "D-ToF 4 cameras (antithetic, replay)",
 }
-SCENE_NAMES = ("static", "2-moving", "8-moving")
+SCENE_NAMES = ("static", "2-moving", "8-moving", "32-moving", "128-moving")
+# Eight directions of travel, cycled over the cubes.
+DIRECTIONS = [(0, 0, 1), (0, 0, -1), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (0.5**0.5, 0, 0.5**0.5), (-(0.5**0.5), 0, 0.5**0.5), (0.5**0.5, 0.5**0.5, 0)]
 
 
 # ----------------------------------------------------------------------------------------
@@ -65,19 +74,41 @@ def _bodies(name):
     ]
     if name in ("static", "2-moving"):
         return two
+    d = DISPLACEMENT_M
     if name == "8-moving":
-        d = DISPLACEMENT_M
-        s = 1.0 / math.sqrt(2.0)
-        directions = [(0, 0, 1), (0, 0, -1), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (s, 0, s), (-s, 0, s), (s, s, 0)]
         cubes = []
-        for i, direction in enumerate(directions):
+        for i, direction in enumerate(DIRECTIONS):
             x = -0.6 + 0.4 * (i % 4)
             z = -0.45 if i < 4 else 0.35
             y = 0.1 + 0.15 * (i % 3)  # some on the floor, some floating
             m0 = transform((x, y, z), rotate_y_deg=11.0 * i, scale=(0.1, 0.1, 0.1))
             cubes.append((f"cube-{i}", m0, tuple(d * c for c in direction)))
         return cubes
+    if name in ("32-moving", "128-moving"):
+        return _cube_lattice(int(name.split("-")[0]))
     raise ValueError(f"unknown scene {name!r}")
+
+
+def _cube_lattice(count):
+    """``count`` cubes (half side 0.1 m x sqrt(8/count)) at the points of a jittered
+    lattice in x in [-0.7, 0.7], y in [0, 1.5], z in [-0.7, 0.5] m, the lowest layer on the
+    floor; fixed seed."""
+    import numpy as np
+
+    rng = np.random.default_rng(count)
+    half = 0.1 * math.sqrt(8.0 / count)
+    nx = nz = round(count ** (1 / 3))
+    ny = -(-count // (nx * nz))
+    cubes = []
+    for i in range(count):
+        ix, iy, iz = i % nx, (i // nx) % ny, i // (nx * ny)
+        jitter = rng.uniform(-0.25, 0.25, 3) / np.array([nx, ny, nz])
+        x = -0.7 + 1.4 * ((ix + 0.5) / nx + jitter[0])
+        y = half if iy == 0 else 1.5 * ((iy + 0.5) / ny + jitter[1])
+        z = -0.7 + 1.2 * ((iz + 0.5) / nz + jitter[2])
+        m0 = transform((x, y, z), rotate_y_deg=float(rng.uniform(0, 90)), scale=(half, half, half))
+        cubes.append((f"cube-{i}", m0, tuple(DISPLACEMENT_M * c for c in DIRECTIONS[i % len(DIRECTIONS)])))
+    return cubes
 
 
 def scene_dicts(name, resolution, max_depth):
@@ -152,8 +183,9 @@ def bench_scene(name, args, log):
 
     t = time.perf_counter()
     ours_scene = dopplertof.load_scene(ours_dict)
+    ours_scene.traversal = args.traversal
     stock_scene = mi.load_dict(stock_dict)
-    log(f"[{name}] scenes loaded in {time.perf_counter() - t:.2f} s ({len(ours_scene.bodies)} moving bodies)")
+    log(f"[{name}] scenes loaded in {time.perf_counter() - t:.2f} s ({len(ours_scene.bodies)} moving bodies, tree traversal: {ours_scene.uses_tree()})")
     runners = make_runners(ours_scene, stock_scene, args.spp, args.max_depth)
     configs = [c for c in CONFIGS if c in args.configs]
 
@@ -184,7 +216,7 @@ def summarise(name, warm, times, cpu, args):
     for c, ts in times.items():
         med = statistics.median(ts)
         rows[c] = dict(
-            scene=name, config=c, label=CONFIG_LABELS[c], resolution=args.resolution, spp=args.spp,
+            scene=name, config=c, label=CONFIG_LABELS[c], traversal=args.traversal, resolution=args.resolution, spp=args.spp,
             max_depth=args.max_depth, reps=len(ts), paths=paths,
             median_s=med, min_s=min(ts), max_s=max(ts), warmup_s=warm[c],
             mpaths_per_s_median=paths / med / 1e6, mpaths_per_s_best=paths / min(ts) / 1e6,
@@ -206,7 +238,7 @@ def summarise(name, warm, times, cpu, args):
 
 
 CSV_FIELDS = [
-    "scene", "config", "label", "resolution", "spp", "max_depth", "reps", "paths",
+    "scene", "config", "label", "traversal", "resolution", "spp", "max_depth", "reps", "paths",
     "median_s", "min_s", "max_s", "warmup_s", "mpaths_per_s_median", "mpaths_per_s_best",
     "ratio_to_stock_median", "ratio_to_stock_best", "time_vs_dtof1_median",
     "cpu_median_s", "cpu_ratio_to_stock_median", "times_s",
@@ -245,6 +277,7 @@ def parse_args(argv=None):
     p.add_argument("--reps", type=int, default=None, help="timed repetitions per configuration (default 3; --full 5; quick 2)")
     p.add_argument("--scenes", nargs="+", choices=SCENE_NAMES, default=list(SCENE_NAMES))
     p.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
+    p.add_argument("--traversal", choices=TRAVERSALS, default="auto", help="how our renders find the moving bodies a ray hits (default auto)")
     p.add_argument("--full", action="store_true", help="256x256, 64 spp, 5 reps (about 9 min on 2 idle cores)")
     _common.add_output_options(p, "throughput", quick_help="tiny smoke-test run (32x32, 8 spp, 2 reps; < 40 s)", plot=False, quiet_help="only print the machine line and the table")
     args = p.parse_args(argv)
@@ -270,7 +303,7 @@ def parse_args(argv=None):
 def main(argv=None):
     args = parse_args(argv)
     settings = (
-        f"settings: {args.resolution}x{args.resolution}, spp {args.spp}, max_depth {args.max_depth}, "
+        f"settings: {args.resolution}x{args.resolution}, spp {args.spp}, max_depth {args.max_depth}, traversal {args.traversal}, "
         f"{args.reps} interleaved reps after 1 warm-up per config; timer time.perf_counter; load avg at start {_common.loadavg()}"
     )
     run = _common.Run("throughput", args, argv, settings)

@@ -7,10 +7,24 @@ Stock Mitsuba 3.9 has no motion blur (DESIGN §3.1), so a :class:`DynamicScene` 
   and the body's :class:`~dopplertof.motion.Motion`. Shapes that share a motion are
   grouped into one body.
 
-A ray with its own time is intersected with the static scene and, mapped into each body's
-frame by ``M_b(t)⁻¹``, with each body's scene (skipped where it misses the body's swept
-bounding box); the closest hit wins and is mapped back to the world. ``wi``, ``t`` and
-``uv`` are invariant under rigid motion, so BSDFs work unchanged.
+A ray with its own time is intersected with the static scene and, mapped into a body's
+frame by ``M_b(t)⁻¹``, with the scenes of the bodies whose swept bounding boxes (over the
+exposure window) it enters; the closest hit wins and is mapped back to the world. ``wi``,
+``t`` and ``uv`` are invariant under rigid motion, so BSDFs work unchanged.
+
+Two traversals of the bodies give the same hits (DESIGN §5.3):
+
+==============  ==========================================================================
+``per-body``    every body in a Python loop: K masked sub-scene queries and K poses per
+                ray, cheapest for a few bodies
+``tree``        a bounding-volume tree over the swept boxes, walked per lane in a Dr.Jit
+                loop (stackless: depth-first order with skip links); a lane queries, through
+                one ``dr.switch``, only the bodies whose boxes it enters before its closest
+                hit so far, and evaluates only those bodies' poses: O(log K) per ray
+==============  ==========================================================================
+
+``DynamicScene.traversal`` picks one (``"auto"``: ``tree`` above
+:data:`PER_BODY_MAX_BODIES` bodies).
 
 Emitters must be static (they live in ``static``); a moving shape carrying an area
 emitter is rejected when the scene is built.
@@ -23,6 +37,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .motion import Motion
+
+# Above this many bodies ``traversal="auto"`` walks the tree of swept boxes; at or below,
+# the per-body loop is as fast or faster (benchmarks/README.md, "Many moving bodies").
+PER_BODY_MAX_BODIES = 16
+
+TRAVERSALS = ("auto", "per-body", "tree")
 
 
 class SceneError(ValueError):
@@ -39,6 +59,8 @@ class Body:
     bounds_local: tuple  # (min xyz, max xyz) numpy arrays
     swept_min: object = None  # mi.Point3f (opaque), world-space AABB over the motion
     swept_max: object = None
+    swept_box: tuple = None  # the same AABB as (min xyz, max xyz) numpy float64 arrays
+    swept_times: tuple = None  # the times (t0, t1) s it covers, clamped into the key range
 
 
 @dataclass
@@ -60,46 +82,331 @@ class Hit:
     plane_local: object
 
 
+class LanePoses:
+    """Poses of every body at per-lane times, for the tree traversal: nothing is evaluated
+    here; :meth:`DynamicScene.select_pose` evaluates, per lane, the one body it asks for.
+
+    ========  ==============  ===================================================
+    time_s    mi.Float64      per-lane times (s)
+    precise   bool            Float64 components (``mi.Vector3d``), else Float32
+    ========  ==============  ===================================================
+    """
+
+    __slots__ = ("time_s", "precise")  # a plain object, so Dr.Jit never takes it for loop state
+
+    def __init__(self, time_s, precise: bool):
+        self.time_s, self.precise = time_s, precise
+
+
+@dataclass
+class BoxTree:
+    """Bounding-volume tree over the bodies' swept boxes as flat Dr.Jit arrays, rebuilt as
+    data when the window changes (no recompile).
+
+    Its nodes are stored in depth-first order once per ray octant (the signs of the ray's
+    direction), children nearest-first for rays of that octant: a walk visits node
+    ``i + 1`` (the near child) where the ray enters node ``i``'s box, else ``skip[i]``, so
+    it needs no stack and meets the boxes roughly in the order the ray does.
+
+    =========  ===========  ==============================================================
+    lo, hi     mi.Float     box of node ``i`` of octant ``o`` at ``3 (o·size + i)`` (m)
+    body       mi.UInt32    ``b + 1`` at the leaf holding ``bodies[b]``, 0 at inner nodes
+    skip       mi.UInt32    the node after node ``i``'s subtree (``size`` after the last)
+    size       int          nodes per octant, ``2K − 1``
+    =========  ===========  ==============================================================
+    """
+
+    lo: object
+    hi: object
+    body: object
+    skip: object
+    size: int
+
+    @classmethod
+    def build(cls, box_min, box_max):
+        """Tree over boxes ``box_min``, ``box_max`` ((K, 3) arrays, m): median split of the
+        box centres along their widest axis, one box per leaf."""
+        import mitsuba as mi
+
+        centres = 0.5 * (box_min + box_max)
+        lo, hi, body, skip = [], [], [], []
+
+        def add(members, octant):
+            node = len(body)
+            lo.append(box_min[members].min(axis=0))
+            hi.append(box_max[members].max(axis=0))
+            body.append(members[0] + 1 if len(members) == 1 else 0)
+            skip.append(None)
+            if len(members) > 1:
+                spread = centres[members]
+                axis = int(np.argmax(spread.max(axis=0) - spread.min(axis=0)))
+                ordered = members[np.argsort(spread[:, axis], kind="stable")]
+                half = len(ordered) // 2
+                near, far = ordered[:half], ordered[half:]
+                if octant >> axis & 1:  # the ray runs towards −axis: the high half is nearer
+                    near, far = far, near
+                add(near, octant)
+                add(far, octant)
+            skip[node] = len(body)
+
+        size = 2 * len(box_min) - 1
+        for octant in range(8):
+            first = len(body)
+            add(np.arange(len(box_min)), octant)
+            skip[first:] = [k - first for k in skip[first:]]
+        flat = lambda rows: mi.Float(np.asarray(rows, dtype=np.float32).ravel())  # noqa: E731
+        return cls(lo=flat(lo), hi=flat(hi), body=mi.UInt32(np.asarray(body, np.uint32)), skip=mi.UInt32(np.asarray(skip, np.uint32)), size=size)
+
+    def walk_to_leaf(self, ray, octant, node, t_max_m, box_hit):
+        """From ``node`` on (in the order of ``octant``), the first leaf whose box ``ray``
+        enters before ``t_max_m``: (node, body index b + 1); node = ``size`` where none."""
+        import drjit as dr
+        import mitsuba as mi
+
+        base = octant * self.size
+
+        def step(node, leaf_body):
+            at = base + node
+            enters = box_hit(ray.o, ray.d, dr.gather(mi.Point3f, self.lo, at), dr.gather(mi.Point3f, self.hi, at), t_max_m)
+            leaf_body = dr.select(enters, dr.gather(mi.UInt32, self.body, at), 0)
+            node = dr.select(leaf_body > 0, node, dr.select(enters, node + 1, dr.gather(mi.UInt32, self.skip, at)))
+            return node, leaf_body
+
+        return dr.while_loop(
+            (node, mi.UInt32(0)), lambda node, leaf_body: (node < self.size) & (leaf_body == 0), step, labels=("node", "leaf_body"), label="dopplertof bodies: walk"
+        )  # fmt: skip
+
+
+class PoseTable:
+    """Pose of body ``b`` (per lane) at per-lane times, gathered from one table per motion
+    model, so a kernel holds one pose evaluation whatever the number of bodies.
+
+    The arithmetic is that of :meth:`Keyframed.pose <dopplertof.motion.Keyframed.pose>` and
+    :meth:`Parametric.pose <dopplertof.motion.Parametric.pose>`, with the motion's arrays
+    concatenated over the bodies (the results are bit-identical: tests/test_many_bodies.py);
+    other motion models go through ``dr.switch`` to their own ``pose``.
+
+    ==========  =====================================================================
+    motions     list of :class:`~dopplertof.motion.Motion`, one per body
+    ==========  =====================================================================
+    """
+
+    KEYFRAMED_FIELDS = ("t", "b0", "b1", "b2", "db0", "db1", "db2", "s0", "s1", "s2", "ds0", "ds1", "ds2", "q0", "q1", "q2", "q3", "axis0", "axis1", "axis2", "angle", "duration")
+    PARAMETRIC_FIELDS = ("v", "axis", "rate", "pivot", "b0", "q0", "s0")
+
+    def __init__(self, motions):
+        import mitsuba as mi
+
+        from .motion import Keyframed, Parametric
+
+        self.motions = list(motions)
+        models = [Keyframed if type(m) is Keyframed else Parametric if type(m) is Parametric else None for m in self.motions]
+        rows = {model: [b for b, m in enumerate(models) if m is model] for model in (Keyframed, Parametric, None)}
+        self.keyframed, self.parametric, self.other = rows[Keyframed], rows[Parametric], rows[None]
+        model_code = np.array([0 if m is Keyframed else 1 if m is Parametric else 2 for m in models], np.uint32)
+        row = np.zeros(len(models), np.uint32)
+        for members in rows.values():
+            row[members] = np.arange(len(members))
+        self.model = _opaque(mi.UInt32(model_code))
+        self.row = _opaque(mi.UInt32(row))
+
+        def cat(bodies, name, length):
+            return _opaque(mi.Float64(np.concatenate([np.asarray(self.motions[b]._data[name])[: length(b)] for b in bodies])))
+
+        if self.keyframed:
+            counts = np.array([len(self.motions[b].times) for b in self.keyframed], np.uint32)
+            self.key_offset = _opaque(mi.UInt32(np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.uint32)))
+            self.key_count = _opaque(mi.UInt32(counts))
+            # Search steps of Keyframed.pose for the longest key list; more steps leave a
+            # converged search where it is.
+            self.search_steps = int(np.floor(np.log2(counts.max() - 2))) + 1 if counts.max() > 2 else 0
+            self.keys = {f: cat(self.keyframed, f, lambda b: len(self.motions[b].times)) for f in self.KEYFRAMED_FIELDS}
+        if self.parametric:
+            self.params = {f: cat(self.parametric, f, lambda b, f=f: len(self.motions[b]._data[f])) for f in self.PARAMETRIC_FIELDS}
+
+    def pose(self, body, time_s, precise: bool, active=True):
+        """Pose of ``bodies[body]`` (mi.UInt32 per lane) at ``time_s`` (mi.Float64, s); the
+        identity where not ``active``."""
+        import drjit as dr
+        import mitsuba as mi
+
+        from .motion import Pose
+
+        active = mi.Bool(active)
+        model = dr.gather(mi.UInt32, self.model, body, active)
+        row = dr.gather(mi.UInt32, self.row, body, active)
+        out = _identity_pose(precise)
+        parts = []
+        if self.keyframed:
+            parts.append((active & (model == 0), self._keyframed(row, time_s, precise, active & (model == 0))))
+        if self.parametric:
+            parts.append((active & (model == 1), self._parametric(row, time_s, precise, active & (model == 1))))
+        if self.other:
+            targets = [lambda t, m=self.motions[b]: m.pose(t, precise) for b in self.other]
+            parts.append((active & (model == 2), dr.switch(row, targets, mi.Float64(time_s), active & (model == 2))))
+        for mask, pose in parts:
+            out = Pose(*(tuple(dr.select(mask, a, b) for a, b in zip(x, y)) if isinstance(x, tuple) else dr.select(mask, x, y) for x, y in zip(_fields(pose), _fields(out))))
+        return out
+
+    def _keyframed(self, row, time_s, precise, active):
+        """Keyframed.pose over the concatenated keys (see there)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        from .motion import Pose, _quat_mul_lanes
+
+        d = self.keys
+        first = dr.gather(mi.UInt32, self.key_offset, row, active)
+        n = dr.gather(mi.UInt32, self.key_count, row, active)
+        t = mi.Float64(time_s)
+        searching = active & (n > 1)
+        start, end = first + 1, first + dr.maximum(n, 2) - 1
+        for _ in range(self.search_steps):  # dr.binary_search with per-lane bounds
+            middle = (start + end) >> 1
+            below = dr.gather(mi.Float64, d["t"], middle, searching) <= t
+            start = dr.select(below, dr.minimum(middle + 1, end), start)
+            end = dr.select(below, end, middle)
+        idx = dr.select(n > 1, start - 1, first)
+        t0 = dr.gather(mi.Float64, d["t"], idx, active)
+        duration = dr.gather(mi.Float64, d["duration"], idx, active)
+        inside = (t >= dr.gather(mi.Float64, d["t"], first, active)) & (t < dr.gather(mi.Float64, d["t"], first + n - 1, active))
+        alpha64 = dr.clip((t - t0) / duration, 0.0, 1.0)
+        alpha64 = dr.select(n > 1, alpha64, mi.Float64(0.0))
+        F = mi.Float64 if precise else mi.Float
+        V = mi.Vector3d if precise else mi.Vector3f
+        alpha = F(alpha64)
+        rate = F(dr.select(inside, 1.0 / duration, 0.0))
+
+        def g(name):
+            return F(dr.gather(mi.Float64, d[name], idx, active))
+
+        db = V(g("db0"), g("db1"), g("db2"))
+        ds = V(g("ds0"), g("ds1"), g("ds2"))
+        translation = V(g("b0"), g("b1"), g("b2")) + alpha * db
+        scale = V(g("s0"), g("s1"), g("s2")) + alpha * ds
+        axis = V(g("axis0"), g("axis1"), g("axis2"))
+        angle = g("angle")
+        half = 0.5 * alpha * angle
+        sh, ch = dr.sincos(half)
+        q_rel = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
+        q = _quat_mul_lanes(q_rel, (g("q0"), g("q1"), g("q2"), g("q3")))
+        return Pose(q=q, scale=scale, translation=translation, omega=axis * (angle * rate), translation_rate=db * rate, scale_rate=ds * rate)
+
+    def _parametric(self, row, time_s, precise, active):
+        """Parametric.pose over the concatenated parameters (see there)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        from .motion import Pose, _quat_mul_lanes, _rotate
+
+        F = mi.Float64 if precise else mi.Float
+        V = mi.Vector3d if precise else mi.Vector3f
+        d = self.params
+
+        def at(name, k, width):
+            return dr.gather(mi.Float64, d[name], row * width + k, active)
+
+        def vec(name):
+            return V(F(at(name, 0, 3)), F(at(name, 1, 3)), F(at(name, 2, 3)))
+
+        t64 = mi.Float64(time_s)
+        rate = F(at("rate", 0, 1))
+        axis = vec("axis")
+        pivot = vec("pivot")
+        v = vec("v")
+        sh, ch = dr.sincos(F(0.5 * t64 * at("rate", 0, 1)))
+        q_rot = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
+        q0 = tuple(F(at("q0", k, 4)) for k in range(4))
+        t = F(t64)
+        translation = pivot + v * t + _rotate(q_rot, vec("b0") - pivot)
+        omega = axis * rate
+        return Pose(
+            q=_quat_mul_lanes(q_rot, q0),
+            scale=vec("s0"),
+            translation=translation,
+            omega=omega,
+            translation_rate=v + dr.cross(omega, translation - pivot - v * t),
+            scale_rate=V(0, 0, 0),
+        )
+
+
+def _fields(pose):
+    return (pose.q, pose.scale, pose.translation, pose.omega, pose.translation_rate, pose.scale_rate)
+
+
+def _opaque(array):
+    import drjit as dr
+
+    dr.make_opaque(array)
+    return array
+
+
 @dataclass
 class DynamicScene:
-    """Static scene + moving bodies. Build with :func:`dopplertof.load_scene`."""
+    """Static scene + moving bodies. Build with :func:`dopplertof.load_scene`.
+
+    ============  ========  =============================================================
+    static        mi.Scene  sensor, emitters and static shapes
+    bodies        list      :class:`Body` per rigid motion
+    traversal     str       how a ray finds the bodies it hits (module docstring):
+                            ``"auto"`` (default), ``"per-body"`` or ``"tree"``
+    ============  ========  =============================================================
+    """
 
     static: object  # mi.Scene
     bodies: list = field(default_factory=list)
     integrator_params: dict = field(default_factory=dict)
     spp_hint: int | None = None
     source: str = "<dict>"
+    traversal: str = "auto"
 
     def __post_init__(self):
-        for body in self.bodies:
-            self._prepare_body(body)
+        if self.traversal not in TRAVERSALS:
+            raise ValueError(f"traversal must be one of {TRAVERSALS}, got {self.traversal!r}")
+        self._tree = None
+        self._poses = None  # PoseTable of the bodies' motions, built on first use
+        self._targets = {}  # dr.switch targets per query, traced once per body list
+        self._fit_bounds(None, None)
 
     # ------------------------------------------------------------------------------------
-    def _prepare_body(self, body: Body, t0: float | None = None, t1: float | None = None):
-        """Swept bounds of ``body`` over the times [t0, t1] s; without a window, over its
-        whole key range ([0, 1] s for an unbounded motion)."""
+    def _fit_bounds(self, t0: float | None, t1: float | None):
+        """Swept bounds of every body over the times [t0, t1] s (without a window, over
+        each body's key range, [0, 1] s for an unbounded motion), and the tree over them."""
         import drjit as dr
         import mitsuba as mi
 
-        lo, hi = body.motion.time_range()
-        if t0 is None or t1 is None:
-            t0 = lo if np.isfinite(lo) else 0.0
-            t1 = hi if np.isfinite(hi) else 1.0
-        # Outside [lo, hi] the pose is held: over the window the body takes the poses of
-        # the window clamped into that range (a single end pose where they do not overlap).
-        a, b = np.clip([t0, t1], lo, hi)
-        smin, smax = body.motion.swept_bounds(*body.bounds_local, float(a), float(b))
-        body.swept_min = mi.Point3f(*[float(v) for v in smin])
-        body.swept_max = mi.Point3f(*[float(v) for v in smax])
-        dr.make_opaque(body.swept_min, body.swept_max)
+        for body in self.bodies:
+            lo, hi = body.motion.time_range()
+            a = t0 if t0 is not None else (lo if np.isfinite(lo) else 0.0)
+            b = t1 if t1 is not None else (hi if np.isfinite(hi) else 1.0)
+            # Outside [lo, hi] the pose is held: over the window the body takes the poses of
+            # the window clamped into that range (a single end pose where they do not overlap).
+            times = tuple(float(x) for x in np.clip([a, b], lo, hi))
+            if times == body.swept_times:
+                continue  # every render sets its window: ~20 ms a body of host-side sweeps saved
+            smin, smax = body.motion.swept_bounds(*body.bounds_local, *times)
+            body.swept_times = times
+            body.swept_box = (smin, smax)
+            body.swept_min = mi.Point3f(*[float(v) for v in smin])
+            body.swept_max = mi.Point3f(*[float(v) for v in smax])
+            dr.make_opaque(body.swept_min, body.swept_max)
+        if self.bodies:
+            self._tree = BoxTree.build(np.array([b.swept_box[0] for b in self.bodies]), np.array([b.swept_box[1] for b in self.bodies]))
 
     def set_time_window(self, t0: float, t1: float):
         """Fit every body's swept bounds to the times [t0, t1] s (the exposure): rays
         whose times lie outside the window may then miss bodies that are there."""
         if not (np.isfinite(t0) and np.isfinite(t1) and t0 <= t1):
             raise ValueError(f"time window must be finite with t0 <= t1, got [{t0!r}, {t1!r}] s")
-        for body in self.bodies:
-            self._prepare_body(body, t0, t1)
+        self._fit_bounds(t0, t1)
+
+    def uses_tree(self) -> bool:
+        """Whether ray queries walk the tree of swept boxes (see ``traversal``)."""
+        if self.traversal not in TRAVERSALS:
+            raise ValueError(f"traversal must be one of {TRAVERSALS}, got {self.traversal!r}")
+        if not self.bodies or self.traversal == "per-body":
+            return False
+        return self.traversal == "tree" or len(self.bodies) > PER_BODY_MAX_BODIES
 
     @property
     def sensor(self):
@@ -118,7 +425,12 @@ class DynamicScene:
     # Per-lane queries
 
     def poses(self, time_s, precise: bool = False):
-        """Pose of every body at per-lane times ``time_s`` (mi.Float64, s)."""
+        """Pose of every body at per-lane times ``time_s`` (mi.Float64, s): a list with the
+        per-body traversal, a :class:`LanePoses` (evaluated on demand) with the tree."""
+        import mitsuba as mi
+
+        if self.uses_tree():
+            return LanePoses(mi.Float64(time_s), precise)
         return [body.motion.pose(time_s, precise) for body in self.bodies]
 
     @staticmethod
@@ -134,6 +446,13 @@ class DynamicScene:
         # NaNs (0 * inf on a slab boundary) must not reject: treat them as hits.
         return ~((t_near > t_far * 1.0000002) | (t_far < 0) | (t_near > maxt)) | dr.isnan(t_near) | dr.isnan(t_far)
 
+    @staticmethod
+    def _to_local(ray, pose, maxt):
+        """``ray`` in the frame of a body at ``pose``, up to ``maxt``."""
+        import mitsuba as mi
+
+        return mi.Ray3f(pose.point_to_local(ray.o), pose.vector_to_local(ray.d), maxt, ray.time, ray.wavelengths)
+
     def intersect(self, ray, time_s, active=True, poses=None, coherent=False):
         """Closest hit of world-space ``ray`` at per-lane times; returns a :class:`Hit`."""
         import drjit as dr
@@ -145,14 +464,20 @@ class DynamicScene:
         body_index = mi.UInt32(0)
         if self.bodies:
             poses = poses if poses is not None else self.poses(time_s)
-            for b, (body, pose) in enumerate(zip(self.bodies, poses)):
-                ray_local = mi.Ray3f(pose.point_to_local(ray.o), pose.vector_to_local(ray.d), ray.maxt, ray.time, ray.wavelengths)
-                box = self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, dr.minimum(ray.maxt, pi.t))
-                pib = body.scene.ray_intersect_preliminary(ray_local, coherent=False, active=active & box)
-                closer = active & box & pib.is_valid() & (pib.t < pi.t)
-                pi = dr.select(closer, pib, pi)
-                ray_hit = dr.select(closer, ray_local, ray_hit)
-                body_index = dr.select(closer, mi.UInt32(b + 1), body_index)
+            if isinstance(poses, LanePoses):
+                pi, body_index = self._tree_closest(ray, poses.time_s, pi, active)
+                pose = self.select_pose(poses, body_index)
+                ray_hit = dr.select(body_index > 0, self._to_local(ray, pose, ray.maxt), ray_hit)
+            else:
+                for b, (body, pose) in enumerate(zip(self.bodies, poses)):
+                    ray_local = self._to_local(ray, pose, ray.maxt)
+                    box = self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, dr.minimum(ray.maxt, pi.t))
+                    pib = body.scene.ray_intersect_preliminary(ray_local, coherent=False, active=active & box)
+                    closer = active & box & pib.is_valid() & (pib.t < pi.t)
+                    pi = dr.select(closer, pib, pi)
+                    ray_hit = dr.select(closer, ray_local, ray_hit)
+                    body_index = dr.select(closer, mi.UInt32(b + 1), body_index)
+                pose = self.select_pose(poses, body_index)
         si = pi.compute_surface_interaction(ray_hit, mi.RayFlags.All, active)
         p_local, n_local = mi.Point3f(si.p), mi.Normal3f(si.n)
         is_mesh = active & si.is_valid() & si.shape.is_mesh()
@@ -160,7 +485,6 @@ class DynamicScene:
         first_vertex = mesh.vertex_position(mesh.face_indices(si.prim_index, is_mesh).x, is_mesh)
         plane_local = dr.select(is_mesh, mi.Point3f(first_vertex), p_local)
         if self.bodies:
-            pose = self.select_pose(poses, body_index)
             si.p = pose.point_to_world(si.p)
             si.n = pose.normal_to_world(si.n)
             si.sh_frame = mi.Frame3f(
@@ -180,12 +504,93 @@ class DynamicScene:
         blocked = self.static.ray_test(ray, active)
         if self.bodies:
             poses = poses if poses is not None else self.poses(time_s)
+            if isinstance(poses, LanePoses):
+                return self._tree_blocked(ray, poses.time_s, blocked, active)
             for body, pose in zip(self.bodies, poses):
                 box = self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, ray.maxt)
-                ray_local = mi.Ray3f(pose.point_to_local(ray.o), pose.vector_to_local(ray.d), ray.maxt, ray.time, ray.wavelengths)
-                blocked |= body.scene.ray_test(ray_local, active & box & ~blocked)
+                blocked |= body.scene.ray_test(self._to_local(ray, pose, ray.maxt), active & box & ~blocked)
         return blocked
 
+    # ------------------------------------------------------------------------------------
+    # Tree traversal
+
+    def _pose_table(self) -> PoseTable:
+        motions = [b.motion for b in self.bodies]
+        if self._poses is None or self._poses.motions != motions:
+            self._poses = PoseTable(motions)
+        return self._poses
+
+    def _switch_targets(self, query: str):
+        """One function per body for ``dr.switch``, traced once per body list:
+        ``"closest"``: (ray_local, active) -> the body's preliminary intersection;
+        ``"blocked"``: (ray_local, active) -> whether the body blocks the ray."""
+        scenes = [b.scene for b in self.bodies]
+        key = (query, tuple(map(id, scenes)))
+        if key not in self._targets:
+            if query == "closest":
+                targets = [lambda ray, active, s=s: s.ray_intersect_preliminary(ray, coherent=False, active=active) for s in scenes]
+            else:
+                targets = [lambda ray, active, s=s: s.ray_test(ray, active) for s in scenes]
+            self._targets = {k: v for k, v in self._targets.items() if k[1] == key[1]}  # those of an old body list go
+            self._targets[key] = targets
+        return self._targets[key]
+
+    def _walk(self, ray, time_s, active, state, t_max_m, on_leaf, done, label):
+        """Visit, in ``ray``'s order, each body whose swept box the ray enters before
+        ``t_max_m(state)`` until ``done(state)``: ``on_leaf(state, b, ray_local, query)``
+        returns the new state (``b``: 0-based body index, ``ray_local`` the ray in its
+        frame at the lane's time up to ``ray.maxt``, as in the per-body loop: a shorter one
+        would drop hits tied with the closest so far; ``query`` the lanes that visit a body)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        tree, poses = self._tree, self._pose_table()
+        octant = mi.UInt32(ray.d.x < 0) | (mi.UInt32(ray.d.y < 0) << 1) | (mi.UInt32(ray.d.z < 0) << 2)
+
+        def step(node, state):
+            node, leaf_body = tree.walk_to_leaf(ray, octant, node, t_max_m(state), self._box_hit)
+            query = leaf_body > 0
+            body = dr.select(query, leaf_body - 1, 0)
+            ray_local = self._to_local(ray, poses.pose(body, time_s, False, query), ray.maxt)
+            state = on_leaf(state, body, ray_local, query)
+            return dr.select(query, node + 1, node), state
+
+        node = dr.select(active & ~done(state), mi.UInt32(0), tree.size)
+        return dr.while_loop((node, state), lambda node, state: (node < tree.size) & ~done(state), step, labels=("node", "state"), label=label)[1]
+
+    def _tree_closest(self, ray, time_s, pi, active):
+        """The closest of ``pi`` (the static scene's preliminary intersection) and the
+        bodies' hits, and the body index (0: static)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        targets = self._switch_targets("closest")
+
+        def on_leaf(state, body, ray_local, query):
+            pi, body_index = state
+            pib = dr.switch(body, targets, ray_local, query)
+            # Ties (coplanar faces of overlapping bodies) go to the lower index, as in the
+            # per-body loop, so that both traversals give the same hits.
+            tie = (pib.t == pi.t) & (body_index > 0) & (body + 1 < body_index)
+            closer = query & pib.is_valid() & ((pib.t < dr.minimum(ray.maxt, pi.t)) | tie)
+            return dr.select(closer, pib, pi), dr.select(closer, body + 1, body_index)
+
+        return self._walk(
+            ray, time_s, active, (pi, mi.UInt32(0)), lambda state: dr.minimum(ray.maxt, state[0].t), on_leaf, lambda state: mi.Bool(False), "dopplertof bodies: closest"
+        )  # fmt: skip
+
+    def _tree_blocked(self, ray, time_s, blocked, active):
+        """``blocked`` (by the static scene) or blocked by a body."""
+        import drjit as dr
+
+        targets = self._switch_targets("blocked")
+
+        def on_leaf(blocked, body, ray_local, query):
+            return blocked | dr.switch(body, targets, ray_local, query)
+
+        return self._walk(ray, time_s, active, blocked, lambda blocked: ray.maxt, on_leaf, lambda blocked: blocked, "dopplertof bodies: blocked")
+
+    # ------------------------------------------------------------------------------------
     def select_pose(self, poses, body_index):
         """Per-lane pose of the body ``body_index`` (identity for 0 = static)."""
         import drjit as dr
@@ -193,9 +598,11 @@ class DynamicScene:
 
         from .motion import Pose
 
-        F = type(poses[0].scale.x) if poses else mi.Float
-        V = mi.Vector3d if F is mi.Float64 else mi.Vector3f
-        out = Pose(q=(F(1), F(0), F(0), F(0)), scale=V(1), translation=V(0), omega=V(0), translation_rate=V(0), scale_rate=V(0))
+        if isinstance(poses, LanePoses):
+            body_index = mi.UInt32(body_index)
+            moving = body_index > 0
+            return self._pose_table().pose(dr.select(moving, body_index - 1, 0), poses.time_s, poses.precise, moving)
+        out = _identity_pose(bool(poses) and type(poses[0].scale.x) is mi.Float64)
         for b, pose in enumerate(poses):
             m = body_index == (b + 1)
             out = Pose(
@@ -228,3 +635,13 @@ class DynamicScene:
             return mi.Vector3f(0)
         poses = poses if poses is not None else self.poses(time_s)
         return self.select_pose(poses, body_index).velocity(p_world)
+
+
+def _identity_pose(precise: bool):
+    """The pose of static geometry (Float64 components with ``precise``)."""
+    import mitsuba as mi
+
+    from .motion import Pose
+
+    F, V = (mi.Float64, mi.Vector3d) if precise else (mi.Float, mi.Vector3f)
+    return Pose(q=(F(1), F(0), F(0), F(0)), scale=V(1), translation=V(0), omega=V(0), translation_rate=V(0), scale_rate=V(0))
