@@ -98,9 +98,9 @@ def header_for(cfg: dict, samples: int, seed: int, shard_size: int, variant: str
     """The manifest's fixed part: identity, schema, record documentation."""
     from .sample import versions
 
-    fields, missing = schema.available_fields()
     res = cfg["render"]["resolution"]
     n_cameras = len(cfg["camera"]["heterodyne"])
+    fields, missing = schema.available_fields(n_cameras)
     return {
         "format": schema.FORMAT_NAME,
         "format_version": schema.FORMAT_VERSION,

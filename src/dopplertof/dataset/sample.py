@@ -180,11 +180,12 @@ def render_record(record: dict, fields=schema.FIELD_NAMES) -> tuple[dict, dict, 
         "depth": full.depth,
         "velocity": full.velocity,
     }
-    for name in ("velocity_3d", "flow", "instance_id"):
+    covariance = {"measurement_covariance": full, "measurements_direct_covariance": direct}
+    for name in ("velocity_3d", "flow", "instance_id", *covariance):
         if name in fields:
-            value = getattr(full, name, None)
+            value = covariance[name].maps.get("measurement_covariance") if name in covariance else getattr(full, name, None)
             if value is None:
-                raise ValueError(f"field {name!r} needs RenderResult.{name}, which this dopplertof's renderer does not provide")
+                raise ValueError(f"field {name!r} is not rendered for this capture set (a camera covariance needs 2 to 8 cameras); remove it from the config's fields")
             out[name] = value
     if "moving_mask" in fields:
         moving = np.array([not b.motion.is_static() for b in scene.bodies] + [False], dtype=bool)

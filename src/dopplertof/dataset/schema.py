@@ -36,6 +36,10 @@ FIELDS: tuple[Field, ...] = (
     Field("measurements_direct", "float32", ("C", "H", "W"), "radiance × g1/2",
           "the same cameras, single-bounce (direct) light only: max_depth = 2"),
     Field("measurements_direct_stderr", "float32", ("C", "H", "W"), "radiance × g1/2", "Monte Carlo standard error of `measurements_direct`"),
+    Field("measurement_covariance", "float32", ("C", "C", "H", "W"), "(radiance × g1/2)²",
+          "covariance of the Monte Carlo errors of `measurements` between cameras (they share paths; 2 to 8 cameras)", needs="measurement_covariance"),
+    Field("measurements_direct_covariance", "float32", ("C", "C", "H", "W"), "(radiance × g1/2)²",
+          "the same for `measurements_direct`", needs="measurement_covariance"),
     Field("raw", "uint16", ("C", 2, "H", "W"), "DN",
           "noisy raw taps A, B of a 2-tap pixel per camera (dopplertof.sensor: shot, read noise, ambient, full well, ADC); "
           "(A − B) · gain_e_per_dn / (electrons_per_unit · T) is the measurement (record: sensor)"),
@@ -71,12 +75,16 @@ def resolve(shape: tuple, cameras: int, height: int, width: int) -> list:
     return [sizes.get(s, s) for s in shape]
 
 
-def available_fields() -> tuple[list[str], list[str]]:
+def available_fields(n_cameras: int) -> tuple[list[str], list[str]]:
     """(fields written, fields missing): those whose ``needs`` the renderer does not output
-    (:data:`dopplertof.outputs.OUTPUTS`) are missing."""
+    (:data:`dopplertof.outputs.OUTPUTS`, and the camera covariance for 2 to
+    ``MAX_COVARIANCE_CAMERAS`` cameras) are missing."""
     from ..outputs import OUTPUTS
+    from ..render import MAX_COVARIANCE_CAMERAS
 
     outputs = {o.name for o in OUTPUTS}
+    if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:
+        outputs.add("measurement_covariance")
     present = [f.name for f in FIELDS if f.needs is None or f.needs in outputs]
     return present, [f.name for f in FIELDS if f.name not in present]
 
