@@ -109,6 +109,13 @@ def test_render_animate_and_plugin_build_the_same_settings(tmp_path, correlation
     assert rendered["cameras"] == plugin.as_dict()["cameras"]
 
 
+def test_mi_render_of_a_dynamic_scene_names_dopplertof_render():
+    scene = dt.scenes.build("cornell-box", resolution=4)
+    with pytest.raises(TypeError, match=r"use dopplertof.render\(scene\)"):
+        mi.render(scene)
+    assert np.array(mi.render(scene.static, integrator=mi.load_dict({"type": "path"}), spp=1)).shape == (4, 4, 3)
+
+
 # ------------------------------------------------------------------------------ refusals
 
 

@@ -204,14 +204,38 @@ def _on_variant_change(old_variant, new_variant):
 
 
 def register_on_variant_change() -> None:
-    """Register now if a variant is active, and again whenever the variant changes.
+    """Register now if a variant is active, and again whenever the variant changes, and
+    make ``mi.render`` name :func:`dopplertof.render` when it is given a dynamic scene.
 
     Sets no variant itself.
     """
     import mitsuba as mi
 
     mi.detail.add_variant_callback(_on_variant_change)
+    if not getattr(mi.render, "_dopplertof_checked", False):
+        mi.render = _render_refusing_dynamic_scenes(mi.render)
     register()
+
+
+def _render_refusing_dynamic_scenes(stock_render):
+    """``mi.render`` unchanged, except that a :class:`~dopplertof.scene.DynamicScene` (which
+    stock Mitsuba cannot trace: its bodies move) is a TypeError saying what to call instead
+    of Mitsuba's bare ``assert isinstance(scene, mi.Scene)``."""
+    import functools
+
+    @functools.wraps(stock_render)
+    def render(scene, *args, **kwargs):
+        from .scene import DynamicScene
+
+        if isinstance(scene, DynamicScene):
+            raise TypeError(
+                "mi.render cannot render a dopplertof scene (its bodies move at per-path times): "
+                "use dopplertof.render(scene), or mi.render(scene.static) for the static part with stock Mitsuba"
+            )
+        return stock_render(scene, *args, **kwargs)
+
+    render._dopplertof_checked = True
+    return render
 
 
 class _AfterMitsubaImport(importlib.abc.MetaPathFinder):
