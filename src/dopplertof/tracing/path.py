@@ -227,7 +227,9 @@ def ground_truth(scene, hit, ray_d, depth_m, time_s, poses):
     v = scene.surface_velocity(si.p, hit.body, time_s, poses=poses) if scene.bodies else mi.Vector3f(0)
     ray_fixed = dr.dot(si.n, v) / dr.dot(si.n, ray_d)
     speed = dr.norm(v)
-    if has_projection(sensor):
+    if not scene.bodies:  # nothing moves (a static camera): no apparent motion to project
+        flow = mi.Vector2f(0)
+    elif has_projection(sensor):
         step = FLOW_STEP * mi.Float(depth_m) / dr.maximum(speed, 1e-30)
         moving = valid & (speed > 0)
         ahead = image_position(sensor, dr.select(moving, si.p + v * step, si.p))
