@@ -110,15 +110,15 @@ class Accumulator:
         self.estimate_channels = color_channels + n_cameras
         self.color_channels = color_channels
         c, n = self.estimate_channels, n_pixels
-        self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int64)}
+        self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int32)}
         self.pairs = []
         if len(self.bounds) > 1:
-            self.state.update(open_sum=np.zeros((c, n)), rep_sum=np.zeros((c, n)), rep_sq=np.zeros((c, n)), reps_closed=np.zeros(n, np.int64))
+            self.state.update(open_sum=np.zeros((c, n)), rep_sum=np.zeros((c, n)), rep_sq=np.zeros((c, n)), reps_closed=np.zeros(n, np.int32))
             if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:  # cameras share paths: their errors correlate
                 self.pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
                 self.state["rep_cross"] = np.zeros((len(self.pairs), n))
         truth_channels = sum(o.channels for o in TRUTH)
-        self.state.update(truth_sum=np.zeros((truth_channels, n)), hits=np.zeros(n), samples=np.zeros(n, np.int64))
+        self.state.update(truth_sum=np.zeros((truth_channels, n)), hits=np.zeros(n, np.int32), samples=np.zeros(n, np.int32))
         self.state["instance_id"] = np.full(n, -1, np.int32)
 
     def add(self, p: Pass, out: dict, group: int, lanes_per_group: int):
@@ -185,7 +185,7 @@ class Accumulator:
         s["groups_done"][pix] += g1 - g0
         truth_sums = [np.asarray(x.numpy()) for x in truth_sums]
         s["truth_sum"][:, pix] += np.stack(truth_sums[:-1])
-        s["hits"][pix] += truth_sums[-1]
+        s["hits"][pix] += np.rint(truth_sums[-1]).astype(np.int32)  # counts of hits: whole numbers
         s["samples"][pix] += p.samples
         if p.first_sample == 0:  # the label of the pixel's first sample
             labels = np.asarray(out["instance_id"].numpy()).reshape(p.n_pixels, lanes_per_pixel)[:, 0]
@@ -203,47 +203,54 @@ class Accumulator:
         s["reps_closed"][pix] += rep_means.shape[2]
 
     def finish(self, height, width, n_cameras) -> dict:
+        """The result's maps (float32). Consumes the state: each Float64 sum is freed as soon
+        as its maps are made, so the peak is the sums or the maps, not both."""
         s = self.state
-        maps = {}
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = s["group_sum"] / s["groups_done"]
-            covariance = None
-            if "rep_sum" in s:
-                n = s["reps_closed"].astype(np.float64)
-                rep_mean = s["rep_sum"] / n
-                var = np.maximum(s["rep_sq"] / n - rep_mean * rep_mean, 0.0) * n / (n - 1)
-                err = np.where(n >= 2, np.sqrt(var / n), np.nan)
-                if self.pairs:  # covariance of the cameras' means, from the same replicates
-                    cc = self.color_channels
-                    covariance = np.zeros((n_cameras, n_cameras, height * width))
-                    for i in range(n_cameras):
-                        covariance[i, i] = err[cc + i] ** 2
-                    for k, (i, j) in enumerate(self.pairs):
-                        cross = (s["rep_cross"][k] / n - rep_mean[cc + i] * rep_mean[cc + j]) * n / (n - 1) / n
-                        covariance[i, j] = covariance[j, i] = np.where(n >= 2, cross, np.nan)
-            else:
-                err = np.full_like(mean, np.nan)
-            truth = s["truth_sum"] / s["hits"]
-            coverage = s["hits"] / s["samples"]
         cc = self.color_channels
+        n_pix = height * width
+
+        def image(rows):  # float32 rows (k, pixels) -> (H, W) or (H, W, k)
+            return rows[0].reshape(height, width) if len(rows) == 1 else np.stack(rows, axis=-1).reshape(height, width, len(rows))
+
+        with np.errstate(invalid="ignore", divide="ignore"):
+            groups = s.pop("groups_done")
+            mean = [(row / groups).astype(np.float32) for row in s.pop("group_sum")]
+            del groups
+            if "rep_sum" in s:
+                n = s.pop("reps_closed").astype(np.float64)
+                rep_mean = s.pop("rep_sum") / n
+                var = np.maximum(s.pop("rep_sq") / n - rep_mean * rep_mean, 0.0) * n / (n - 1)
+                err = np.where(n >= 2, np.sqrt(var / n), np.nan).astype(np.float32)
+                del var
+            else:
+                err = np.full((len(mean), n_pix), np.nan, np.float32)
+            covariance = None
+            if self.pairs:  # covariance of the cameras' means, from the same replicates
+                covariance = np.zeros((n_cameras, n_cameras, n_pix), np.float32)
+                for i in range(n_cameras):
+                    covariance[i, i] = err[cc + i].astype(np.float64) ** 2
+                for k, (i, j) in enumerate(self.pairs):
+                    cross = (s["rep_cross"][k] / n - rep_mean[cc + i] * rep_mean[cc + j]) * n / (n - 1) / n
+                    covariance[i, j] = covariance[j, i] = np.where(n >= 2, cross, np.nan)
+                del s["rep_cross"]
+            hits = s.pop("hits")
+            truth_rows = [(row / hits).astype(np.float32) for row in s.pop("truth_sum")]
+            coverage = (hits / s.pop("samples")).astype(np.float32)
+        maps = {}
         for o in ESTIMATES:
             if o.channels == "color":
-                values, errors = mean[:cc], err[:cc]
-                shape = (height, width, cc) if cc > 1 else (height, width)
-                maps[o.name] = np.moveaxis(values, 0, -1).reshape(shape).astype(np.float32)
-                maps[o.stderr_name] = np.moveaxis(errors, 0, -1).reshape(shape).astype(np.float32)
+                maps[o.name], maps[o.stderr_name] = image(mean[:cc]), image(list(err[:cc]))
             else:
-                maps[o.name] = mean[cc:].reshape(n_cameras, height, width).astype(np.float32)
-                maps[o.stderr_name] = err[cc:].reshape(n_cameras, height, width).astype(np.float32)
+                maps[o.name] = np.stack(mean[cc:]).reshape(n_cameras, height, width) if n_cameras else np.zeros((0, height, width), np.float32)
+                maps[o.stderr_name] = err[cc:].reshape(n_cameras, height, width)
         k = 0
         for o in TRUTH:
-            part = truth[k : k + o.channels]
+            maps[o.name] = image(truth_rows[k : k + o.channels])
             k += o.channels
-            maps[o.name] = (part[0].reshape(height, width) if o.channels == 1 else np.moveaxis(part, 0, -1).reshape(height, width, o.channels)).astype(np.float32)
-        maps["coverage"] = coverage.reshape(height, width).astype(np.float32)
+        maps["coverage"] = coverage.reshape(height, width)
         maps["instance_id"] = s["instance_id"].reshape(height, width)
         if covariance is not None:
-            maps["measurement_covariance"] = covariance.reshape(n_cameras, n_cameras, height, width).astype(np.float32)
+            maps["measurement_covariance"] = covariance.reshape(n_cameras, n_cameras, height, width)
         return maps
 
 
@@ -254,9 +261,9 @@ def _components(value, channels):
 def host_bytes_per_pixel(n_cameras: int) -> int:
     """Host memory of the film's Float64 sums and the float32 result, per pixel (bytes)."""
     estimates = 3 + n_cameras
-    truth = sum(o.channels for o in TRUTH) + 2
-    covariance = n_cameras * n_cameras if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS else 0
-    return 8 * (5 * estimates + truth + 3 + covariance) + 4 * (2 * estimates + truth + covariance)
+    truth = sum(o.channels for o in TRUTH)
+    pairs = n_cameras * (n_cameras - 1) // 2 if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS else 0
+    return 8 * (4 * estimates + truth + pairs) + 4 * (2 * estimates + truth + 6 + n_cameras * n_cameras)
 
 
 def check_film_memory(width: int, height: int, n_cameras: int) -> None:
