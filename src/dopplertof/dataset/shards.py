@@ -81,20 +81,13 @@ def fsync_dir(path: str) -> None:
 
 
 def atomic_write(path: str, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temporary file in the same folder, fsync, rename."""
-    folder = os.path.dirname(os.path.abspath(path))
-    tmp = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    fsync_dir(folder)
+    """Write ``data`` to ``path`` atomically (:func:`dopplertof.io.atomic_path`: temporary
+    file, fsync, rename), then fsync the folder so the rename survives a crash."""
+    from ..io import atomic_path
+
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    fsync_dir(os.path.dirname(os.path.abspath(path)))
 
 
 def shard_bytes(samples) -> bytes:
