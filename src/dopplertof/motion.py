@@ -361,27 +361,24 @@ class Keyframed(Motion):
         alpha = F(alpha64)
         rate = F(dr.select(inside, 1.0 / duration, 0.0))
 
-        def g(name):
-            return F(dr.gather(mi.Float64, d[name], idx))
+        return segment_pose(lambda name: F(dr.gather(mi.Float64, d[name], idx)), alpha, rate, V)
 
-        db = V(g("db0"), g("db1"), g("db2"))
-        ds = V(g("ds0"), g("ds1"), g("ds2"))
-        translation = V(g("b0"), g("b1"), g("b2")) + alpha * db
-        scale = V(g("s0"), g("s1"), g("s2")) + alpha * ds
-        axis = V(g("axis0"), g("axis1"), g("axis2"))
-        angle = g("angle")
-        half = 0.5 * alpha * angle
-        sh, ch = dr.sincos(half)
-        q_rel = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
-        q = _quat_mul_lanes(q_rel, (g("q0"), g("q1"), g("q2"), g("q3")))
-        return Pose(
-            q=q,
-            scale=scale,
-            translation=translation,
-            omega=axis * (angle * rate),
-            translation_rate=db * rate,
-            scale_rate=ds * rate,
-        )
+
+def segment_pose(g, alpha, rate, V) -> Pose:
+    """The pose at fraction ``alpha`` of a keyframe segment, and its rates (``rate`` =
+    1/duration inside the keys, 0 outside); ``g(name)`` gathers the segment's key data
+    (base b, deltas db and ds, rotation axis and angle, start quaternion q)."""
+    import drjit as dr
+
+    db = V(g("db0"), g("db1"), g("db2"))
+    ds = V(g("ds0"), g("ds1"), g("ds2"))
+    translation = V(g("b0"), g("b1"), g("b2")) + alpha * db
+    scale = V(g("s0"), g("s1"), g("s2")) + alpha * ds
+    axis = V(g("axis0"), g("axis1"), g("axis2"))
+    angle = g("angle")
+    sh, ch = dr.sincos(0.5 * alpha * angle)
+    q = _quat_mul_lanes((ch, sh * axis.x, sh * axis.y, sh * axis.z), (g("q0"), g("q1"), g("q2"), g("q3")))
+    return Pose(q=q, scale=scale, translation=translation, omega=axis * (angle * rate), translation_rate=db * rate, scale_rate=ds * rate)
 
 
 def _quat_mul_lanes(a, b):
@@ -455,26 +452,34 @@ class Parametric(Motion):
         V = mi.Vector3d if precise else mi.Vector3f
         d = self._data
 
-        def vec(name):
-            a = d[name]
-            return V(F(dr.gather(mi.Float64, a, 0)), F(dr.gather(mi.Float64, a, 1)), F(dr.gather(mi.Float64, a, 2)))
+        return parametric_pose(lambda name, k: dr.gather(mi.Float64, d[name], k), time_s, F, V)
 
-        t64 = mi.Float64(time_s)
-        rate = F(dr.gather(mi.Float64, d["rate"], 0))
-        axis = vec("axis")
-        pivot = vec("pivot")
-        v = vec("v")
-        sh, ch = dr.sincos(F(0.5 * t64 * dr.gather(mi.Float64, d["rate"], 0)))
-        q_rot = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
-        q0 = tuple(F(dr.gather(mi.Float64, d["q0"], k)) for k in range(4))
-        t = F(t64)
-        translation = pivot + v * t + _rotate(q_rot, vec("b0") - pivot)
-        omega = axis * rate
-        return Pose(
-            q=_quat_mul_lanes(q_rot, q0),
-            scale=vec("s0"),
-            translation=translation,
-            omega=omega,
-            translation_rate=v + dr.cross(omega, translation - pivot - v * t),
-            scale_rate=V(0, 0, 0),
-        )
+
+def parametric_pose(at, time_s, F, V) -> Pose:
+    """The pose of a parametric motion at ``time_s``; ``at(name, k)`` gathers component
+    ``k`` of its parameters (Float64 rate, axis, pivot, v, b0, s0, q0)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    def vec(name):
+        return V(F(at(name, 0)), F(at(name, 1)), F(at(name, 2)))
+
+    t64 = mi.Float64(time_s)
+    rate = F(at("rate", 0))
+    axis = vec("axis")
+    pivot = vec("pivot")
+    v = vec("v")
+    sh, ch = dr.sincos(F(0.5 * t64 * at("rate", 0)))
+    q_rot = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
+    q0 = tuple(F(at("q0", k)) for k in range(4))
+    t = F(t64)
+    translation = pivot + v * t + _rotate(q_rot, vec("b0") - pivot)
+    omega = axis * rate
+    return Pose(
+        q=_quat_mul_lanes(q_rot, q0),
+        scale=vec("s0"),
+        translation=translation,
+        omega=omega,
+        translation_rate=v + dr.cross(omega, translation - pivot - v * t),
+        scale_rate=V(0, 0, 0),
+    )

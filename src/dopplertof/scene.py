@@ -253,7 +253,7 @@ class PoseTable:
         import drjit as dr
         import mitsuba as mi
 
-        from .motion import Pose, _quat_mul_lanes
+        from .motion import segment_pose
 
         d = self.keys
         first = dr.gather(mi.UInt32, self.key_offset, row, active)
@@ -277,57 +277,20 @@ class PoseTable:
         alpha = F(alpha64)
         rate = F(dr.select(inside, 1.0 / duration, 0.0))
 
-        def g(name):
-            return F(dr.gather(mi.Float64, d[name], idx, active))
-
-        db = V(g("db0"), g("db1"), g("db2"))
-        ds = V(g("ds0"), g("ds1"), g("ds2"))
-        translation = V(g("b0"), g("b1"), g("b2")) + alpha * db
-        scale = V(g("s0"), g("s1"), g("s2")) + alpha * ds
-        axis = V(g("axis0"), g("axis1"), g("axis2"))
-        angle = g("angle")
-        half = 0.5 * alpha * angle
-        sh, ch = dr.sincos(half)
-        q_rel = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
-        q = _quat_mul_lanes(q_rel, (g("q0"), g("q1"), g("q2"), g("q3")))
-        return Pose(q=q, scale=scale, translation=translation, omega=axis * (angle * rate), translation_rate=db * rate, scale_rate=ds * rate)
+        return segment_pose(lambda name: F(dr.gather(mi.Float64, d[name], idx, active)), alpha, rate, V)
 
     def _parametric(self, row, time_s, precise, active):
         """Parametric.pose over the concatenated parameters (see there)."""
         import drjit as dr
         import mitsuba as mi
 
-        from .motion import Pose, _quat_mul_lanes, _rotate
+        from .motion import parametric_pose
 
         F = mi.Float64 if precise else mi.Float
         V = mi.Vector3d if precise else mi.Vector3f
         d = self.params
-
-        def at(name, k, width):
-            return dr.gather(mi.Float64, d[name], row * width + k, active)
-
-        def vec(name):
-            return V(F(at(name, 0, 3)), F(at(name, 1, 3)), F(at(name, 2, 3)))
-
-        t64 = mi.Float64(time_s)
-        rate = F(at("rate", 0, 1))
-        axis = vec("axis")
-        pivot = vec("pivot")
-        v = vec("v")
-        sh, ch = dr.sincos(F(0.5 * t64 * at("rate", 0, 1)))
-        q_rot = (ch, sh * axis.x, sh * axis.y, sh * axis.z)
-        q0 = tuple(F(at("q0", k, 4)) for k in range(4))
-        t = F(t64)
-        translation = pivot + v * t + _rotate(q_rot, vec("b0") - pivot)
-        omega = axis * rate
-        return Pose(
-            q=_quat_mul_lanes(q_rot, q0),
-            scale=vec("s0"),
-            translation=translation,
-            omega=omega,
-            translation_rate=v + dr.cross(omega, translation - pivot - v * t),
-            scale_rate=V(0, 0, 0),
-        )
+        widths = {"rate": 1, "q0": 4}
+        return parametric_pose(lambda name, k: dr.gather(mi.Float64, d[name], row * widths.get(name, 3) + k, active), time_s, F, V)
 
 
 def _fields(pose):
