@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 out=out/cornell-box
-.venv/bin/dopplertof render cornell-box --spp 1024 -o "$out" \
+.venv/bin/dopplertof render cornell-box --spp 1024 -o "$out" --overwrite \
     --camera h=0,psi=0 --camera h=0,psi=90deg --camera h=1,psi=0 --camera h=1,psi=90deg "$@"
 .venv/bin/dopplertof reconstruct "$out"
 echo
