@@ -2,7 +2,7 @@
 
 Lanes of one group (the N correlated times of a pixel sample) draw from a group-shared
 stream where a dimension is *correlated* and from their own stream elsewhere
-(:mod:`dopplertof.integrator`). With ``correlation_depth = k`` (the original M3 code's
+(:mod:`dopplertof.tracing.lanes`). With ``correlation_depth = k`` (the original M3 code's
 ``path_correlation_depth``): k = 0 shares nothing, k = 1 shares the pixel (and aperture)
 sample, and k ≥ 2 also shares the first k − 1 bounces.
 
@@ -13,7 +13,7 @@ mode            meaning
 ``pixel``       same pixel sample, independent paths: k = 1
 ``replay``      random replay: the same random numbers for every bounce (k = ∞), or
                 for the first ``correlation_depth − 1`` bounces
-``reconnection`` paired tracing (:mod:`dopplertof.paired`): the partner aims at the
+``reconnection`` paired tracing (:mod:`dopplertof.tracing.paired`): the partner aims at the
                 primal's next vertex re-timed to its own time, wherever both current
                 vertices have no delta lobe (replay there)
 ``adaptive``    paired tracing, reconnecting only where both current surfaces are rougher
@@ -35,25 +35,16 @@ UNBOUNDED = 1 << 30
 
 @dataclass(frozen=True)
 class Correlation:
-    """A correlation mode and its depth cut-off (see module docstring)."""
+    """A correlation mode and its depth cut-off (see module docstring); built from a
+    validated :class:`~dopplertof.settings.RenderSettings` (``correlation_spec``)."""
 
     mode: str = "replay"
     depth: int | None = None
     threshold: float = 0.5  # adaptive: roughness (α) above which a bounce reconnects
 
-    def __post_init__(self):
-        if self.mode not in MODES:
-            raise ValueError(f"unknown correlation {self.mode!r}; choose one of {', '.join(MODES)}")
-        if self.depth is not None and (not isinstance(self.depth, int) or self.depth < 0):
-            raise ValueError(f"correlation_depth must be a non-negative integer, got {self.depth!r}")
-        if self.depth is not None and self.paired:
-            raise ValueError(f"correlation_depth applies to replay; {self.mode} correlates every bounce")
-        if isinstance(self.threshold, bool) or not isinstance(self.threshold, (int, float)) or not self.threshold >= 0:
-            raise ValueError(f"reconnection threshold must be a roughness >= 0, got {self.threshold!r}")
-
     @property
     def paired(self) -> bool:
-        """Traced as primal + partner in one lane (:mod:`dopplertof.paired`)."""
+        """Traced as primal + partner in one lane (:mod:`dopplertof.tracing.paired`)."""
         return self.mode in PAIRED
 
     @property

@@ -24,7 +24,7 @@ name                   times of the members of a group
                        ``stratify_intervals`` else r_shared
 ``antithetic_mirror``  N = 2: u_0 = r, u_1 = frac(1 − r + a)
 ``analytic``           N = 2: u_0 = 0, u_1 = 1, integrated in closed form between them
-                       (:mod:`dopplertof.paired`; biased)
+                       (:mod:`dopplertof.tracing.paired`; biased)
 =====================  ==============================================================
 
 Times are rounded down to multiples of 2⁻²³ so that u + ½ is exact (DESIGN §3.5).
