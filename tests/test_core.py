@@ -303,3 +303,16 @@ def test_ground_truth_and_images_do_not_depend_on_the_pass_split():
     for other in (split, thin):
         for name in ("depth", "velocity", "point_velocity", "velocity_3d", "flow", "coverage", "instance_id", "intensity", "measurements"):
             np.testing.assert_array_equal(getattr(whole, name), getattr(other, name), err_msg=name)
+
+
+def test_optical_flow_of_a_receding_plane():
+    """A plane receding along the optical axis at s shrinks the image towards its centre:
+    d/dt (a x/z) = −(u − u_c) s / z pixels per second (u_c the film centre)."""
+    speed, n = 10.0, 16
+    result = dt.render(moving_plane_scene(speed, resolution=n), spp=128, max_depth=2)  # sample positions within a pixel: ±0.05 px/s
+    centre = (np.arange(n) + 0.5) - n / 2
+    z = 5.0 + speed * 0.75e-3  # mid-exposure distance along the axis, m
+    expected_u = -centre[None, :] * speed / z
+    expected_v = -centre[:, None] * speed / z
+    np.testing.assert_allclose(result.flow[..., 0], np.broadcast_to(expected_u, (n, n)), atol=0.02 * speed / z * n / 2)
+    np.testing.assert_allclose(result.flow[..., 1], np.broadcast_to(expected_v, (n, n)), atol=0.02 * speed / z * n / 2)

@@ -188,17 +188,24 @@ def camera_frame_velocity(sensor, v_world):
     return sensor.world_transform().inverse() @ mi.Vector3f(v_world)
 
 
-def has_projection(sensor) -> bool:
-    """Whether the sensor can map a world point to the film (``sample_direction``);
-    Mitsuba's orthographic camera cannot, so optical flow is NaN there."""
-    import drjit as dr
+def pinhole_scales(sensor):
+    """(a, c): film pixels per unit of x/z and y/z in the sensor's frame, for sensors whose
+    film position is a pinhole projection (perspective; thin lens through the aperture's
+    centre), read off the sensor's own ``sample_direction``; None for others (orthographic).
+    """
     import mitsuba as mi
 
+    to_world = sensor.world_transform()
+    step = 1e-3
+    points = [mi.Point3f(0, 0, 1), mi.Point3f(step, 0, 1), mi.Point3f(0, step, 1)]
     try:
-        sensor.sample_direction(dr.zeros(mi.Interaction3f, 1), mi.Point2f(0.5, 0.5))
-    except RuntimeError:
-        return False
-    return True
+        uv = [image_position(sensor, to_world @ p) for p in points]
+    except RuntimeError:  # no sample_direction (orthographic)
+        return None
+    (u0, v0), (ux, vx), (uy, vy) = ([float(c[0]) for c in (q.x, q.y)] for q in uv)
+    if abs(vx - v0) > 1e-6 * abs(ux - u0) or abs(uy - u0) > 1e-6 * abs(vy - v0):
+        return None  # not a separable pinhole projection
+    return (ux - u0) / step, (vy - v0) / step
 
 
 def image_position(sensor, p_world):
@@ -212,9 +219,6 @@ def image_position(sensor, p_world):
     return ds.uv
 
 
-FLOW_STEP = 1e-3  # central difference over ±1e-3 of the depth of apparent motion
-
-
 def ground_truth(scene, hit, ray_d, depth_m, time_s, poses):
     """Ground-truth maps of the camera ray's hit: a dict of per-lane values (0 where no hit)
     and the hit mask. See :data:`dopplertof.outputs.OUTPUTS` for their meaning."""
@@ -226,22 +230,19 @@ def ground_truth(scene, hit, ray_d, depth_m, time_s, poses):
     sensor = scene.sensor
     v = scene.surface_velocity(si.p, hit.body, time_s, poses=poses) if scene.bodies else mi.Vector3f(0)
     ray_fixed = dr.dot(si.n, v) / dr.dot(si.n, ray_d)
-    speed = dr.norm(v)
-    if not scene.bodies:  # nothing moves (a static camera): no apparent motion to project
-        flow = mi.Vector2f(0)
-    elif has_projection(sensor):
-        step = FLOW_STEP * mi.Float(depth_m) / dr.maximum(speed, 1e-30)
-        moving = valid & (speed > 0)
-        ahead = image_position(sensor, dr.select(moving, si.p + v * step, si.p))
-        behind = image_position(sensor, dr.select(moving, si.p - v * step, si.p))
-        flow = dr.select(moving, (ahead - behind) / (2.0 * step), 0.0)
-    else:
+    v_camera = camera_frame_velocity(sensor, v)
+    scales = pinhole_scales(sensor) if scene.bodies else (0.0, 0.0)  # nothing moves: no flow
+    if scales is None:
         flow = mi.Vector2f(dr.nan)
+    else:  # d/dt of (a x/z, c y/z) in the sensor's frame
+        p = sensor.world_transform().inverse() @ si.p
+        z2 = dr.square(p.z)
+        flow = mi.Vector2f(scales[0] * (v_camera.x * p.z - p.x * v_camera.z) / z2, scales[1] * (v_camera.y * p.z - p.y * v_camera.z) / z2)
     values = {
         "depth": mi.Float(depth_m),
         "velocity": dr.select(dr.isfinite(ray_fixed), ray_fixed, 0.0),
         "point_velocity": dr.dot(v, ray_d),
-        "velocity_3d": camera_frame_velocity(sensor, v),
+        "velocity_3d": v_camera,
         "flow": mi.Vector2f(flow),
     }
     values = {k: dr.select(valid, x, 0.0) for k, x in values.items()}
