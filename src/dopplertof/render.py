@@ -107,9 +107,8 @@ class Accumulator:
         from .tracing.lanes import replicate_bounds
 
         self.bounds = replicate_bounds(n_groups, replicates)
-        self.estimate_channels = color_channels + n_cameras
         self.color_channels = color_channels
-        c, n = self.estimate_channels, n_pixels
+        c, n = color_channels + n_cameras, n_pixels
         self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int32)}
         self.pairs = []
         if len(self.bounds) > 1:

@@ -1,5 +1,5 @@
-"""Constant data the tracer reads: per-BSDF tables, indexed by the BSDF's Dr.Jit registry
-id, and the film's filter sampler.
+"""Constant data the tracer reads, prepared once per render: per-BSDF tables, indexed by
+the BSDF's Dr.Jit registry id, the film's filter sampler and the sensor's projection.
 
 * ``roughness``: how rough a surface is for the adaptive shift (paired tracing): diffuse
   = ∞, rough conductor / dielectric / plastic = the mean of their α, anything with a delta
@@ -27,6 +27,7 @@ class MaterialTables:
     roughness: object  # mi.Float indexed by BSDF id
     relative_ior: object  # mi.Float indexed by BSDF id
     film: object = None  # the FilterSampler of the scene's film (dopplertof.tracing.film)
+    pinhole: tuple | None = None  # the sensor's projection scales for optical flow (path.pinhole_scales)
 
     @classmethod
     def of(cls, scene) -> "MaterialTables":
@@ -52,8 +53,11 @@ class MaterialTables:
             dr.make_opaque(array)
             arrays.append(array)
         from .film import FilterSampler
+        from .path import pinhole_scales
 
-        return cls(*arrays, film=FilterSampler(scene.sensor.film()))
+        # Nothing moves: no apparent motion, no projection needed.
+        pinhole = pinhole_scales(scene.sensor) if scene.bodies else (0.0, 0.0)
+        return cls(*arrays, film=FilterSampler(scene.sensor.film()), pinhole=pinhole)
 
     def gather(self, table, bsdf, active):
         import drjit as dr

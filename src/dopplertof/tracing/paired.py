@@ -107,8 +107,8 @@ def trace_pair(scene, settings, setup, tables):
     hit2 = first_hit(scene, ray, time2, poses2, settings.hide_emitters)
     length1, x1, t1 = extend(scene, poses1_64, hit1, x0, ray.d, mi.Float64(0), mi.Float(1), True)
     length2, x2, t2 = extend(scene, poses2_64, hit2, x0, ray.d, mi.Float64(0), mi.Float(1), True)
-    truth1, valid1 = ground_truth(scene, hit1, ray.d, t1, time1, poses1)
-    truth2, valid2 = ground_truth(scene, hit2, ray.d, t2, time2, poses2)
+    truth1, valid1 = ground_truth(scene, hit1, ray.d, t1, time1, poses1, tables.pinhole)
+    truth2, valid2 = ground_truth(scene, hit2, ray.d, t2, time2, poses2, tables.pinhole)
     label = truth1.pop("instance_id")
     truth2.pop("instance_id")
     truth = {k: truth1[k] + truth2[k] for k in truth1}

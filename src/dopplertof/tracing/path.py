@@ -219,7 +219,7 @@ def image_position(sensor, p_world):
     return ds.uv
 
 
-def ground_truth(scene, hit, ray_d, depth_m, time_s, poses):
+def ground_truth(scene, hit, ray_d, depth_m, time_s, poses, pinhole):
     """Ground-truth maps of the camera ray's hit: a dict of per-lane values (0 where no hit)
     and the hit mask. See :data:`dopplertof.outputs.OUTPUTS` for their meaning."""
     import drjit as dr
@@ -231,13 +231,12 @@ def ground_truth(scene, hit, ray_d, depth_m, time_s, poses):
     v = scene.surface_velocity(si.p, hit.body, time_s, poses=poses) if scene.bodies else mi.Vector3f(0)
     ray_fixed = dr.dot(si.n, v) / dr.dot(si.n, ray_d)
     v_camera = camera_frame_velocity(sensor, v)
-    scales = pinhole_scales(sensor) if scene.bodies else (0.0, 0.0)  # nothing moves: no flow
-    if scales is None:
+    if pinhole is None:  # no pinhole projection (orthographic): no flow
         flow = mi.Vector2f(dr.nan)
-    else:  # d/dt of (a x/z, c y/z) in the sensor's frame
+    else:  # d/dt of (a x/z, c y/z) in the sensor's frame; pinhole = (a, c), pinhole_scales
         p = sensor.world_transform().inverse() @ si.p
         z2 = dr.square(p.z)
-        flow = mi.Vector2f(scales[0] * (v_camera.x * p.z - p.x * v_camera.z) / z2, scales[1] * (v_camera.y * p.z - p.y * v_camera.z) / z2)
+        flow = mi.Vector2f(pinhole[0] * (v_camera.x * p.z - p.x * v_camera.z) / z2, pinhole[1] * (v_camera.y * p.z - p.y * v_camera.z) / z2)
     values = {
         "depth": mi.Float(depth_m),
         "velocity": dr.select(dr.isfinite(ray_fixed), ray_fixed, 0.0),

@@ -56,7 +56,7 @@ def trace(scene, settings, setup, tables):
     bank = sink.bank(u)
     precise = sink.needs_length
     length, x, depth_m = extend(scene, poses64, hit, x0, ray.d, mi.Float64(0), mi.Float(1), True, precise)
-    truth, hit_mask = ground_truth(scene, hit, ray.d, depth_m, time_s, poses)
+    truth, hit_mask = ground_truth(scene, hit, ray.d, depth_m, time_s, poses, tables.pinhole)
     label = truth.pop("instance_id")
 
     bsdf_ctx = mi.BSDFContext()
