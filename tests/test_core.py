@@ -137,12 +137,6 @@ def test_participating_media_are_refused():
         dt.load_scene(_room(fog={"type": "cube", "interior": medium, "bsdf": {"type": "null"}}))
 
 
-def test_a_moving_emitter_under_any_key_is_refused():
-    moving_lamp = {"type": "sphere", "radius": 0.1, "glow": {"type": "area", "radiance": 1.0}, "motion": {"type": "parametric", "linear_velocity": [1, 0, 0]}}
-    with pytest.raises(dt.SceneError, match="moving emitters are not supported"):
-        dt.load_scene(_room(lamp=moving_lamp))
-
-
 @pytest.mark.parametrize("bad", [math.nan, math.inf])
 def test_non_finite_keyframes_are_refused(bad):
     end = np.eye(4)

@@ -83,8 +83,9 @@ def frame_count(duration_s: float, fps: float) -> int:
 
 
 def motion_duration(scene) -> float | None:
-    """End (s) of the last keyframe of a scene's bodies; None if no body has a bounded motion."""
-    ends = [body.motion.time_range()[1] for body in scene.bodies]
+    """End (s) of the last keyframe of a scene's motions (bodies, camera, lights); None if
+    none is bounded."""
+    ends = [motion.time_range()[1] for motion in scene.motions()]
     ends = [t for t in ends if math.isfinite(t)]
     return max(ends) if ends else None
 

@@ -47,12 +47,16 @@ import numpy as np
 from . import mitsuba06
 from .motion import Keyframed, Motion, Parametric
 from .settings import PLUGIN_NAMES, STOCK_PATH_INTEGRATORS, integrator_layer
+from .lights import MovingLight
 from .scene import Body, DynamicScene, SceneError
 from .xmlvalues import property_value
 
 _SHAPE_TAGS = {"shape"}
 _DEFINITION_TAGS = {"bsdf", "texture", "spectrum", "rgb", "default", "medium"}
 _ORIGINAL_SAMPLERS = {"correlated", "timestratified"}
+MOVABLE_EMITTERS = ("point", "spot")
+SENSOR_TYPES = {"perspective", "thinlens", "orthographic", "radiancemeter", "irradiancemeter", "distant", "batch"}
+EMITTER_TYPES = {"point", "spot", "area", "constant", "envmap", "directional", "directionalarea", "projector"}
 
 
 def load_scene(source, *, film_resolution=None, **params) -> DynamicScene:
@@ -304,6 +308,9 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     spp_hint = None
     definitions = [el for el in root if el.tag in _DEFINITION_TAGS and "id" in el.attrib]
     moving = []  # (motion, (index, element)) of every animated shape
+    moving_lights = []  # (where, element, motion) of every animated emitter
+    attached = []  # (element, where) of the emitters inside the sensor
+    camera_motion = None
     for index, el in enumerate(list(root)):
         where = f"{path}: {_describe(el, index)}"
         if el.tag == "integrator":
@@ -313,6 +320,10 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
                     integrator_params[p.attrib["name"]] = property_value(p, where)
             root.remove(el)
         elif el.tag == "sensor":
+            camera_motion = _pull_animation(el, where) or camera_motion
+            attached += [(em, f"{where}, <emitter> #{k}") for k, em in enumerate(el.findall("emitter"))]
+            for em in el.findall("emitter"):
+                el.remove(em)
             for sampler in el.findall("sampler"):
                 for p in sampler:
                     if p.attrib.get("name") == "sample_count":
@@ -322,18 +333,19 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
                     for p in list(sampler):
                         if p.attrib.get("name") not in ("sample_count", "seed"):
                             sampler.remove(p)
+        elif el.tag == "emitter":
+            motion = _pull_animation(el, where)
+            if motion is not None:
+                _check_movable_emitter(el.attrib.get("type"), where)
+                if el.find("point[@name='position']") is not None:
+                    raise SceneError(f"{where}: has both a position and an <animation>; keyframes place the light, remove the position")
+                moving_lights.append((where, el, motion))
+                root.remove(el)
         elif el.tag in _SHAPE_TAGS:
-            anims = el.findall("animation")
-            if not anims:
-                continue
-            if len(anims) > 1:
-                raise SceneError(f"{where}: more than one <animation>")
-            if any(t.attrib.get("name") == "to_world" for t in el.findall("transform")):
-                raise SceneError(f"{where}: has both <transform name=\"to_world\"> and <animation>; keep one")
-            motion = _parse_animation(anims[0], where)
-            el.remove(anims[0])
-            moving.append((motion, (index, el)))
-            root.remove(el)
+            motion = _pull_animation(el, where)
+            if motion is not None:
+                moving.append((motion, (index, el)))
+                root.remove(el)
 
     resolver = mi.file_resolver()
     saved_paths = [str(resolver[i]) for i in range(len(resolver))]
@@ -343,6 +355,8 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
             static = mi.load_string(ET.tostring(root, encoding="unicode"))
         except Exception as exc:  # noqa: BLE001
             raise _mitsuba_error(path, exc) from None
+        if not static.sensors():
+            raise SceneError(f"{path}: the scene has no <sensor>")
         bodies = []
         for motion, members in _group_by_motion(moving):
             body_root = ET.Element("scene", {"version": root.attrib.get("version", "3.0.0")})
@@ -356,15 +370,59 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
             except Exception as exc:  # noqa: BLE001
                 raise _mitsuba_error(f"{path}: moving shape(s) {name}", exc) from None
             bodies.append(_make_body(name, body_scene, motion))
+
+        def light_scene(element, where):
+            light_root = ET.Element("scene", {"version": root.attrib.get("version", "3.0.0")})
+            light_root.extend([copy.deepcopy(d) for d in definitions] + [element])
+            try:
+                return mi.load_string(ET.tostring(light_root, encoding="unicode"))
+            except Exception as exc:  # noqa: BLE001
+                raise _mitsuba_error(where, exc) from None
+
+        lights = [MovingLight(where, light_scene(el, where), motion) for where, el, motion in moving_lights]
+        for el, where in attached:
+            _check_movable_emitter(el.attrib.get("type"), where)
+            lights.append(MovingLight(where, light_scene(el, where), _camera_light_motion(static, camera_motion, path)))
     finally:
         resolver.clear()  # restore Mitsuba's own search path (it finds plugins there)
         for entry in saved_paths:
             resolver.append(entry)
-    if not static.sensors():
-        raise SceneError(f"{path}: the scene has no <sensor>")
     if strict_normals:
         mitsuba06.check_flat_shading([static, *(b.scene for b in bodies)], path)
-    return _checked_scene(DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path))
+    scene = DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path, camera_motion=camera_motion, lights=lights)
+    return _checked_scene(scene)
+
+
+def _pull_animation(el, where: str):
+    """The keyframed motion of ``el``'s ``<animation>`` (removed from it), or None."""
+    anims = el.findall("animation")
+    if not anims:
+        return None
+    if len(anims) > 1:
+        raise SceneError(f"{where}: more than one <animation>")
+    if any(t.attrib.get("name") == "to_world" for t in el.findall("transform")):
+        raise SceneError(f"{where}: has both <transform name=\"to_world\"> and <animation>; keep one")
+    motion = _parse_animation(anims[0], where)
+    el.remove(anims[0])
+    return motion
+
+
+def _check_movable_emitter(kind, where: str) -> None:
+    if kind not in MOVABLE_EMITTERS:
+        raise SceneError(f"{where}: a {kind!r} emitter cannot move; moving lights are {', '.join(MOVABLE_EMITTERS)} emitters, or area emitters on a moving shape")
+
+
+def _camera_light_motion(static, camera_motion, where: str) -> Motion:
+    """The motion of a light attached to the camera (placed in the sensor's frame): the
+    camera's motion after the sensor's own ``to_world``."""
+    to_world = np.array(static.sensors()[0].world_transform().matrix, dtype=np.float64).reshape(4, 4)  # (4, 4, 1): one lane
+    if camera_motion is None:
+        return Parametric(base=to_world, where=f"{where}: the sensor's to_world")
+    if isinstance(camera_motion, Parametric) and np.array_equal(camera_motion.base, np.eye(4)):
+        return Parametric(camera_motion.linear_velocity, camera_motion.angular_velocity, camera_motion.pivot, base=to_world, where=where)
+    if np.allclose(to_world, np.eye(4), rtol=0, atol=1e-6):  # the camera's motion places it
+        return camera_motion
+    raise SceneError(f"{where}: a light attached to a camera whose motion is a {type(camera_motion).__name__} on top of a to_world is not supported")
 
 
 def _checked_scene(scene: DynamicScene) -> DynamicScene:
@@ -376,10 +434,14 @@ def _checked_scene(scene: DynamicScene) -> DynamicScene:
         for shape in mi_scene.shapes():
             if shape.interior_medium() is not None or shape.exterior_medium() is not None:
                 raise SceneError(f"{where}: {label}shape {shape.id() or shape.class_name()!r} has a participating medium; media are not supported (remove the <medium> or render with stock Mitsuba's volpath)")
-        if label and mi_scene.emitters():
-            raise SceneError(f"{where}: {label}carries an emitter; moving emitters are not supported (keep lights static)")
         if label and mi_scene.sensors():
-            raise SceneError(f"{where}: {label}carries a sensor; moving sensors are not supported")
+            raise SceneError(f"{where}: {label}carries a sensor; a camera moves by its own <animation> (XML) or 'motion' (dict)")
+    for label, motion in [("the sensor", scene.camera_motion)] + [(f"moving light {light.name!r}", light.motion) for light in scene.lights]:
+        if motion is not None and not motion.is_rigid():
+            raise SceneError(f"{where}: {label} has a motion that scales; cameras and point or spot lights may only move rigidly")
+    for body in scene.bodies:
+        if body.scene.emitters() and not body.motion.is_conformal():
+            raise SceneError(f"{where}: moving body {body.name!r} carries an emitter and its motion scales the axes differently; scale it equally on every axis")
     for sensor in scene.static.sensors():
         if sensor.get_medium() is not None:
             raise SceneError(f"{where}: the sensor is inside a participating medium; media are not supported")
@@ -512,13 +574,36 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
         raise SceneError("<dict>: a scene dict needs 'type': 'scene'")
     static_dict = {}
     moving = []  # (motion, (key, shape dict, to_world matrix or None)) of every moving shape
+    moving_lights = []  # (where, emitter dict, motion) of every moving emitter
+    attached = []  # (where, emitter dict) of the emitters inside the sensor
+    camera_motion = None
     integrator_params = {}
     for key, value in scene_dict.items():
         where = f"<dict>: entry {key!r}"
         if isinstance(value, dict) and value.get("type") in PLUGIN_NAMES + STOCK_PATH_INTEGRATORS:
             integrator_params = {k: v for k, v in value.items()}
             continue
-        if isinstance(value, dict) and "motion" in value:
+        kind = value.get("type") if isinstance(value, dict) else None
+        if kind in SENSOR_TYPES:
+            sensor = dict(value)
+            if "motion" in sensor:
+                spec = sensor.pop("motion")
+                if isinstance(spec, Motion):
+                    sensor.pop("to_world", None)  # a Motion object places the camera itself
+                camera_motion = _motion_from_dict(spec, "to_world" in sensor, where)
+            for name, child in list(sensor.items()):
+                if isinstance(child, dict) and child.get("type") in EMITTER_TYPES:
+                    _check_movable_emitter(child["type"], f"{where}, {name!r}")
+                    attached.append((f"{where}, {name!r}", sensor.pop(name)))
+            static_dict[key] = sensor
+        elif kind in EMITTER_TYPES and "motion" in value:
+            _check_movable_emitter(kind, where)
+            light = dict(value)
+            spec = light.pop("motion")
+            if isinstance(spec, Motion):
+                light.pop("to_world", None)
+            moving_lights.append((where, light, _motion_from_dict(spec, "to_world" in light or "position" in light, where)))
+        elif isinstance(value, dict) and "motion" in value:
             shape = dict(value)
             spec = shape.pop("motion")
             if isinstance(spec, Motion):
@@ -544,4 +629,13 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
         raise _mitsuba_error("<dict>", exc) from None
     if not static.sensors():
         raise SceneError("<dict>: the scene has no sensor")
-    return _checked_scene(DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params))
+
+    def light_scene(emitter, where):
+        try:
+            return mi.load_dict({"type": "scene", "light": emitter})
+        except Exception as exc:  # noqa: BLE001
+            raise _mitsuba_error(where, exc) from None
+
+    lights = [MovingLight(where, light_scene(light, where), motion) for where, light, motion in moving_lights]
+    lights += [MovingLight(where, light_scene(light, where), _camera_light_motion(static, camera_motion, where)) for where, light in attached]
+    return _checked_scene(DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, camera_motion=camera_motion, lights=lights))

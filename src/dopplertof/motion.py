@@ -210,6 +210,17 @@ class Motion:
     def is_static(self) -> bool:
         return False
 
+    def is_rigid(self) -> bool:
+        """Whether the motion keeps distances (no scale other than 1): cameras and point
+        or spot lights need it (their path lengths and intensities fall off with distance)."""
+        return True
+
+    def is_conformal(self) -> bool:
+        """Whether the motion keeps angles (a scale equal on every axis): area emitters on a
+        moving body need it, since solid-angle densities in its frame are then those in
+        the world."""
+        return True
+
     def breakpoints(self, t0: float, t1: float) -> np.ndarray:
         """Times (s) strictly inside (t0, t1) where the motion's velocity may jump."""
         return np.empty(0)
@@ -313,6 +324,12 @@ class Keyframed(Motion):
 
     def breakpoints(self, t0, t1):
         return self.times[(self.times > t0) & (self.times < t1)]
+
+    def is_rigid(self):
+        return bool(np.allclose(self.scales, 1.0, rtol=0, atol=1e-6))
+
+    def is_conformal(self):
+        return bool(np.allclose(self.scales, self.scales[:, :1], rtol=1e-6, atol=0))
 
     def is_static(self):
         return len(self.times) == 1 or (
@@ -436,6 +453,12 @@ class Parametric(Motion):
 
     def is_static(self):
         return not np.any(self.linear_velocity) and not np.any(self.angular_velocity)
+
+    def is_rigid(self):
+        return bool(np.allclose(self.s0, 1.0, rtol=0, atol=1e-6))
+
+    def is_conformal(self):
+        return bool(np.allclose(self.s0, self.s0[0], rtol=1e-6, atol=0))
 
     def matrix(self, time_s: float) -> np.ndarray:
         half = 0.5 * self.rate * time_s

@@ -31,7 +31,7 @@ PLANE_LIGHT_INTENSITY = 50.0  # point light at the camera, W/sr (all channels)
 PLANE_EXPOSURE_S = 1.5e-3  # default exposure T, s
 
 
-def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16):
+def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, mover="plane"):
     """The moving-plane scene (module docstring) as a :class:`~dopplertof.scene.DynamicScene`.
 
     Parameters
@@ -40,6 +40,9 @@ def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16):
     exposure : float, s. The plane moves ``speed_m_s * exposure`` over [0, exposure]; render
         it with cameras of this exposure for :func:`moving_plane_measurement_mean` to apply.
     resolution : int. Film side, pixels (square film, box filter).
+    mover : str. ``"plane"``: the plane moves; ``"camera"``: the plane stays and the
+        camera, with its light attached, moves away from it at ``speed_m_s`` (the same
+        relative motion, so the same measurement).
 
     The plane is the front face (z = −``PLANE_DISTANCE_M`` at t = 0) of a flattened
     40 m x 40 m cube, so that hits are on a triangle mesh.
@@ -52,25 +55,24 @@ def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16):
 
     # Keys in double precision: a float32 5.5 m translation is quantised to 0.5 µm, which
     # would misstate a 15 µm displacement by up to 1.6 %.
-    start = mi.ScalarTransform4d().translate([0, 0, -PLANE_DISTANCE_M - 0.5]) @ mi.ScalarTransform4d().scale([20, 20, 0.5])
-    end = mi.ScalarTransform4d().translate([0, 0, -speed_m_s * exposure]) @ start
-    return load_scene(
-        {
-            "type": "scene",
-            "sensor": {
-                "type": "perspective",
-                "fov": PLANE_FOV_DEG,
-                "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 0], target=[0, 0, -1], up=[0, 1, 0]),
-                "film": {"type": "hdrfilm", "width": resolution, "height": resolution, "rfilter": {"type": "box"}},
-            },
-            "light": {"type": "point", "position": [0, 0, 0], "intensity": {"type": "rgb", "value": [PLANE_LIGHT_INTENSITY] * 3}},
-            "plane": {
-                "type": "cube",
-                "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [PLANE_REFLECTANCE] * 3}},
-                "motion": {"type": "keyframes", "keys": [(0.0, start), (exposure, end)]},
-            },
-        }
-    )
+    if mover not in ("plane", "camera"):
+        raise ValueError(f"mover must be 'plane' or 'camera', got {mover!r}")
+    plane = mi.ScalarTransform4d().translate([0, 0, -PLANE_DISTANCE_M - 0.5]) @ mi.ScalarTransform4d().scale([20, 20, 0.5])
+    look = mi.ScalarTransform4d().look_at(origin=[0, 0, 0], target=[0, 0, -1], up=[0, 1, 0])
+    shift = mi.ScalarTransform4d().translate([0, 0, -speed_m_s * exposure])
+    light = {"type": "point", "position": [0, 0, 0], "intensity": {"type": "rgb", "value": [PLANE_LIGHT_INTENSITY] * 3}}
+    sensor = {"type": "perspective", "fov": PLANE_FOV_DEG, "film": {"type": "hdrfilm", "width": resolution, "height": resolution, "rfilter": {"type": "box"}}}
+    plane = {"type": "cube", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [PLANE_REFLECTANCE] * 3}}, "to_world": plane}
+    scene = {"type": "scene", "sensor": sensor, "plane": plane}
+    if mover == "plane":
+        sensor["to_world"] = mi.ScalarTransform4f().look_at(origin=[0, 0, 0], target=[0, 0, -1], up=[0, 1, 0])
+        start = plane.pop("to_world")
+        plane["motion"] = {"type": "keyframes", "keys": [(0.0, start), (exposure, shift @ start)]}
+        scene["light"] = light
+    else:  # the camera recedes from the plane, with its light (in its frame, at the aperture)
+        sensor["motion"] = {"type": "keyframes", "keys": [(0.0, look), (exposure, shift.inverse() @ look)]}
+        sensor["light"] = light
+    return load_scene(scene)
 
 
 def _gauss_legendre_01(panels, order):

@@ -285,7 +285,7 @@ def check_film_memory(width: int, height: int, n_cameras: int) -> None:
 
 def fingerprint(scene, settings: RenderSettings) -> str:
     """What a checkpoint must match to be continued: the settings, the film and the scene."""
-    text = json.dumps({"settings": settings.as_dict(), "film": list(scene.resolution), "scene": scene.source, "bodies": len(scene.bodies)}, sort_keys=True, default=str)
+    text = json.dumps({"settings": settings.as_dict(), "film": list(scene.resolution), "scene": scene.source, "motions": len(scene.motions())}, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()
 
 

@@ -26,8 +26,11 @@ Two traversals of the bodies give the same hits (DESIGN §5.3):
 ``DynamicScene.traversal`` picks one (``"auto"``: ``tree`` above
 :data:`PER_BODY_MAX_BODIES` bodies).
 
-Emitters must be static (they live in ``static``); a moving shape carrying an area
-emitter is rejected when the scene is built.
+The camera may move too (``camera_motion``: the sensor's frame at time t is
+``camera_motion.pose(t)`` applied to the sensor's own ``to_world``), and so may emitters:
+area emitters on moving bodies, and point or spot lights with a motion of their own
+(``lights``, among them a light attached to a moving camera); emitter sampling covers
+them all (:mod:`dopplertof.lights`).
 """
 
 from __future__ import annotations
@@ -308,12 +311,16 @@ def _opaque(array):
 class DynamicScene:
     """Static scene + moving bodies. Build with :func:`dopplertof.load_scene`.
 
-    ============  ========  =============================================================
-    static        mi.Scene  sensor, emitters and static shapes
-    bodies        list      :class:`Body` per rigid motion
-    traversal     str       how a ray finds the bodies it hits (module docstring):
-                            ``"auto"`` (default), ``"per-body"`` or ``"tree"``
-    ============  ========  =============================================================
+    =============  ========  ============================================================
+    static         mi.Scene  sensor, static emitters and static shapes
+    bodies         list      :class:`Body` per rigid motion
+    camera_motion  Motion    the sensor's motion (None: static), applied on top of its
+                             ``to_world``
+    lights         list      :class:`~dopplertof.lights.MovingLight` per moving point or
+                             spot emitter
+    traversal      str       how a ray finds the bodies it hits (module docstring):
+                             ``"auto"`` (default), ``"per-body"`` or ``"tree"``
+    =============  ========  ============================================================
     """
 
     static: object  # mi.Scene
@@ -322,6 +329,8 @@ class DynamicScene:
     spp_hint: int | None = None
     source: str = "<dict>"
     traversal: str = "auto"
+    camera_motion: Motion | None = None
+    lights: list = field(default_factory=list)
 
     def __post_init__(self):
         if self.traversal not in TRAVERSALS:
@@ -329,6 +338,7 @@ class DynamicScene:
         self._tree = None
         self._poses = None  # PoseTable of the bodies' motions, built on first use
         self._targets = {}  # dr.switch targets per query, traced once per body list
+        self._emitters = None
         self._fit_bounds(None, None)
 
     # ------------------------------------------------------------------------------------
@@ -384,8 +394,27 @@ class DynamicScene:
         size = self.sensor.film().crop_size()
         return int(size[0]), int(size[1])
 
+    def motions(self) -> list:
+        """Every motion of the scene: its bodies', its camera's and its moving lights'."""
+        camera = [] if self.camera_motion is None else [self.camera_motion]
+        return [b.motion for b in self.bodies] + camera + [light.motion for light in self.lights]
+
+    @property
+    def emitters(self):
+        """The scene's :class:`~dopplertof.lights.Emitters` (static and moving)."""
+        from .lights import Emitters
+
+        if self._emitters is None:
+            self._emitters = Emitters(self)
+        return self._emitters
+
     # ------------------------------------------------------------------------------------
     # Per-lane queries
+
+    def camera_pose(self, time_s, precise: bool = False):
+        """The camera's motion at per-lane times ``time_s`` (a :class:`~dopplertof.motion.Pose`
+        mapping the sensor's rest frame to the world), None for a static camera."""
+        return None if self.camera_motion is None else self.camera_motion.pose(time_s, precise)
 
     def poses(self, time_s, precise: bool = False):
         """Pose of every body at per-lane times ``time_s`` (mi.Float64, s): a list with the

@@ -56,7 +56,7 @@ class MaterialTables:
         from .path import pinhole_scales
 
         # Nothing moves: no apparent motion, no projection needed.
-        pinhole = pinhole_scales(scene.sensor) if scene.bodies else (0.0, 0.0)
+        pinhole = pinhole_scales(scene.sensor) if scene.motions() else (0.0, 0.0)
         return cls(*arrays, film=FilterSampler(scene.sensor.film()), pinhole=pinhole)
 
     def gather(self, table, bsdf, active):

@@ -49,7 +49,7 @@ from .. import modulation
 from ..timesampling import ANALYTIC
 from . import lanes
 from .path import (
-    ESCAPED_LENGTH_M, camera_ray, emitter_hit, extend, first_hit, ground_truth, sample_emitter, segment_index, vertex_interaction,
+    ESCAPED_LENGTH_M, camera_ray, emitter_hit, extend, first_hit, ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction,
 )  # fmt: skip
 from .sink import Sink
 
@@ -103,12 +103,14 @@ def trace_pair(scene, settings, setup, tables):
 
     # ---------------------------------------------------------------- camera vertices (one ray)
     ray, ray_weight, x0 = camera_ray(scene.sensor, tables.film, setup, pixel, time1, rng.next_float32, lambda: mi.Point2f(rng.next_float32(), rng.next_float32()))
-    hit1 = first_hit(scene, ray, time1, poses1, settings.hide_emitters)
-    hit2 = first_hit(scene, ray, time2, poses2, settings.hide_emitters)
-    length1, x1, t1 = extend(scene, poses1_64, hit1, x0, ray.d, mi.Float64(0), mi.Float(1), True)
-    length2, x2, t2 = extend(scene, poses2_64, hit2, x0, ray.d, mi.Float64(0), mi.Float(1), True)
-    truth1, valid1 = ground_truth(scene, hit1, ray.d, t1, time1, poses1, tables.pinhole)
-    truth2, valid2 = ground_truth(scene, hit2, ray.d, t2, time2, poses2, tables.pinhole)
+    ray1, x0_1 = place_camera_ray(scene, ray, x0, time1)
+    ray2, x0_2 = place_camera_ray(scene, ray, x0, time2)
+    hit1 = first_hit(scene, ray1, time1, poses1, settings.hide_emitters)
+    hit2 = first_hit(scene, ray2, time2, poses2, settings.hide_emitters)
+    length1, x1, t1 = extend(scene, poses1_64, hit1, x0_1, ray1.d, mi.Float64(0), mi.Float(1), True)
+    length2, x2, t2 = extend(scene, poses2_64, hit2, x0_2, ray2.d, mi.Float64(0), mi.Float(1), True)
+    truth1, valid1 = ground_truth(scene, hit1, ray1.d, t1, time1, poses1, tables.pinhole)
+    truth2, valid2 = ground_truth(scene, hit2, ray2.d, t2, time2, poses2, tables.pinhole)
     label = truth1.pop("instance_id")
     truth2.pop("instance_id")
     truth = {k: truth1[k] + truth2[k] for k in truth1}
@@ -130,7 +132,8 @@ def trace_pair(scene, settings, setup, tables):
     state = sink.empty()
     depth = mi.UInt32(0)
     si1, si2 = hit1.si, hit2.si
-    ray1, ray2 = mi.Ray3f(ray), mi.Ray3f(ray)
+    body1, body2 = hit1.body, hit2.body
+    ray1, ray2 = mi.Ray3f(ray1), mi.Ray3f(ray2)  # loop state: two objects, even where one ray was placed
     beta1, beta2 = mi.Spectrum(ray_weight), mi.Spectrum(ray_weight)
     index1, index2 = mi.Float(1), mi.Float(1)  # refractive index each member travels in
     r1, r2 = mi.Float(1), mi.Float(1)  # p_shift / p_primal of the prefix
@@ -155,12 +158,12 @@ def trace_pair(scene, settings, setup, tables):
         # ---------------------------------------------------- emitter hit
         contributions = []
         members = (
-            (si1, active1, prev_it1, prev_pdf1, prev_shift1, prev_r1, prev_delta1, beta1, length1),
-            (si2, active2, prev_it2, prev_pdf2, prev_shift2, prev_r2, prev_delta2, beta2, length2),
+            (si1, body1, time1, active1, prev_it1, prev_pdf1, prev_shift1, prev_r1, prev_delta1, beta1, length1),
+            (si2, body2, time2, active2, prev_it2, prev_pdf2, prev_shift2, prev_r2, prev_delta2, beta2, length2),
         )
-        for member, (si, act, prev_it, prev_pdf, prev_shift, prev_r, prev_delta, beta, length) in enumerate(members):
+        for member, (si, body, time_s, act, prev_it, prev_pdf, prev_shift, prev_r, prev_delta, beta, length) in enumerate(members):
             shown = act if not hide_emitters else act & (depth > 0)
-            le, light_pdf, visible = emitter_hit(scene, si, prev_it, prev_delta, shown)
+            le, light_pdf, visible = emitter_hit(scene, si, body, prev_it, prev_delta, time_s, shown)
             denominator = own_coef[member] * (prev_pdf + light_pdf) + shift_coef[member] * prev_r * (prev_shift + light_pdf)
             weight = dr.select(denominator > 0, prev_pdf / denominator, 0.0)
             contributions.append((beta * le * weight, dr.select(si.is_valid(), length, length + ESCAPED_LENGTH_M), visible))
@@ -263,6 +266,7 @@ def trace_pair(scene, settings, setup, tables):
         length1, length2 = length1_next, length2_next
         x1, x2 = x1n, x2n
         si1, si2 = hit1n.si, hit2n.si
+        body1, body2 = hit1n.body, hit2n.body
         ray1, ray2 = ray1_next, ray2_next
         depth += 1
         active1 = next1

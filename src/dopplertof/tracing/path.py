@@ -5,7 +5,8 @@ phase                   what it does
 ======================  =================================================================
 :func:`camera_ray`      the camera ray of a pixel sample (film position from the filter,
                         aperture, wavelength), its weight, and its Float64 origin on the
-                        aperture
+                        aperture; :func:`place_camera_ray` puts it where a moving camera
+                        is at the lane's time
 :func:`first_hit`       the camera ray's first surface at the lane's time; with
                         ``hide_emitters`` it passes through emitter surfaces (stock path)
 :func:`extend`          the Float64 optical length to a new vertex: index × distance, the
@@ -47,7 +48,8 @@ def aperture_point(sensor, ray):
 
 
 def camera_ray(sensor, filter_sampler, setup, pixel, time_s, next_1d, next_2d):
-    """(ray, weight, Float64 aperture point) of ``pixel``'s sample at ``time_s``."""
+    """(ray, weight, Float64 aperture point) of ``pixel``'s sample, in the sensor's rest
+    frame (where the sensor's ``to_world`` puts it): :func:`place_camera_ray` moves it."""
     import mitsuba as mi
 
     px, py = pixel % setup.width, pixel // setup.width
@@ -57,6 +59,21 @@ def camera_ray(sensor, filter_sampler, setup, pixel, time_s, next_1d, next_2d):
     film_pos = (mi.Point2f(mi.Float(px), mi.Float(py)) + 0.5 + offset) / mi.ScalarVector2f(setup.width, setup.height)
     ray, weight = sensor.sample_ray(mi.Float(time_s), wavelength_sample, film_pos, aperture)
     return ray, weight * filter_weight, aperture_point(sensor, ray)
+
+
+def place_camera_ray(scene, ray, x0, time_s):
+    """(ray, Float64 aperture point) of a camera ray from :func:`camera_ray` where the
+    camera is at ``time_s``: a moving camera's ray leaves its aperture at the lane's time,
+    and optical lengths start there. Correlated lanes at other times place the same
+    rest-frame ray (the pixel sample replayed in the camera's frame)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    pose = scene.camera_pose(time_s)
+    if pose is None:
+        return ray, x0
+    placed = mi.Ray3f(pose.point_to_world(ray.o), dr.normalize(pose.vector_to_world(ray.d)), ray.maxt, ray.time, ray.wavelengths)
+    return placed, scene.camera_pose(time_s, precise=True).point_to_world(x0)
 
 
 def first_hit(scene, ray, time_s, poses, hide_emitters):
@@ -128,30 +145,27 @@ def vertex_interaction(si):
     return mi.Interaction3f(dr.detach(si.t), si.time, si.wavelengths, dr.detach(si.p), dr.detach(si.n))
 
 
-def emitter_hit(scene, si, prev_it, prev_delta, active):
-    """(Le, emitter-sampling density of this direction from ``prev_it``, mask).
+def emitter_hit(scene, si, body, prev_it, prev_delta, time_s, active):
+    """(Le, emitter-sampling density of this direction from ``prev_it``, mask) where a
+    path meets ``si`` on ``body`` (:class:`~dopplertof.scene.Hit` numbering) at ``time_s``.
 
     ``si`` may be invalid (an escaped ray meets the environment). The density is 0 after
     a delta lobe, where emitter sampling cannot produce the direction.
     """
     import drjit as dr
-    import mitsuba as mi
 
-    static = scene.static
-    emitter = si.emitter(static)
+    emitter = si.emitter(scene.static)
     visible = active & (emitter != None)  # noqa: E711 - Dr.Jit pointer test
-    ds = mi.DirectionSample3f(static, si, prev_it)
-    pdf = dr.select(prev_delta, 0.0, static.pdf_emitter_direction(prev_it, ds, visible & ~prev_delta))
+    pdf = dr.select(prev_delta, 0.0, scene.emitters.pdf_hit(prev_it, si, body, time_s, visible & ~prev_delta))
     return emitter.eval(si, visible), pdf, visible
 
 
-def length_to_emitter(length_m, index, x, ds):
-    """Optical length of a path whose last vertex ``x`` (Float64) connects to ``ds.p``."""
+def length_to_emitter(length_m, index, x, p_light):
+    """Optical length of a path whose last vertex ``x`` connects to ``p_light`` (Float64)."""
     import drjit as dr
     import mitsuba as mi
 
-    distance = dr.norm(mi.Vector3d(ds.p) - x)
-    return length_m + mi.Float64(index) * distance
+    return length_m + mi.Float64(index) * dr.norm(p_light - x)
 
 
 @dataclass
@@ -167,25 +181,21 @@ class LightSample:
 
 
 def sample_emitter(scene, si, bsdf, bsdf_ctx, sample, time_s, poses, length_m, index, x, tables, active):
-    """Next-event estimation at ``si`` with the uniform ``sample`` (mi.Point2f)."""
+    """Next-event estimation at ``si`` with the uniform ``sample`` (mi.Point2f), the
+    emitters (static and moving, :mod:`dopplertof.lights`) at the lane's time."""
     import mitsuba as mi
 
     active = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-    ds, weight = scene.static.sample_emitter_direction(si, sample, False, active)
+    ds, weight, p_light = scene.emitters.sample(si, sample, time_s, active)
     active &= ds.pdf != 0
     active &= ~scene.occluded(si.spawn_ray_to(ds.p), time_s, active, poses=poses)
     wo = si.to_local(ds.d)
     value, pdf = bsdf.eval_pdf(mi.BSDFContext(), si, wo, active)
     index_out = segment_index(index, tables.gather(tables.relative_ior, bsdf, active), si.wi, wo)
-    length = length_to_emitter(length_m, index_out, x, ds)
+    length = length_to_emitter(length_m, index_out, x, p_light)
     return LightSample(ds, weight, value, pdf, length, active)
 
 
-def camera_frame_velocity(sensor, v_world):
-    """World velocity in the sensor's frame (Mitsuba's: x left, y up, z forward)."""
-    import mitsuba as mi
-
-    return sensor.world_transform().inverse() @ mi.Vector3f(v_world)
 
 
 def pinhole_scales(sensor):
@@ -221,20 +231,27 @@ def image_position(sensor, p_world):
 
 def ground_truth(scene, hit, ray_d, depth_m, time_s, poses, pinhole):
     """Ground-truth maps of the camera ray's hit: a dict of per-lane values (0 where no hit)
-    and the hit mask. See :data:`dopplertof.outputs.OUTPUTS` for their meaning."""
+    and the hit mask. See :data:`dopplertof.outputs.OUTPUTS` for their meaning; with a
+    moving camera, velocities are relative to its frame (the scene as the camera sees it)."""
     import drjit as dr
     import mitsuba as mi
 
     si = hit.si
     valid = si.is_valid()
-    sensor = scene.sensor
-    v = scene.surface_velocity(si.p, hit.body, time_s, poses=poses) if scene.bodies else mi.Vector3f(0)
+    to_sensor = scene.sensor.world_transform().inverse()  # rest frame -> sensor (x left, y up, z forward)
+    v = scene.surface_velocity(si.p, hit.body, time_s, poses=poses)
+    camera = scene.camera_pose(time_s)
+    if camera is None:
+        p_rest, v_rest = si.p, v
+    else:  # relative to the moving camera: the scene as seen from its frame
+        v = v - camera.velocity(si.p)
+        p_rest, v_rest = camera.point_to_local(si.p), camera.vector_to_local(v)
     ray_fixed = dr.dot(si.n, v) / dr.dot(si.n, ray_d)
-    v_camera = camera_frame_velocity(sensor, v)
+    v_camera = to_sensor @ mi.Vector3f(v_rest)
     if pinhole is None:  # no pinhole projection (orthographic): no flow
         flow = mi.Vector2f(dr.nan)
     else:  # d/dt of (a x/z, c y/z) in the sensor's frame; pinhole = (a, c), pinhole_scales
-        p = sensor.world_transform().inverse() @ si.p
+        p = to_sensor @ mi.Point3f(p_rest)
         z2 = dr.square(p.z)
         flow = mi.Vector2f(pinhole[0] * (v_camera.x * p.z - p.x * v_camera.z) / z2, pinhole[1] * (v_camera.y * p.z - p.y * v_camera.z) / z2)
     values = {

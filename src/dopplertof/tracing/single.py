@@ -15,7 +15,7 @@ import drjit as dr
 import mitsuba as mi
 
 from . import lanes
-from .path import ESCAPED_LENGTH_M, camera_ray, vertex_interaction, emitter_hit, extend, first_hit, ground_truth, sample_emitter, segment_index
+from .path import ESCAPED_LENGTH_M, camera_ray, emitter_hit, extend, first_hit, ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction
 from .sink import Sink
 
 
@@ -51,6 +51,7 @@ def trace(scene, settings, setup, tables):
     ray, ray_weight, x0 = camera_ray(
         scene.sensor, tables.film, setup, pixel, time_s, lambda: streams.next_1d(corr_pixel), lambda: streams.next_2d(corr_pixel)
     )  # fmt: skip
+    ray, x0 = place_camera_ray(scene, ray, x0, time_s)
     hit = first_hit(scene, ray, time_s, poses, settings.hide_emitters)
     sink = Sink(settings.cameras)
     bank = sink.bank(u)
@@ -65,7 +66,7 @@ def trace(scene, settings, setup, tables):
 
     # ---------------------------------------------------------------- loop state
     state = sink.empty()
-    si = hit.si
+    si, body = hit.si, hit.body
     beta = mi.Spectrum(ray_weight)
     index = mi.Float(1)  # refractive index of the medium the path travels in
     prev_it = dr.zeros(mi.Interaction3f)
@@ -77,7 +78,7 @@ def trace(scene, settings, setup, tables):
     while dr.hint(active, label="dopplertof path", max_iterations=-1, exclude=[scene, settings, correlation, bank, poses, poses64, tables, sink, bsdf_ctx, precise, grouped]):
         # ---------------------------------------------------- emitter hit
         shown = active if not hide_emitters else active & (depth > 0)
-        le, em_pdf, visible = emitter_hit(scene, si, prev_it, prev_delta, shown)
+        le, em_pdf, visible = emitter_hit(scene, si, body, prev_it, prev_delta, time_s, shown)
         length_le = dr.select(si.is_valid(), length, length + ESCAPED_LENGTH_M)
         state = sink.add(state, bank, beta * mis_weight(prev_pdf, em_pdf) * le, length_le, visible)
 
@@ -116,7 +117,7 @@ def trace(scene, settings, setup, tables):
         prev_it = vertex_interaction(si)
         prev_pdf = bs.pdf
         prev_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
-        si = hit_next.si
+        si, body = hit_next.si, hit_next.body
         beta = beta_next
         index = index_next
         depth += 1
