@@ -208,7 +208,7 @@ def test_shapes_sharing_a_motion_form_one_body(tmp_path):
         ('<shape type="sphere"><animation name="to_world"><translate x="1"/></animation></shape>', r"may only contain <transform"),
         ('<shape type="sphere"><animation name="to_world"><transform><translate x="1"/></transform></animation></shape>', r"time"),
         (animated('<transform name="to_world"><translate x="1"/></transform>'), r"both"),
-        (animated('<emitter type="area"/>', shape="rectangle"), r"moving emitters"),
+        (animated('<emitter type="area"/>', keys=((0.0, '<scale x="1" y="2" z="1"/>'), (1e-3, '<translate x="1"/>')), shape="rectangle"), r"scales the axes differently"),
         (animated(keys=((0.0, '<matrix value="1 0 0"/>'),)), r"matrix needs 9 or 16 numbers"),
         (animated(keys=((0.0, '<translate x="one"/>'),)), r"expected numbers"),
         ('<shape type="sphere"><float name="radius" value="$r"/></shape>', r"unresolved parameter"),
@@ -308,9 +308,10 @@ def test_keyframes_and_to_world_conflict():
     assert_one_line(info)
 
 
-def test_dict_moving_emitter_is_rejected():
-    shape = {"type": "rectangle", "emitter": {"type": "area"}, "motion": {"type": "parametric", "linear_velocity": [1, 0, 0]}}
-    with pytest.raises(dt.SceneError, match="moving emitters") as info:
+def test_dict_emitter_on_a_body_scaled_unequally_is_rejected():
+    keys = [(0.0, np.diag([1.0, 2.0, 1.0, 1.0])), (1e-3, np.eye(4))]
+    shape = {"type": "rectangle", "emitter": {"type": "area"}, "motion": {"type": "keyframes", "keys": keys}}
+    with pytest.raises(dt.SceneError, match="scales the axes differently") as info:
         dt.load_scene(dict_scene(lamp=shape))
     assert_one_line(info)
 

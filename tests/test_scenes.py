@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import dopplertof as dt
+from dopplertof.tracing.path import place_camera_ray
 from dopplertof import scenes
 
 G = scenes.STANDARD_GRAVITY_M_S2
@@ -26,7 +27,9 @@ def _pixel_hits(scene, time_s):
     index = np.arange(width * height)
     film = mi.Point2f(((index % width) + 0.5) / width, ((index // width) + 0.5) / height)
     ray, _ = scene.sensor.sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
-    hit = scene.intersect(mi.Ray3f(ray), mi.Float64(np.full(width * height, time_s)))
+    times = mi.Float64(np.full(width * height, time_s))
+    ray, _ = place_camera_ray(scene, mi.Ray3f(ray), mi.Vector3d(ray.o), times)  # where a moving camera is
+    hit = scene.intersect(ray, times)
     valid = hit.si.is_valid().numpy()
     body = np.where(valid, hit.body.numpy().astype(np.int64), -1).reshape(height, width)
     p = np.stack([c.numpy() for c in (hit.si.p.x, hit.si.p.y, hit.si.p.z)], axis=-1).reshape(height, width, 3)
@@ -225,6 +228,18 @@ def test_dominoes_topple_one_after_another_about_their_bottom_edges():
     assert np.abs(res.velocity[first]).max() > 0.1
     standing = np.isin(body, np.arange(2, count + 1))
     assert np.all(res.point_velocity[standing] == 0.0) and np.all(res.velocity[standing] == 0.0)
+
+
+def test_street_moves_the_camera_with_its_light_through_traffic():
+    speed = 15.0
+    scene = scenes.street(resolution=24, speed=speed)
+    assert len(scene.bodies) >= 20 and len(scene.lights) == 1 and scene.camera_motion is not None
+    res = dt.render(scene, spp=GT_SPP, max_depth=1)
+    body, _, d = _pixel_hits(scene, 0.5 * EXPOSURE_S)
+    static = _interior(body, 0) & (res.coverage == 1)  # the whole footprint on static geometry
+    # Seen from the car, static points come at -speed along the road (z): d/dt |p - c| = -v·d̂
+    np.testing.assert_allclose(res.point_velocity[static], -speed * -d[static][:, 2], rtol=0.02, atol=0.05)
+    assert np.all(np.abs(res.velocity_3d[static][:, 2] + speed) < 0.05 * speed)  # the camera looks (nearly) down the road
 
 
 def test_glossy_has_conductors_a_dielectric_and_a_rolling_sphere():
