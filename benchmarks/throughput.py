@@ -14,7 +14,9 @@ Scenes (Cornell-like box, point light at the camera):
 * ``8-moving`` -- eight small cubes, each with its own 15 mm translation;
 * ``32-moving``, ``128-moving`` -- 32 or 128 cubes on a jittered lattice filling the room
   (some on the floor), each with its own 15 mm translation; their size shrinks as
-  1/sqrt(count) so that they show as much surface as the eight.
+  1/sqrt(count) so that they show as much surface as the eight;
+* ``moving-camera`` -- the static boxes, the camera (with its light attached) moving 15 mm
+  towards them over the exposure.
 
 ``--traversal`` picks how our renders find the moving bodies a ray hits (``auto``, the
 default, ``per-body`` or ``tree``; see :mod:`dopplertof.scene`).
@@ -57,7 +59,7 @@ CONFIG_LABELS = {
     "dtof1": "D-ToF 1 camera (antithetic, replay)",
     "dtof4": "D-ToF 4 cameras (antithetic, replay)",
 }
-SCENE_NAMES = ("static", "2-moving", "8-moving", "32-moving", "128-moving")
+SCENE_NAMES = ("static", "2-moving", "8-moving", "32-moving", "128-moving", "moving-camera")
 # Eight directions of travel, cycled over the cubes.
 DIRECTIONS = [(0, 0, 1), (0, 0, -1), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (0.5**0.5, 0, 0.5**0.5), (-(0.5**0.5), 0, 0.5**0.5), (0.5**0.5, 0.5**0.5, 0)]
 
@@ -72,7 +74,7 @@ def _bodies(name):
         ("short-box", transform((0.33, 0.3, 0.37), rotate_y_deg=-17, scale=(0.3, 0.3, 0.3)), (0, 0, DISPLACEMENT_M)),
         ("tall-box", transform((-0.33, 0.6, -0.29), rotate_y_deg=17, scale=(0.3, 0.6, 0.3)), (0, 0, -DISPLACEMENT_M)),
     ]
-    if name in ("static", "2-moving"):
+    if name in ("static", "2-moving", "moving-camera"):
         return two
     d = DISPLACEMENT_M
     if name == "8-moving":
@@ -118,9 +120,15 @@ def scene_dicts(name, resolution, max_depth):
     ours = _common.cornell_room(resolution)
     stock = _common.cornell_room(resolution)
     stock["integrator"] = {"type": "path", "max_depth": max_depth}
+    if name == "moving-camera":
+        sensor = ours["sensor"]
+        m0 = mi.ScalarTransform4d(sensor.pop("to_world").matrix)
+        m1 = mi.ScalarTransform4d().translate([0, 0, -DISPLACEMENT_M]) @ m0
+        sensor["motion"] = {"type": "keyframes", "keys": [(0.0, m0), (EXPOSURE_S, m1)]}
+        sensor["light"] = {**ours.pop("light"), "position": [0.0, 0.0, 0.0]}  # at the aperture, as in the room
     for key, m0, disp in _bodies(name):
         stock[key] = {"type": "cube", "bsdf": diffuse(WHITE), "to_world": m0}
-        if name == "static":
+        if name in ("static", "moving-camera"):
             ours[key] = {"type": "cube", "bsdf": diffuse(WHITE), "to_world": m0}
         else:
             m1 = mi.ScalarTransform4f().translate(list(disp)) @ m0
