@@ -322,6 +322,7 @@ class DynamicScene:
     spp_hint: int | None = None
     source: str = "<dict>"
     traversal: str = "auto"
+    recipe: tuple | None = None  # how to build it again elsewhere (scenes.from_recipe); None: from a dict
 
     def __post_init__(self):
         if self.traversal not in TRAVERSALS:
