@@ -3,8 +3,9 @@ render: :mod:`dopplertof.render_ray`): starting Ray, and Dr.Jit's kernel cache o
 workers' node-local disk.
 
 ============================  ==============================================================
+:func:`require_ray`           the Ray module; ValueError (one line for the CLI) without it
 :func:`start_ray`             the Ray module, connected to ``address`` (None: the running
-                              Ray, else a new local one); ValueError without the package
+                              Ray, else a new local one), the caller's SIGTERM handler kept
 :func:`node_local_cache`      ``DRJIT_CACHE_DIR`` (unless set) to ``$TMPDIR/drjit-cache-<user>``;
                               call it in a worker before Dr.Jit is first imported there
 :func:`gpu_workers`           whether a variant runs on the cluster's GPUs, and how many
@@ -15,20 +16,35 @@ from __future__ import annotations
 
 import getpass
 import os
+import signal
 import tempfile
+import threading
 
 RAY_MISSING = "--ray needs the 'ray' package: pip install 'dopplertof[ray]'"
 
 
-def start_ray(address: str | None = None):
-    """The ``ray`` module, initialised: the running Ray if there is one, else
-    ``ray.init(address=address)`` (None: a new local Ray). ValueError if Ray is not installed."""
+def require_ray():
+    """The ``ray`` module; ValueError if it is not installed."""
     try:
         import ray
     except ImportError:
         raise ValueError(RAY_MISSING) from None
+    return ray
+
+
+def start_ray(address: str | None = None):
+    """The ``ray`` module, initialised: the running Ray if there is one, else
+    ``ray.init(address=address)`` (None: a new local Ray). ValueError if Ray is not installed.
+
+    ``ray.init`` replaces the SIGTERM handler with one that exits at once; a handler the
+    caller installed (to stop after the work in progress) is put back.
+    """
+    ray = require_ray()
     if not ray.is_initialized():
+        previous = signal.getsignal(signal.SIGTERM)
         ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+        if callable(previous) and threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGTERM, previous)
     return ray
 
 
