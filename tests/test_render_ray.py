@@ -6,6 +6,7 @@ The Ray tests share one local Ray of 2 CPUs (2 workers), started once for the mo
 
 import json
 import shutil
+import signal
 import sys
 from pathlib import Path
 
@@ -56,6 +57,23 @@ def test_cli_render_cornell_box_on_ray_equals_the_local_render_bit_for_bit(local
         assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True), name
     meta = json.loads((tmp_path / "ray" / "metadata.json").read_text())
     assert meta["render"]["executor"] == "ray" and meta["render"]["passes"] == 8
+
+
+@pytest.mark.slow
+def test_sigterm_stops_a_ray_render_and_a_local_resume_is_bit_identical(local_ray, tmp_path):
+    from test_faults import _cli, _interrupt
+
+    # ray.init replaces the SIGTERM handler: the render's own must still stop after a pass
+    address = local_ray.get_runtime_context().gcs_address
+    status, stderr, out, args = _interrupt(tmp_path, signal.SIGTERM, "interrupted", ["--ray", "--address", address, "--workers", "2"])
+    assert status == 128 + signal.SIGTERM and "--resume" in stderr, stderr
+    assert json.loads((out / "metadata.json").read_text())["interrupted"] and (out / "checkpoint.npz").exists()
+    local_args = args[: args.index("--ray")] + args[args.index("--workers") + 2 :]
+    assert _cli(*local_args, "--resume").returncode == 0
+    whole = tmp_path / "whole"
+    assert _cli(*[a if a != str(out) else str(whole) for a in local_args]).returncode == 0
+    for name in ("intensity.exr", "stderr.exr", "measurement_0_h1_psi0deg.exr", "measurement_0_h1_psi0deg_stderr.exr"):
+        np.testing.assert_array_equal(io.read_exr(out / name), io.read_exr(whole / name), err_msg=name)
 
 
 @pytest.mark.parametrize(
