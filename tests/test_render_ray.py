@@ -130,6 +130,17 @@ def test_api_ray_render_of_a_scene_file_with_values_and_a_film_size(local_ray, t
     _assert_same_maps(dt.render(scene, executor="ray", **settings), dt.render(scene, **settings))
 
 
+def test_experiment_references_render_on_ray_with_the_same_pixels(local_ray, tmp_path):
+    from dopplertof.experiments import common
+
+    scene = common.open_scene("cornell-box", 16)
+    cameras = common.camera_grid(scene.base_camera, (0.0, 1.0), (0.0,))
+    local = common.reference_render(scene, cameras, 16, 0, 3, common.ReferenceCache(tmp_path / "local"), lambda text: None)
+    on_ray = common.reference_render(scene, cameras, 16, 0, 3, common.ReferenceCache(tmp_path / "ray", {"executor": "ray"}), lambda text: None)
+    assert on_ray.info["executor"] == "ray"
+    _assert_same_maps(on_ray, local)
+
+
 def test_ray_render_of_a_dict_scene_is_refused():
     scene = dt.oracles.moving_plane_scene(1.0, resolution=4)
     assert scene.recipe is None
