@@ -141,6 +141,13 @@ def test_experiment_references_render_on_ray_with_the_same_pixels(local_ray, tmp
     _assert_same_maps(on_ray, local)
 
 
+def test_a_worker_that_cannot_build_the_scene_is_one_clear_error(local_ray, tmp_path):
+    scene = dt.scenes.build("cornell-box", resolution=4)
+    scene.recipe = ("file", str(tmp_path / "gone.xml"), {}, None)  # as if the file were not on the worker's node
+    with pytest.raises(ValueError, match=r"a Ray worker on .* cannot build the scene: .*gone.xml: scene file not found"):
+        dt.render(scene, spp=2, executor="ray")
+
+
 def test_ray_render_of_a_dict_scene_is_refused():
     scene = dt.oracles.moving_plane_scene(1.0, resolution=4)
     assert scene.recipe is None

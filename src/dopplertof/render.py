@@ -17,6 +17,11 @@ on the tiling or the pass split. A render stopped early (Ctrl-C, or ``stop()`` r
 True between passes) returns what the finished passes hold (``result.interrupted``);
 with ``checkpoint=PATH`` its sums are saved there, and a later call with the same
 settings continues from them to a result bit-identical to an uninterrupted render.
+
+Each pass is traced and reduced to per-pixel increments where its scene is
+(:class:`PassTracer`, :meth:`Reducer.reduce`) and added here (:meth:`Accumulator.apply`):
+with ``executor="ray"`` the passes are traced on Ray workers (:mod:`dopplertof.render_ray`)
+and added in the same order, so the result is the same, bit for bit.
 """
 
 from __future__ import annotations
@@ -128,11 +133,11 @@ class Reducer:
         if self.replicated and 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:  # cameras share paths: their errors correlate
             self.pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
 
-    @classmethod
-    def of(cls, settings: RenderSettings):
-        """The reducer of a render with ``settings`` (in the active variant)."""
+    @staticmethod
+    def layout(settings: RenderSettings) -> tuple:
+        """The arguments above of a render with ``settings`` (in the active variant)."""
         group = settings.group_size
-        return cls(3 if _is_rgb() else 1, len(settings.cameras), settings.spp, group, 1 if settings.paired else group, settings.replicates)
+        return 3 if _is_rgb() else 1, len(settings.cameras), settings.spp, group, 1 if settings.paired else group, settings.replicates
 
     def groups(self, p: Pass) -> tuple[int, int]:
         """The pass's groups of every pixel: [g0, g1)."""
@@ -205,10 +210,9 @@ class Reducer:
 
 
 class Accumulator(Reducer):
-    """Float64 per-pixel sums (module docstring); ``state`` is what a checkpoint holds.
-
-    ``add(p, out)`` is ``apply(p, reduce(p, out))``: a pass traced elsewhere is added by
-    the very same numpy operations, in pass order, so the sums are bit-identical.
+    """Float64 per-pixel sums (module docstring) of ``n_pixels`` pixels; ``state`` is what a
+    checkpoint holds. A pass is added by ``apply(p, reduce(p, out))``, wherever ``reduce``
+    ran: the same numpy operations in pass order, so the sums are bit-identical.
     """
 
     def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates):
@@ -222,16 +226,6 @@ class Accumulator(Reducer):
         truth_channels = sum(o.channels for o in TRUTH)
         self.state.update(truth_sum=np.zeros((truth_channels, n)), hits=np.zeros(n, np.int32), samples=np.zeros(n, np.int32))
         self.state["instance_id"] = np.full(n, -1, np.int32)
-
-    @classmethod
-    def of(cls, n_pixels: int, settings: RenderSettings):
-        """The empty sums of a render of ``n_pixels`` pixels with ``settings``."""
-        r = Reducer.of(settings)
-        return cls(n_pixels, r.color_channels, r.n_cameras, settings.spp, r.group, r.lanes_per_group, settings.replicates)
-
-    def add(self, p: Pass, out: dict):
-        """Add one pass's per-lane outputs (Dr.Jit arrays): :meth:`reduce`, then :meth:`apply`."""
-        self.apply(p, self.reduce(p, out))
 
     def apply(self, p: Pass, inc: dict):
         """Add one pass's increments (from :meth:`Reducer.reduce`) to the sums."""
@@ -404,7 +398,7 @@ class PassTracer:
         scene.set_time_window(settings.exposure_start, settings.exposure_start + settings.exposure_s)
         self.scene, self.settings = scene, settings
         self.tables = MaterialTables.of(scene)
-        self.reducer = Reducer.of(settings)
+        self.reducer = Reducer(*Reducer.layout(settings))
 
     def __call__(self, p: Pass) -> dict:
         from .tracing import trace_pass
@@ -479,7 +473,7 @@ def render(
     width, height = scene.resolution
     n_pixels = width * height
     check_film_memory(width, height, len(settings.cameras))
-    acc = Accumulator.of(n_pixels, settings)
+    acc = Accumulator(n_pixels, *Reducer.layout(settings))
     key = fingerprint(scene, settings)
     if checkpoint is not None and os.path.exists(checkpoint):
         _load_checkpoint(checkpoint, acc, key)

@@ -48,12 +48,20 @@ class _PassWorker:
         from .render import PassTracer
         from .scenes import from_recipe
 
-        scene = from_recipe(recipe)
+        self.error = None
+        try:
+            scene = from_recipe(recipe)
+        except ValueError as exc:  # e.g. the scene file is not at its path on this node
+            import socket
+
+            self.error = f"a Ray worker on {socket.gethostname()} cannot build the scene: {exc}"
+            return
         scene.traversal = traversal
         self.tracer = PassTracer(scene, settings)
 
-    def ready(self) -> bool:
-        return True
+    def ready(self) -> str | None:
+        """None once the worker can trace, else why it cannot."""
+        return self.error
 
     def trace(self, p) -> dict:
         return self.tracer(p)
@@ -110,7 +118,9 @@ def _in_pass_order(ray, actors, passes):
             done, _ = ray.wait([*starting, *running], num_returns=1, timeout=1.0)
             for ref in done:
                 if ref in starting:
-                    ray.get(ref)  # raises if the worker could not build the scene
+                    error = ray.get(ref)
+                    if error:
+                        raise ValueError(error)
                     ready.append(starting.pop(ref))
                     continue
                 index, i = running.pop(ref)
