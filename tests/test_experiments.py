@@ -225,6 +225,7 @@ def test_default_cache_dir_follows_the_environment(monkeypatch, tmp_path):
         (["time-sampling", "cornell-box", "--quick", "--h-steps", "1"], "--h-steps"),
         (["shifts", "cornell-box", "--quick", "--time-sampling", "uniform"], "antithetic"),
         (["velocity", "cornell-box", "--quick", "--signal-electrons", "-1"], "signal electrons"),
+        (["velocity", "cornell-box", "--quick", "--address", "auto"], "--address needs --ray"),
     ],
 )
 def test_bad_input_is_one_error_line(tmp_path, args, words):

@@ -125,14 +125,15 @@ def test_a_used_folder_is_refused_unless_overwrite(tmp_path):
 # ------------------------------------------------------------------------------ signals and resume
 
 
-def _interrupt(tmp_path, sig, name):
-    """Start a render, send ``sig`` once its progress bar shows a finished pass; the
-    finished process's status, its stderr, the output folder and the arguments."""
+def _interrupt(tmp_path, sig, name, extra=()):
+    """Start a render (``extra``: more arguments), send ``sig`` once its progress bar shows
+    a finished pass; the finished process's status, its stderr, the output folder and the
+    arguments."""
     import re
     import threading
 
     out = tmp_path / name
-    args = ["render", "cornell-box", "--resolution", "64", "--spp", "256", "--lanes-per-pass", "4096", "--camera", "h=1", "-o", str(out), "--seed", "3"]
+    args = ["render", "cornell-box", "--resolution", "64", "--spp", "256", "--lanes-per-pass", "4096", "--camera", "h=1", "-o", str(out), "--seed", "3", *extra]
     proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     seen, started = [], threading.Event()
 

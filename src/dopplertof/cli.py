@@ -104,15 +104,20 @@ def scenes():
 @click.option("--overwrite", is_flag=True, help="Replace the files of another render in the output folder (only those).")
 @click.option("--resume", is_flag=True, help="Continue the interrupted render in the output folder (same settings) to the requested spp.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@click.option("--ray", "use_ray", is_flag=True, help="Trace the passes on Ray workers; the result is bit-identical to the local render's.")
+@click.option("--address", default=None, help="Ray cluster address (with --ray; default: the running Ray, else a local one).")
+@click.option("--workers", type=click.IntRange(min=1), default=None, help="Ray workers, each with CPUs / workers threads (with --ray; default: one per CPU, with a cuda variant one per GPU).")
 @settings_options()
-def render(scene, output, camera_specs, resolution, defines, overwrite, resume, quiet, **options):
+def render(scene, output, camera_specs, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, **options):
     """Render SCENE (an XML file or a built-in scene name) into OUTPUT.
 
     SIGINT, SIGTERM and SIGHUP stop after the pass in progress: the partial result and a
-    checkpoint are written, the exit status is 128 + the signal, and --resume continues.
+    checkpoint are written, the exit status is 128 + the signal, and --resume continues
+    (with or without --ray).
     """
     from . import folder as out_folder
     from .backend import BackendError
+    from .raytools import require_ray
     from .render import check_film_memory
     from .render import render as run_render
     from .scene import SceneError
@@ -123,6 +128,11 @@ def render(scene, output, camera_specs, resolution, defines, overwrite, resume, 
     try:
         if overwrite and resume:
             raise ValueError("--overwrite and --resume exclude each other")
+        for name, value in (("--address", address), ("--workers", workers)):
+            if value is not None and not use_ray:
+                raise ValueError(f"{name} needs --ray")
+        if use_ray:
+            require_ray()
         dyn = open_scene(scene, resolution, defines)
         base = scene_layer(dyn, scene)
         layer = {**given_settings(options), **cameras_layer(camera_specs, options.get("exposure"), base)}
@@ -130,8 +140,9 @@ def render(scene, output, camera_specs, resolution, defines, overwrite, resume, 
         width, height = dyn.resolution
         check_film_memory(width, height, len(settings.cameras))
         out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=out_folder.estimated_bytes(width, height, len(settings.cameras)))
+        executor = {"executor": "ray", "address": address, "workers": workers} if use_ray else {}
         with StopOnSignal() as stop:
-            result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=os.path.join(output, out_folder.CHECKPOINT), stop=stop)
+            result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=os.path.join(output, out_folder.CHECKPOINT), stop=stop, **executor)
         metadata = {"scene": scene_description(scene, resolution, defines), "film": [width, height], "command": sys.argv}
         written = out_folder.write_result(result, output, metadata)
     except KeyboardInterrupt:

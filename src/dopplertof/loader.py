@@ -82,7 +82,9 @@ def load_scene(source, *, film_resolution=None, **params) -> DynamicScene:
             raise SceneError(f"<dict>: $name substitutions {sorted(params)} apply to scene files only")
         return _load_dict(source if size is None else _dict_with_film_size(source, size))
     if isinstance(source, (str, os.PathLike)):
-        return _load_xml(os.fspath(source), params, size)
+        scene = _load_xml(os.fspath(source), params, size)
+        scene.recipe = ("file", os.path.abspath(source), params, size)
+        return scene
     raise SceneError(f"load_scene expects a file path or a dict, got {type(source).__name__}")
 
 

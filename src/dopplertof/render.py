@@ -17,6 +17,11 @@ on the tiling or the pass split. A render stopped early (Ctrl-C, or ``stop()`` r
 True between passes) returns what the finished passes hold (``result.interrupted``);
 with ``checkpoint=PATH`` its sums are saved there, and a later call with the same
 settings continues from them to a result bit-identical to an uninterrupted render.
+
+Each pass is traced and reduced to per-pixel increments where its scene is
+(:class:`PassTracer`, :meth:`Reducer.reduce`) and added here (:meth:`Accumulator.apply`):
+with ``executor="ray"`` the passes are traced on Ray workers (:mod:`dopplertof.render_ray`)
+and added in the same order, so the result is the same, bit for bit.
 """
 
 from __future__ import annotations
@@ -56,7 +61,7 @@ class RenderResult:
     settings: RenderSettings
     spp: int  # paths per pixel done (less than asked where interrupted)
     interrupted: bool = False
-    info: dict = field(default_factory=dict)  # render time (s), passes, variant
+    info: dict = field(default_factory=dict)  # render time (s), passes, executor
 
     def __getattr__(self, name):
         maps = self.__dict__.get("maps", {})
@@ -100,28 +105,52 @@ def schedule(n_pixels: int, spp: int, group: int, lanes_per_pass: int) -> list[P
 # Accumulation
 
 
-class Accumulator:
-    """Float64 per-pixel sums (module docstring); ``state`` is what a checkpoint holds."""
+class Reducer:
+    """How a render's passes reduce to per-pixel increments of the sums (module docstring).
 
-    def __init__(self, n_pixels, color_channels, n_cameras, n_groups, replicates):
+    The half of the accumulation that runs where the pass was traced (this process, or a
+    Ray worker: :mod:`dopplertof.render_ray`); :class:`Accumulator` adds the increments.
+
+    ===============  =====  ==========================================================
+    color_channels   int    3 (RGB) or 1 (mono)
+    n_cameras        int    D-ToF cameras
+    spp              int    paths per pixel
+    group            int    correlated samples per group (``settings.group_size``)
+    lanes_per_group  int    lanes a group takes (1 where primal and partner share a lane)
+    replicates       int    independent replicates per pixel (``settings.replicates``)
+    ===============  =====  ==========================================================
+    """
+
+    def __init__(self, color_channels, n_cameras, spp, group, lanes_per_group, replicates):
         from .tracing.lanes import replicate_bounds
 
-        self.bounds = replicate_bounds(n_groups, replicates)
-        self.color_channels = color_channels
-        c, n = color_channels + n_cameras, n_pixels
-        self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int32)}
+        self.color_channels, self.n_cameras = color_channels, n_cameras
+        self.group, self.lanes_per_group = group, lanes_per_group
+        self.bounds = replicate_bounds(max(spp // group, 1), replicates)
+        self.sizes = {start + n: n for start, n in self.bounds}  # replicate end -> its groups
+        self.replicated = len(self.bounds) > 1
         self.pairs = []
-        if len(self.bounds) > 1:
-            self.state.update(open_sum=np.zeros((c, n)), rep_sum=np.zeros((c, n)), rep_sq=np.zeros((c, n)), reps_closed=np.zeros(n, np.int32))
-            if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:  # cameras share paths: their errors correlate
-                self.pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
-                self.state["rep_cross"] = np.zeros((len(self.pairs), n))
-        truth_channels = sum(o.channels for o in TRUTH)
-        self.state.update(truth_sum=np.zeros((truth_channels, n)), hits=np.zeros(n, np.int32), samples=np.zeros(n, np.int32))
-        self.state["instance_id"] = np.full(n, -1, np.int32)
+        if self.replicated and 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:  # cameras share paths: their errors correlate
+            self.pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
 
-    def add(self, p: Pass, out: dict, group: int, lanes_per_group: int):
-        """Add one pass's per-lane outputs (Dr.Jit arrays), reduced in Float64 on the device.
+    @staticmethod
+    def layout(settings: RenderSettings) -> tuple:
+        """The arguments above of a render with ``settings`` (in the active variant)."""
+        group = settings.group_size
+        return 3 if _is_rgb() else 1, len(settings.cameras), settings.spp, group, 1 if settings.paired else group, settings.replicates
+
+    def groups(self, p: Pass) -> tuple[int, int]:
+        """The pass's groups of every pixel: [g0, g1)."""
+        return p.first_sample // self.group, (p.first_sample + p.samples) // self.group
+
+    def segments(self, p: Pass) -> list[tuple[int, int, int]]:
+        """The pass's groups split at replicate ends: (first group, end group, replicate end)."""
+        g0, g1 = self.groups(p)
+        return [(max(a, g0), min(a + n, g1), a + n) for a, n in self.bounds if max(a, g0) < min(a + n, g1)]
+
+    def reduce(self, p: Pass, out: dict) -> dict:
+        """One pass's per-lane outputs (Dr.Jit arrays), reduced in Float64 on the device to
+        per-pixel host increments (numpy), which :meth:`Accumulator.apply` adds.
 
         Group sums are gathers (Dr.Jit's block reductions over blocks of 2 lanes cost
         several times the reduction itself); replicates that lie wholly in the pass are
@@ -131,17 +160,15 @@ class Accumulator:
         import drjit as dr
         import mitsuba as mi
 
+        group, lanes_per_group = self.group, self.lanes_per_group
         lanes_per_pixel = p.samples // group * lanes_per_group
         intensity = out["intensity"]
         channels = [intensity[c] for c in range(self.color_channels)] + list(out["measurements"])
         truth = [x for o in TRUTH for x in _components(out[o.name], o.channels)] + [out["hits"]]
         dr.eval(channels, truth, out["instance_id"])  # one kernel traces every output (DESIGN §3.3)
 
-        s = self.state
-        pix = slice(p.pixel_start, p.pixel_start + p.n_pixels)
-        g0, g1 = p.first_sample // group, (p.first_sample + p.samples) // group
-        segments = [(max(a, g0), min(a + n, g1), a + n) for a, n in self.bounds if max(a, g0) < min(a + n, g1)]
-        sizes = {start + n: n for start, n in self.bounds}
+        g0, g1 = self.groups(p)
+        segments = self.segments(p)
         n_groups = p.n_pixels * (g1 - g0)
         first = dr.arange(mi.UInt32, n_groups) * lanes_per_group
 
@@ -153,9 +180,8 @@ class Accumulator:
 
         means = [group_means(x) for x in channels]
         truth_sums = [dr.block_sum(mi.Float64(x), lanes_per_pixel) for x in truth]
-        equal = len({b - a for a, b, _ in segments}) == 1
-        whole = "rep_sum" in s and equal and all(b - a == sizes[end] for a, b, end in segments)
-        if whole:  # the usual pass: complete replicates of one size, reduced to per-pixel sums
+        inc = {}
+        if self.whole(segments):  # the usual pass: complete replicates of one size, reduced to per-pixel sums
             size, count = segments[0][1] - segments[0][0], len(segments)
             reps = [dr.block_sum(m, size) * (1.0 / size) if size > 1 else m for m in means]
             cams = reps[self.color_channels :]
@@ -163,32 +189,73 @@ class Accumulator:
             squares = [dr.block_sum(r * r, count) for r in reps]
             cross = [dr.block_sum(cams[i] * cams[j], count) for i, j in self.pairs]
             dr.eval(sums, squares, cross, truth_sums)
-            rep_sums = np.stack([np.asarray(x.numpy()) for x in sums])
-            s["group_sum"][:, pix] += rep_sums * size
-            s["rep_sum"][:, pix] += rep_sums
-            s["rep_sq"][:, pix] += np.stack([np.asarray(x.numpy()) for x in squares])
-            for k, x in enumerate(cross):
-                s["rep_cross"][k, pix] += np.asarray(x.numpy())
-            s["reps_closed"][pix] += count
+            inc["rep_sum"] = np.stack([np.asarray(x.numpy()) for x in sums])
+            inc["rep_sq"] = np.stack([np.asarray(x.numpy()) for x in squares])
+            inc["rep_cross"] = [np.asarray(x.numpy()) for x in cross]
         else:
             dr.eval(means, truth_sums)
             host = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in means])  # (channels, pixels, groups)
-            parts = np.stack([host[:, :, a - g0 : b - g0].sum(axis=2) for a, b, _ in segments], axis=2)
+            inc["parts"] = np.stack([host[:, :, a - g0 : b - g0].sum(axis=2) for a, b, _ in segments], axis=2)
+        truth_sums = [np.asarray(x.numpy()) for x in truth_sums]
+        inc["truth_sum"] = np.stack(truth_sums[:-1])
+        inc["hits"] = np.rint(truth_sums[-1]).astype(np.int32)  # counts of hits: whole numbers
+        if p.first_sample == 0:  # the label of the pixel's first sample
+            inc["instance_id"] = np.asarray(out["instance_id"].numpy()).reshape(p.n_pixels, lanes_per_pixel)[:, 0].astype(np.int32)
+        return inc
+
+    def whole(self, segments) -> bool:
+        """Whether a pass's segments are complete replicates of one size."""
+        equal = len({b - a for a, b, _ in segments}) == 1
+        return self.replicated and equal and all(b - a == self.sizes[end] for a, b, end in segments)
+
+
+class Accumulator(Reducer):
+    """Float64 per-pixel sums (module docstring) of ``n_pixels`` pixels; ``state`` is what a
+    checkpoint holds. A pass is added by ``apply(p, reduce(p, out))``, wherever ``reduce``
+    ran: the same numpy operations in pass order, so the sums are bit-identical.
+    """
+
+    def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates):
+        super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates)
+        c, n = color_channels + n_cameras, n_pixels
+        self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int32)}
+        if self.replicated:
+            self.state.update(open_sum=np.zeros((c, n)), rep_sum=np.zeros((c, n)), rep_sq=np.zeros((c, n)), reps_closed=np.zeros(n, np.int32))
+            if self.pairs:
+                self.state["rep_cross"] = np.zeros((len(self.pairs), n))
+        truth_channels = sum(o.channels for o in TRUTH)
+        self.state.update(truth_sum=np.zeros((truth_channels, n)), hits=np.zeros(n, np.int32), samples=np.zeros(n, np.int32))
+        self.state["instance_id"] = np.full(n, -1, np.int32)
+
+    def apply(self, p: Pass, inc: dict):
+        """Add one pass's increments (from :meth:`Reducer.reduce`) to the sums."""
+        s = self.state
+        pix = slice(p.pixel_start, p.pixel_start + p.n_pixels)
+        if "rep_sum" in inc:
+            segments = self.segments(p)
+            size, count = segments[0][1] - segments[0][0], len(segments)
+            s["group_sum"][:, pix] += inc["rep_sum"] * size
+            s["rep_sum"][:, pix] += inc["rep_sum"]
+            s["rep_sq"][:, pix] += inc["rep_sq"]
+            for k, x in enumerate(inc["rep_cross"]):
+                s["rep_cross"][k, pix] += x
+            s["reps_closed"][pix] += count
+        else:
+            parts = inc["parts"]
             s["group_sum"][:, pix] += parts.sum(axis=2)
-            if "rep_sum" in s:
-                for k, (a, b, end) in enumerate(segments):
+            if self.replicated:
+                for k, (a, b, end) in enumerate(self.segments(p)):
                     s["open_sum"][:, pix] += parts[:, :, k]
                     if b == end:  # the replicate is complete: its mean is one independent unit
-                        self._close(pix, (s["open_sum"][:, pix] / sizes[end])[:, :, None])
+                        self._close(pix, (s["open_sum"][:, pix] / self.sizes[end])[:, :, None])
                         s["open_sum"][:, pix] = 0.0
+        g0, g1 = self.groups(p)
         s["groups_done"][pix] += g1 - g0
-        truth_sums = [np.asarray(x.numpy()) for x in truth_sums]
-        s["truth_sum"][:, pix] += np.stack(truth_sums[:-1])
-        s["hits"][pix] += np.rint(truth_sums[-1]).astype(np.int32)  # counts of hits: whole numbers
+        s["truth_sum"][:, pix] += inc["truth_sum"]
+        s["hits"][pix] += inc["hits"]
         s["samples"][pix] += p.samples
-        if p.first_sample == 0:  # the label of the pixel's first sample
-            labels = np.asarray(out["instance_id"].numpy()).reshape(p.n_pixels, lanes_per_pixel)[:, 0]
-            s["instance_id"][pix] = labels.astype(np.int32)
+        if "instance_id" in inc:
+            s["instance_id"][pix] = inc["instance_id"]
         s["passes_done"][0] += 1
 
     def _close(self, pix, rep_means):
@@ -311,8 +378,52 @@ def save_checkpoint(path, acc: Accumulator, key: str):
 # ----------------------------------------------------------------------------------------
 # render()
 
+EXECUTORS = ("local", "ray")
 
-def render(scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None, stop=None, **overrides) -> RenderResult:
+
+class PassTracer:
+    """Traces the passes of one render where its scene is (this process, or a Ray worker:
+    :mod:`dopplertof.render_ray`); ``tracer(p)`` is pass ``p``'s increments
+    (:meth:`Reducer.reduce`). Fits the scene's time window to the exposure.
+
+    ========  ================  ============================================
+    scene     DynamicScene      the scene, its film the render's
+    settings  RenderSettings    the render's settings (built, not overrides)
+    ========  ================  ============================================
+    """
+
+    def __init__(self, scene, settings: RenderSettings):
+        from .tracing.materials import MaterialTables
+
+        scene.set_time_window(settings.exposure_start, settings.exposure_start + settings.exposure_s)
+        self.scene, self.settings = scene, settings
+        self.tables = MaterialTables.of(scene)
+        self.reducer = Reducer(*Reducer.layout(settings))
+
+    def __call__(self, p: Pass) -> dict:
+        from .tracing import trace_pass
+        from .tracing.lanes import LaneSetup
+
+        s = self.settings
+        width, height = self.scene.resolution
+        setup = LaneSetup(
+            width=width, height=height, pixel_start=p.pixel_start, n_pixels=p.n_pixels, first_sample=p.first_sample,
+            samples=p.samples, spp_total=s.spp, n_times=s.group_size, replicates=s.replicates,
+            exposure_start_s=float(s.exposure_start), exposure_s=float(s.exposure_s), seed=s.seed,
+        )  # fmt: skip
+        return self.reducer.reduce(p, trace_pass(self.scene, s, setup, self.tables))
+
+
+def _traced_locally(scene, settings, passes):
+    tracer = PassTracer(scene, settings)
+    for p in passes:
+        yield tracer(p)
+
+
+def render(
+    scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None, stop=None,
+    executor="local", address=None, workers=None, **overrides,
+) -> RenderResult:  # fmt: skip
     """Render the intensity, ground truth and D-ToF measurements of a dynamic scene.
 
     Parameters
@@ -330,6 +441,14 @@ def render(scene, cameras=None, *, settings: RenderSettings | None = None, progr
     checkpoint : path, optional. Continue from this checkpoint if it exists (same
         settings, else ValueError); save the sums there if the render stops early.
     stop : callable, optional. Checked after every pass; True stops the render there.
+    executor : ``"local"`` (default) or ``"ray"``. ``"ray"`` traces the passes on Ray
+        workers (:mod:`dopplertof.render_ray`), each rebuilding the scene from its file or
+        built-in name (a scene loaded from a dict cannot be: ValueError), and adds them here
+        in pass order: the result is bit-identical to the local render's.
+    address : str, optional. With ``"ray"``: the cluster (``ray.init(address=…)``); default
+        the running Ray, else a new local one.
+    workers : int, optional. With ``"ray"``: workers, each with the cluster's CPUs / workers
+        Dr.Jit threads (default one per CPU; with a ``cuda_*`` variant, one per GPU).
 
     Returns
     -------
@@ -338,13 +457,14 @@ def render(scene, cameras=None, *, settings: RenderSettings | None = None, progr
     import time
 
     from .backend import ensure_variant
-    from .tracing import trace_pass
-    from .tracing.lanes import LaneSetup
-    from .tracing.materials import MaterialTables
 
     ensure_variant()
     if not hasattr(scene, "static"):
         raise ValueError(f"render() takes a scene from dopplertof.load_scene(...) or dopplertof.scenes.build(...), got {type(scene).__name__}")
+    if executor not in EXECUTORS:
+        raise ValueError(f"executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
+    if executor != "ray" and (address is not None or workers is not None):
+        raise ValueError("address and workers apply to executor='ray'")
     if cameras is not None:
         overrides["cameras"] = cameras
     base = scene_layer(scene) if settings is None else {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
@@ -353,20 +473,20 @@ def render(scene, cameras=None, *, settings: RenderSettings | None = None, progr
     width, height = scene.resolution
     n_pixels = width * height
     check_film_memory(width, height, len(settings.cameras))
-    group = settings.group_size
-    exposure = settings.exposure_s
-    scene.set_time_window(settings.exposure_start, settings.exposure_start + exposure)
-    tables = MaterialTables.of(scene)
-    color_channels = 3 if _is_rgb() else 1
-    acc = Accumulator(n_pixels, color_channels, len(settings.cameras), max(settings.spp // group, 1), settings.replicates)
+    acc = Accumulator(n_pixels, *Reducer.layout(settings))
     key = fingerprint(scene, settings)
     if checkpoint is not None and os.path.exists(checkpoint):
         _load_checkpoint(checkpoint, acc, key)
-    passes = schedule(n_pixels, settings.spp, group, settings.lanes_per_pass)
-    lanes_per_group = 1 if settings.paired else group
+    passes = schedule(n_pixels, settings.spp, settings.group_size, settings.lanes_per_pass)
+    done = int(acc.state["passes_done"][0])
+    if executor == "ray":
+        from .render_ray import traced_on_ray
+
+        traced = traced_on_ray(scene, settings, passes[done:], address=address, workers=workers)
+    else:
+        traced = _traced_locally(scene, settings, passes[done:])
 
     bar = None
-    done = int(acc.state["passes_done"][0])
     if progress:
         from tqdm import tqdm
 
@@ -378,17 +498,13 @@ def render(scene, cameras=None, *, settings: RenderSettings | None = None, progr
             if stop is not None and stop():
                 interrupted = True
                 break
-            setup = LaneSetup(
-                width=width, height=height, pixel_start=p.pixel_start, n_pixels=p.n_pixels, first_sample=p.first_sample,
-                samples=p.samples, spp_total=settings.spp, n_times=group, replicates=settings.replicates,
-                exposure_start_s=float(settings.exposure_start), exposure_s=float(exposure), seed=settings.seed,
-            )  # fmt: skip
-            acc.add(p, trace_pass(scene, settings, setup, tables), group, lanes_per_group)
+            acc.apply(p, next(traced))
             if bar is not None:
                 bar.update(1)
     except KeyboardInterrupt:
         interrupted = True
     finally:
+        traced.close()  # a Ray render's workers stop here
         if bar is not None:
             bar.close()
     done = int(acc.state["passes_done"][0])
@@ -400,7 +516,7 @@ def render(scene, cameras=None, *, settings: RenderSettings | None = None, progr
         elif os.path.exists(checkpoint):
             os.remove(checkpoint)
     spp_done = int(acc.state["samples"].min())
-    info = {"render_seconds": time.perf_counter() - start, "passes": len(passes), "passes_done": done}
+    info = {"render_seconds": time.perf_counter() - start, "passes": len(passes), "passes_done": done, "executor": executor}
     return RenderResult(maps=acc.finish(height, width, len(settings.cameras)), settings=settings, spp=spp_done, interrupted=interrupted, info=info)
 
 

@@ -331,6 +331,7 @@ class DynamicScene:
     traversal: str = "auto"
     camera_motion: Motion | None = None
     lights: list = field(default_factory=list)
+    recipe: tuple | None = None  # how to build it again elsewhere (scenes.from_recipe); None: from a dict
 
     def __post_init__(self):
         if self.traversal not in TRAVERSALS:

@@ -656,7 +656,25 @@ def _check_name(name):
 def build(name: str, **kwargs):
     """Build the built-in scene ``name`` (see ``SCENES``)."""
     _check_name(name)
-    return SCENES[name][0](**kwargs)
+    scene = SCENES[name][0](**kwargs)
+    scene.recipe = ("builtin", name, kwargs)
+    return scene
+
+
+def from_recipe(recipe: tuple):
+    """The scene a :attr:`DynamicScene.recipe <dopplertof.scene.DynamicScene>` describes,
+    built again (a Ray worker's copy): ``("builtin", name, kwargs)`` by :func:`build`,
+    ``("file", path, params, film_resolution)`` by :func:`dopplertof.load_scene`."""
+    from .loader import load_scene
+
+    kind, *args = recipe
+    if kind == "builtin":
+        name, kwargs = args
+        return build(name, **kwargs)
+    if kind == "file":
+        path, params, size = args
+        return load_scene(path, film_resolution=size, **params)
+    raise ValueError(f"unknown scene recipe {recipe!r}")
 
 
 def clip_duration(name: str, **kwargs) -> float:

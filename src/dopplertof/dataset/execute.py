@@ -24,11 +24,10 @@ as a killed worker would; the retried attempt finds the marker and renders norma
 from __future__ import annotations
 
 import contextlib
-import getpass
 import os
-import tempfile
 import time
 
+from ..raytools import gpu_workers, node_local_cache, start_ray
 from . import shards
 
 FAULT_ENV = "DOPPLERTOF_DATASET_FAULT"
@@ -141,12 +140,8 @@ def run_local(jobs: list[dict], workers: int, on_done, max_retries: int = 3) -> 
 # Ray
 
 
-def _node_local_cache() -> None:
-    os.environ.setdefault("DRJIT_CACHE_DIR", os.path.join(tempfile.gettempdir(), f"drjit-cache-{getpass.getuser()}"))
-
-
 def _ray_render_shard(job: dict) -> dict:
-    _node_local_cache()  # before the first import of Dr.Jit in this worker
+    node_local_cache()  # before the first import of Dr.Jit in this worker
     return render_shard(job)
 
 
@@ -154,7 +149,7 @@ class _ShardActor:
     """One per GPU: imports Mitsuba once, after Ray has set CUDA_VISIBLE_DEVICES."""
 
     def __init__(self, variant: str):
-        _node_local_cache()
+        node_local_cache()
         import dopplertof as dt
 
         dt.set_variant(variant)
@@ -170,17 +165,12 @@ def run_ray(jobs: list[dict], on_done, address: str | None = None, max_retries: 
     ``cuda_*`` variant and GPUs in the cluster: one actor per GPU (``num_gpus=1``,
     restarted up to ``max_retries`` times), each kept busy with up to two shards.
     """
-    try:
-        import ray
-    except ImportError:
-        raise ValueError("--ray needs the 'ray' package: pip install 'dopplertof[ray]'") from None
-    if not ray.is_initialized():
-        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+    ray = start_ray(address)
     variant = jobs[0]["variant"] if jobs else ""
-    gpus = int(ray.cluster_resources().get("GPU", 0))
+    gpus = gpu_workers(ray, variant)
     refs: dict = {}
     try:
-        if variant.startswith("cuda") and gpus > 0:
+        if gpus > 0:
             actor_cls = ray.remote(num_gpus=1, max_restarts=max_retries, max_task_retries=max_retries)(_ShardActor)
             actors = [actor_cls.remote(variant) for _ in range(gpus)]
             queue = list(jobs)

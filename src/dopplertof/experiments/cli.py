@@ -52,6 +52,8 @@ def _common_options(command):
         click.option("--max-depth", type=int, default=None, help="Path depth (default: the scene's, else 4)."),
         click.option("--quick", is_flag=True, help="Tiny settings for a smoke test (seconds)."),
         click.option("--cache", default=None, help="Reference cache folder (default $DOPPLERTOF_CACHE, else ~/.cache/dopplertof/references)."),
+        click.option("--ray", "use_ray", is_flag=True, help="Render the references on Ray workers (as 'dopplertof render --ray'; the same pixels)."),
+        click.option("--address", default=None, help="Ray cluster address (with --ray; default: the running Ray, else a local one)."),
     ]
     for option in reversed(options):
         command = option(command)
@@ -64,16 +66,21 @@ def _setting(name, value, quick):
     return (QUICK if quick else NORMAL)[name]
 
 
-def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo):
+def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo, use_ray=False, address=None):
     """(scene, output folder, cache, max depth) shared by the experiments."""
     from .. import scenes
+    from ..raytools import require_ray
     from .common import ReferenceCache, default_cache_dir, open_scene
 
+    if address and not use_ray:
+        raise ValueError("--address needs --ray")
+    if use_ray:
+        require_ray()
     if scene_arg in scenes.SCENES:
         resolution = _setting("resolution", resolution, quick)
     scene = open_scene(scene_arg, resolution)
     folder = output or os.path.join("out", "experiments", name, scene.label)
-    cache = ReferenceCache(cache or default_cache_dir())
+    cache = ReferenceCache(cache or default_cache_dir(), {"executor": "ray", "address": address} if use_ray else None)
     width, height = scene.scene.resolution
     echo(f"{name} on {scene.label} ({width}x{height}); output in {os.path.abspath(folder)}/")
     return scene, folder, cache, (max_depth if max_depth is not None else scene.max_depth)
@@ -138,12 +145,12 @@ def _sweep_settings(h_steps, phases, spp, reference_spp, seed, max_depth, quick)
 @click.option("--correlation", "correlations", multiple=True, help=_CORRELATION_HELP)
 @click.option("--h-steps", type=int, default=None, help=f"Heterodyne ratios h from 0 to 1 (default {NORMAL['h_steps']}, quick {QUICK['h_steps']}).")
 @click.option("--phases", type=int, default=None, help=f"Phase offsets ψ = 2πk/N averaged over (default {NORMAL['phases']}, quick {QUICK['phases']}).")
-def time_sampling_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, time_samplings, correlations, h_steps, phases):
+def time_sampling_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, time_samplings, correlations, h_steps, phases):
     """Error of every time sampling x correlation versus h, averaged over ψ (paper Fig. 12)."""
     from .sweeps import run_time_sampling
 
     estimators = _estimators(time_samplings, correlations, quick)
-    dyn, folder, cache, max_depth = _prepare("time-sampling", scene, output, resolution, quick, cache, max_depth, click.echo)
+    dyn, folder, cache, max_depth = _prepare("time-sampling", scene, output, resolution, quick, cache, max_depth, click.echo, use_ray, address)
     settings = _sweep_settings(h_steps, phases, spp, reference_spp, seed, max_depth, quick)
     _report(run_time_sampling(dyn, folder, estimators, settings, cache, click.echo))
 
@@ -154,13 +161,13 @@ def time_sampling_command(scene, output, spp, reference_spp, resolution, seed, m
 @click.option("--shift-steps", type=int, default=None, help=f"Shifts a from 0 to 1 (default {NORMAL['shift_steps']}, quick {QUICK['shift_steps']}).")
 @click.option("--h-steps", type=int, default=None, help=f"Heterodyne ratios h from 0 to 1 (default {NORMAL['h_steps']}, quick {QUICK['h_steps']}).")
 @click.option("--phases", type=int, default=None, help=f"Phase offsets ψ = 2πk/N averaged over (default {NORMAL['phases']}, quick {QUICK['phases']}).")
-def shifts_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, time_samplings, correlation, shift_steps, h_steps, phases):
+def shifts_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, time_samplings, correlation, shift_steps, h_steps, phases):
     """Error of antithetic sampling versus the shift a and h (paper Fig. 15)."""
     from .sweeps import evenly_spaced, run_shifts
 
     methods = list(dict.fromkeys(time_samplings or ("antithetic", "antithetic_mirror")))
     shift_values = evenly_spaced(_setting("shift_steps", shift_steps, quick), "--shift-steps")
-    dyn, folder, cache, max_depth = _prepare("shifts", scene, output, resolution, quick, cache, max_depth, click.echo)
+    dyn, folder, cache, max_depth = _prepare("shifts", scene, output, resolution, quick, cache, max_depth, click.echo, use_ray, address)
     settings = _sweep_settings(h_steps, phases, spp, reference_spp, seed, max_depth, quick)
     _report(run_shifts(dyn, folder, methods, shift_values, correlation, settings, cache, click.echo))
 
@@ -169,7 +176,7 @@ def shifts_command(scene, output, spp, reference_spp, resolution, seed, max_dept
 @click.option("--time-sampling", "time_samplings", multiple=True, help="Time sampling; repeatable, crossed with --correlation (default: uniform/none, stratified/replay, antithetic/replay).")
 @click.option("--correlation", "correlations", multiple=True, help=f"Correlation mode; repeatable ({', '.join(MODES)}).")
 @click.option("--signal-electrons", type=float, default=20000.0, show_default=True, help="Photo-electrons of the 99th-percentile pixel per exposure, both taps.")
-def velocity_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, time_samplings, correlations, signal_electrons):
+def velocity_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, time_samplings, correlations, signal_electrons):
     """Reconstructed versus ground-truth velocity, with and without sensor noise."""
     from .velocity import DEFAULT_ESTIMATORS, run_velocity
 
@@ -177,7 +184,7 @@ def velocity_command(scene, output, spp, reference_spp, resolution, seed, max_de
         estimators = _estimators(time_samplings, correlations or ("replay",), quick)
     else:
         estimators = list(DEFAULT_ESTIMATORS)
-    dyn, folder, cache, max_depth = _prepare("velocity", scene, output, resolution, quick, cache, max_depth, click.echo)
+    dyn, folder, cache, max_depth = _prepare("velocity", scene, output, resolution, quick, cache, max_depth, click.echo, use_ray, address)
     _report(run_velocity(
         dyn, folder, estimators, _setting("spp", spp, quick), _setting("reference_spp", reference_spp, quick),
         seed, max_depth, signal_electrons, cache, click.echo,

@@ -159,12 +159,15 @@ def check_spp(name: str, spp: int) -> int:
     return spp
 
 
-def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int, seed: int, max_depth: int, progress=False):
-    """(RenderResult, wall seconds) of one render; an interrupted render raises KeyboardInterrupt."""
+def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int, seed: int, max_depth: int, progress=False, **executor):
+    """(RenderResult, wall seconds) of one render; an interrupted render raises KeyboardInterrupt.
+
+    ``executor``: :func:`~dopplertof.render.render`'s ``executor``, ``address``, ``workers``.
+    """
     start = time.perf_counter()
     result = render(
         scene.scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth, progress=progress,
-        **scene.render_settings, **estimator.render_settings(),
+        **scene.render_settings, **estimator.render_settings(), **executor,
     )  # fmt: skip
     if result.interrupted:
         raise KeyboardInterrupt
@@ -215,10 +218,16 @@ _ARRAY_FIELDS = tuple(name for o in OUTPUTS for name in (o.name, o.stderr_name) 
 
 
 class ReferenceCache:
-    """Reference renders stored as ``<key>.npz`` in ``folder`` (created on first store)."""
+    """Reference renders stored as ``<key>.npz`` in ``folder`` (created on first store).
 
-    def __init__(self, folder):
+    ``executor``: how a reference missing from the cache is rendered, as
+    :func:`~dopplertof.render.render`'s ``executor``, ``address``, ``workers`` (e.g.
+    ``{"executor": "ray"}``); the key leaves it out, the pixels being the same.
+    """
+
+    def __init__(self, folder, executor: dict | None = None):
         self.folder = Path(folder)
+        self.executor = dict(executor or {})
 
     @staticmethod
     def key(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, estimator: Estimator) -> str:
@@ -274,7 +283,7 @@ def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_d
         echo(f"reference: loaded from cache {cache.path(key)}")
         return cached
     echo(f"reference: rendering {REFERENCE_ESTIMATOR.label} at {spp} spp (seed {seed}) ...")
-    result, seconds = timed_render(scene, cameras, REFERENCE_ESTIMATOR, spp, seed, max_depth, progress=sys.stderr.isatty())
+    result, seconds = timed_render(scene, cameras, REFERENCE_ESTIMATOR, spp, seed, max_depth, progress=sys.stderr.isatty(), **cache.executor)
     path = cache.store(key, result)
     echo(f"reference: rendered in {seconds:.1f} s, cached as {path}")
     return result
