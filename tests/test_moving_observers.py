@@ -64,13 +64,14 @@ def test_the_moving_plane_closed_form_holds_with_the_camera_moving():
         assert abs(float(z.mean())) < 0.5 and 0.6 < float(z.std()) < 1.5 and float(np.abs(z).max()) < 5, camera
 
 
-def _lateral_scene(mover, speed_m_s, exposure_s=1.5e-3):
+def _lateral_scene(mover, speed_m_s, exposure_s=1.5e-3, sensor_type="perspective"):
     """A wall and a box before it, a camera with its point light attached; ``mover``
     ``"scene"`` slides the wall and box along −x, ``"camera"`` the camera along +x."""
     look = T().look_at(origin=[0, 0, 4], target=[0, 0, 0], up=[0, 1, 0])
     shift = mi.ScalarTransform4d().translate([speed_m_s * exposure_s, 0, 0])
-    sensor = {"type": "perspective", "fov": 40, "film": {"type": "hdrfilm", "width": 12, "height": 12, "rfilter": {"type": "box"}},
-              "light": {"type": "point", "intensity": {"type": "rgb", "value": 20.0}}}
+    lens = {"aperture_radius": 0.05, "focus_distance": 3.5} if sensor_type == "thinlens" else {}
+    sensor = {"type": sensor_type, "fov": 40, "film": {"type": "hdrfilm", "width": 12, "height": 12, "rfilter": {"type": "box"}},
+              "light": {"type": "point", "intensity": {"type": "rgb", "value": 20.0}}, **lens}
     wall = {"type": "rectangle", "to_world": mi.ScalarTransform4d().scale(3), "bsdf": grey(0.6)}
     box = {"type": "cube", "to_world": mi.ScalarTransform4d().translate([0.4, 0, 1]) @ mi.ScalarTransform4d().scale(0.4), "bsdf": grey(0.3)}
     if mover == "scene":
@@ -84,11 +85,11 @@ def _lateral_scene(mover, speed_m_s, exposure_s=1.5e-3):
     return dt.load_scene({"type": "scene", "sensor": sensor, "wall": wall, "box": box})
 
 
-@pytest.mark.parametrize("correlation", ["replay", "reconnection"])
-def test_a_camera_moving_sideways_measures_the_scene_moving_the_other_way(correlation):
+@pytest.mark.parametrize("correlation,sensor_type", [("replay", "perspective"), ("reconnection", "perspective"), ("adaptive", "thinlens")])
+def test_a_camera_moving_sideways_measures_the_scene_moving_the_other_way(correlation, sensor_type):
     kw = dict(spp=64, max_depth=3, seed=2, correlation=correlation)
-    scene = dt.render(_lateral_scene("scene", 200.0), CAMERAS, **kw)
-    camera = dt.render(_lateral_scene("camera", 200.0), CAMERAS, **kw)
+    scene = dt.render(_lateral_scene("scene", 200.0, sensor_type=sensor_type), CAMERAS, **kw)
+    camera = dt.render(_lateral_scene("camera", 200.0, sensor_type=sensor_type), CAMERAS, **kw)
     _assert_same_within_noise(scene, camera)
     _assert_same_truth(scene, camera)
     assert np.abs(camera.flow[..., 0]).max() > 1.0  # the scene slides across the film
