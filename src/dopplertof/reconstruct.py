@@ -63,7 +63,9 @@ receding at constant speed (up to its 1/d² brightening), and wrong wherever a p
 different surfaces in different windows (a moving edge: the motion artefact of sequential
 capture), the motion accelerates, or the radiance changes between windows. Every
 estimator uses this model; the ratio pairs a homodyne with a heterodyne camera of the
-same window. Cameras without ``exposure_start`` (None) share the first window; a set that
+same window; the fit searches a grid 1 + max δ_i times finer and refines its deepest few
+minima, since later windows give distant Doppler phases residuals almost as small as the
+true one's. Cameras without ``exposure_start`` (None) share the first window; a set that
 mixes None with given starts is refused (pass the render's ``result.cameras``, whose
 starts are filled in).
 

@@ -52,7 +52,7 @@ class RenderSettings:
     seed: int = _setting(0, "int", "", "random seed: same seed, same image, whatever the pass split", minimum=0)
     cameras: tuple = _setting((), "cameras", "", "D-ToF camera configurations (dopplertof.Camera); none: intensity only")
     exposure: float | None = _setting(None, "float", "s", f"exposure T when no camera is given (default {DEFAULT_EXPOSURE_S})", optional=True)
-    exposure_start: float = _setting(0.0, "float", "s", "scene time at which the exposure opens")
+    exposure_start: float = _setting(0.0, "float", "s", "scene time at which the exposure opens (of the cameras that give no exposure_start of their own)")
     max_depth: int = _setting(5, "int", "", "longest path, Mitsuba semantics (1 emitters only, 2 direct light, -1 unbounded)")
     rr_depth: int = _setting(5, "int", "", "depth at which Russian roulette starts", minimum=1)
     hide_emitters: bool = _setting(False, "bool", "", "hide directly visible emitters (as stock path)")
