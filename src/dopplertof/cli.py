@@ -128,7 +128,7 @@ def render(scene, output, camera_specs, resolution, defines, overwrite, resume, 
         layer = {**given_settings(options), **cameras_layer(camera_specs, options.get("exposure"), base)}
         settings = RenderSettings.build(base, layer, where=scene)
         width, height = dyn.resolution
-        check_film_memory(width, height, len(settings.cameras))
+        check_film_memory(width, height, len(settings.cameras), len(settings.windows))
         out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=out_folder.estimated_bytes(width, height, len(settings.cameras)))
         with StopOnSignal() as stop:
             result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=os.path.join(output, out_folder.CHECKPOINT), stop=stop)

@@ -69,7 +69,7 @@ class RenderResult:
     settings: RenderSettings
     spp: int  # paths per pixel done (less than asked where interrupted)
     interrupted: bool = False
-    info: dict = field(default_factory=dict)  # render time (s), passes, variant
+    info: dict = field(default_factory=dict)  # render time (s), passes, exposure windows [[start, T], ...] (s)
 
     def __getattr__(self, name):
         maps = self.__dict__.get("maps", {})
