@@ -655,7 +655,7 @@ def tiny():
         (dict(time_sampling="sometimes"), r"unknown time_sampling 'sometimes'"),
         (dict(correlation="telepathy"), r"unknown correlation 'telepathy'"),
         (dict(cameras=["camera"]), r"'cameras' must be a list of dopplertof.Camera"),
-        (dict(cameras=[dt.Camera(exposure=1e-3), dt.Camera(exposure=2e-3)]), r"share the exposure"),
+        (dict(cameras=[dt.Camera(exposure=1e-3), dt.Camera(exposure=2e-3)], exposure=1e-3), r"differs from the cameras' exposure"),
     ],
 )
 def test_bad_render_arguments(tiny, kwargs, match):

@@ -116,6 +116,15 @@ def test_api_ray_render_stopped_and_resumed_equals_the_local_render(local_ray, t
     _assert_same_maps(resumed, whole)
 
 
+def test_a_capture_schedule_and_a_moving_camera_on_ray_equal_the_local_render(local_ray):
+    scene = dt.scenes.build("street", resolution=16)
+    cameras = [dt.Camera(modulation_frequency=150e6, exposure=1e-3, heterodyne=1.0, phase=p, exposure_start=k * 1e-3) for k, p in enumerate((0.0, np.pi / 2))]
+    settings = dict(cameras=cameras, spp=8, lanes_per_pass=1024, seed=5)
+    local = dt.render(scene, **settings)
+    assert len(local.info["windows"]) == 2
+    _assert_same_maps(dt.render(scene, executor="ray", workers=2, **settings), local)
+
+
 def test_api_ray_render_of_a_scene_file_with_values_and_a_film_size(local_ray, tmp_path):
     # the workers load the file again: its $values, film size, a mesh beside it, the traversal
     text = (DATA / "moving_mesh.xml").read_text()

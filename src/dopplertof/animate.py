@@ -228,8 +228,8 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
     Raises
     ------
     ValueError
-        Bad frames/fps, a camera set that cannot determine velocity, or ``output`` holding
-        a clip with other settings.
+        Bad frames/fps, a camera set that cannot determine velocity, cameras with an
+        ``exposure_start`` of their own, or ``output`` holding a clip with other settings.
     KeyboardInterrupt
         On Ctrl-C, after the finished frames are safe; a rerun resumes.
     """
@@ -239,6 +239,10 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
     settings = settings or RenderSettings(cameras=default_cameras())
     if not settings.cameras:
         settings = settings.replace(cameras=default_cameras())
+    scheduled = [c.label() for c in settings.cameras if c.exposure_start is not None]
+    if scheduled:
+        raise ValueError(f"an animation opens every camera's exposure at its frame's time (i/fps); cameras {', '.join(scheduled)} "
+                         "set their own exposure_start (a capture schedule), which animate does not take")
     method = resolve_method(list(settings.cameras), method)
     width, height = scene.resolution
     record = _jsonable({

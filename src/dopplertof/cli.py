@@ -98,7 +98,7 @@ def scenes():
 @main.command()
 @click.argument("scene")
 @click.option("-o", "--output", "output", default=None, help="Output folder (default: out/<scene name>).")
-@click.option("--camera", "camera_specs", multiple=True, help="A camera, e.g. 'h=1,psi=0' or 'h=0,psi=90deg,f=30e6'. Repeatable. Keys: h, psi (rad or 90deg), f (Hz), T (s), waveform, g1, g0, low_pass.")
+@click.option("--camera", "camera_specs", multiple=True, help="A camera, e.g. 'h=1,psi=0' or 'h=0,psi=90deg,f=30e6'. Repeatable. Keys: h, psi (rad or 90deg), f (Hz), T (s), start (s: when its exposure opens), waveform, g1, g0, low_pass.")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file (overrides its <default>). Repeatable.")
 @click.option("--overwrite", is_flag=True, help="Replace the files of another render in the output folder (only those).")
@@ -138,7 +138,7 @@ def render(scene, output, camera_specs, resolution, defines, overwrite, resume, 
         layer = {**given_settings(options), **cameras_layer(camera_specs, options.get("exposure"), base)}
         settings = RenderSettings.build(base, layer, where=scene)
         width, height = dyn.resolution
-        check_film_memory(width, height, len(settings.cameras))
+        check_film_memory(width, height, len(settings.cameras), len(settings.windows))
         out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=out_folder.estimated_bytes(width, height, len(settings.cameras)))
         executor = {"executor": "ray", "address": address, "workers": workers} if use_ray else {}
         with StopOnSignal() as stop:

@@ -54,6 +54,11 @@ class Camera:
     waveform : str. One of ``sinusoidal``, ``rectangular``, ``triangular``, ``trapezoidal``.
     g1, g0 : float. Light modulation amplitude and DC offset (g0 enters full-waveform only).
     low_pass : bool. Low-pass (correlation) model if True, else the full waveform product.
+    exposure_start : float or None, s of scene time. When this configuration's exposure
+        opens; None: the render's ``exposure_start``. Its window is
+        [exposure_start, exposure_start + exposure]: configurations with the same window
+        share paths, each other window is traced with its own (a capture schedule, such as
+        four phase images one after another; README "Capture schedules").
     """
 
     modulation_frequency: float = 30e6
@@ -64,12 +69,15 @@ class Camera:
     g1: float = 0.5
     g0: float = 0.5
     low_pass: bool = True
+    exposure_start: float | None = None
 
     def __post_init__(self):
         from .validation import checked
 
         for name in ("modulation_frequency", "exposure", "heterodyne", "phase", "g1", "g0"):
             object.__setattr__(self, name, checked(name, getattr(self, name), "float", "Camera"))
+        if self.exposure_start is not None:
+            object.__setattr__(self, "exposure_start", checked("exposure_start", self.exposure_start, "float", "Camera"))
         object.__setattr__(self, "waveform", checked("waveform", self.waveform, "str", "Camera"))
         object.__setattr__(self, "low_pass", checked("low_pass", self.low_pass, "bool", "Camera"))
         if not 0 < self.modulation_frequency <= MAX_MODULATION_FREQUENCY_HZ:
@@ -92,7 +100,14 @@ class Camera:
         return self.heterodyne / self.exposure
 
     def label(self) -> str:
-        return f"h={self.heterodyne:g},psi={self.phase:g}"
+        start = "" if self.exposure_start is None else f",start={self.exposure_start:g}"
+        return f"h={self.heterodyne:g},psi={self.phase:g}{start}"
+
+    def window(self, default_start_s: float = 0.0) -> tuple[float, float]:
+        """(start, length) of its exposure window (s); ``default_start_s`` where
+        ``exposure_start`` is None (a render's: its ``exposure_start``)."""
+        start = default_start_s if self.exposure_start is None else self.exposure_start
+        return float(start), self.exposure
 
     @classmethod
     def from_original(cls, params: dict, where: str = "integrator") -> "Camera":
@@ -144,13 +159,16 @@ _CAMERA_KEYS = {
     "g1": "g1",
     "g0": "g0",
     "low_pass": "low_pass",
+    "start": "exposure_start",
+    "exposure_start": "exposure_start",
 }
 
 
 def parse_camera(text: str, exposure: float | None = None) -> Camera:
     """A :class:`Camera` from ``"h=1,psi=0,f=30e6,waveform=sinusoidal"``.
 
-    ``psi`` accepts radians or degrees with a ``deg`` suffix (``psi=90deg``); ``f`` is Hz.
+    ``psi`` accepts radians or degrees with a ``deg`` suffix (``psi=90deg``); ``f`` is Hz;
+    ``T`` and ``start`` (its ``exposure_start``: when its window opens) are seconds.
     """
     kwargs: dict = {}
     items = [p.strip() for p in text.split(",")]

@@ -31,7 +31,7 @@ PLANE_LIGHT_INTENSITY = 50.0  # point light at the camera, W/sr (all channels)
 PLANE_EXPOSURE_S = 1.5e-3  # default exposure T, s
 
 
-def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, mover="plane"):
+def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, mover="plane", duration=None):
     """The moving-plane scene (module docstring) as a :class:`~dopplertof.scene.DynamicScene`.
 
     Parameters
@@ -43,6 +43,9 @@ def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, move
     mover : str. ``"plane"``: the plane moves; ``"camera"``: the plane stays and the
         camera, with its light attached, moves away from it at ``speed_m_s`` (the same
         relative motion, so the same measurement).
+    duration : float, s, optional. How long the mover moves, from t = 0 (default
+        ``exposure``; it then stands still): longer for cameras whose windows open later
+        (``Camera.exposure_start``).
 
     The plane is the front face (z = −``PLANE_DISTANCE_M`` at t = 0) of a flattened
     40 m x 40 m cube, so that hits are on a triangle mesh.
@@ -57,9 +60,10 @@ def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, move
     # would misstate a 15 µm displacement by up to 1.6 %.
     if mover not in ("plane", "camera"):
         raise ValueError(f"mover must be 'plane' or 'camera', got {mover!r}")
+    duration = exposure if duration is None else duration
     plane = mi.ScalarTransform4d().translate([0, 0, -PLANE_DISTANCE_M - 0.5]) @ mi.ScalarTransform4d().scale([20, 20, 0.5])
     look = mi.ScalarTransform4d().look_at(origin=[0, 0, 0], target=[0, 0, -1], up=[0, 1, 0])
-    shift = mi.ScalarTransform4d().translate([0, 0, -speed_m_s * exposure])
+    shift = mi.ScalarTransform4d().translate([0, 0, -speed_m_s * duration])
     light = {"type": "point", "position": [0, 0, 0], "intensity": {"type": "rgb", "value": [PLANE_LIGHT_INTENSITY] * 3}}
     sensor = {"type": "perspective", "fov": PLANE_FOV_DEG, "film": {"type": "hdrfilm", "width": resolution, "height": resolution, "rfilter": {"type": "box"}}}
     plane = {"type": "cube", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [PLANE_REFLECTANCE] * 3}}, "to_world": plane}
@@ -67,10 +71,10 @@ def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, move
     if mover == "plane":
         sensor["to_world"] = mi.ScalarTransform4f().look_at(origin=[0, 0, 0], target=[0, 0, -1], up=[0, 1, 0])
         start = plane.pop("to_world")
-        plane["motion"] = {"type": "keyframes", "keys": [(0.0, start), (exposure, shift @ start)]}
+        plane["motion"] = {"type": "keyframes", "keys": [(0.0, start), (duration, shift @ start)]}
         scene["light"] = light
     else:  # the camera recedes from the plane, with its light (in its frame, at the aperture)
-        sensor["motion"] = {"type": "keyframes", "keys": [(0.0, look), (exposure, shift.inverse() @ look)]}
+        sensor["motion"] = {"type": "keyframes", "keys": [(0.0, look), (duration, shift.inverse() @ look)]}
         sensor["light"] = light
     return load_scene(scene)
 
@@ -90,8 +94,9 @@ def moving_plane_measurement_mean(camera, speed_m_s, nodes_xy=48, time_panels=64
 
     Parameters
     ----------
-    camera : dopplertof.Camera (low-pass model; any waveform). Its ``exposure`` (s) must be
-        the one the scene was built with.
+    camera : dopplertof.Camera (low-pass model; any waveform). Its window,
+        [``exposure_start`` (None: 0), + ``exposure``] (s), must lie in the plane's motion
+        (:func:`moving_plane_scene`'s ``duration``).
     speed_m_s : float, m/s. Receding speed of the plane.
     nodes_xy : int. Gauss-Legendre nodes per film axis.
     time_panels, time_order : int. Composite Gauss-Legendre over the exposure: ``time_panels``
@@ -117,10 +122,11 @@ def moving_plane_measurement_pixels(camera, speed_m_s, resolution, nodes_per_pix
     fx, fy = np.meshgrid(f, f, indexing="ij")
     cos_axis = 1.0 / np.sqrt(((2 * fx - 1) * tau) ** 2 + ((2 * fy - 1) * tau) ** 2 + 1.0).ravel()
     u, w_t = _gauss_legendre_01(time_panels, time_order)
+    start_s = camera.window()[0]  # the default render window opens at 0
     field = np.zeros(cos_axis.size)
     for chunk in range(0, u.size, 256):  # bounded memory: 256 times x the film's nodes at once
         uc = u[chunk:chunk + 256, None]
-        s = (PLANE_DISTANCE_M + speed_m_s * camera.exposure * uc) / cos_axis[None]
+        s = (PLANE_DISTANCE_M + speed_m_s * (start_s + camera.exposure * uc)) / cos_axis[None]
         radiance = PLANE_REFLECTANCE / math.pi * PLANE_LIGHT_INTENSITY * cos_axis[None] / s**2
         phase = 2 * math.pi * camera.heterodyne * uc + camera.phase + camera.wavenumber * 2 * s
         integrand = 0.5 * camera.g1 * lowpass_waveform(phase, camera.waveform) * radiance

@@ -49,6 +49,26 @@ correlation is exactly k L(T/2) whatever the velocity, so a 4-phase homodyne dep
 exact at mid-exposure even for a moving target. Depth is reported modulo the ambiguity
 range c/(2 f_g).
 
+Capture schedules. Cameras may expose at different times (``exposure_start``, s: a
+render's cameras one after another, README "Capture schedules"). The model then takes
+each pixel to see *one* path over the whole schedule, its length growing at a constant
+rate and its radiance constant: camera i, whose window opens δ_i = (s_i − s_0)/T
+exposures after the first camera's, sees the path lengthened by u (s_i − s_0), so its
+phase gains a δ_i:
+
+    m_i = (g1_i/2) Re{ Z e^{i(ψ_i + a δ_i)} F(2π h_i + a) },   Z = A e^{i k L(s_0)},
+
+and depth and amplitude refer to the first camera's window. This is exact for a surface
+receding at constant speed (up to its 1/d² brightening), and wrong wherever a pixel sees
+different surfaces in different windows (a moving edge: the motion artefact of sequential
+capture), the motion accelerates, or the radiance changes between windows. Every
+estimator uses this model; the ratio pairs a homodyne with a heterodyne camera of the
+same window; the fit searches a grid 1 + max δ_i times finer and refines its deepest few
+minima, since later windows give distant Doppler phases residuals almost as small as the
+true one's. Cameras without ``exposure_start`` (None) share the first window; a set that
+mixes None with given starts is refused (pass the render's ``result.cameras``, whose
+starts are filled in).
+
 Parameters shared by the public functions:
 
 =====================  ======  ===========================  ===================================
@@ -60,7 +80,9 @@ name                   unit    default                      meaning
                                                             ``modulation_frequency`` (Hz),
                                                             ``exposure`` (s), ``heterodyne``,
                                                             ``phase`` (rad), ``waveform``,
-                                                            ``g1``; all must share f_g and T
+                                                            ``g1``, optionally
+                                                            ``exposure_start`` (s); all must
+                                                            share f_g and T
 ``min_amplitude``      meas.   1e-3 × 99th percentile       pixels whose signal amplitude
                                of the image's amplitude     (max_i |H_i| for the ratio,
                                                             |H_i| for a per-phase ratio,
@@ -92,6 +114,7 @@ DEFAULT_RELATIVE_MIN_AMPLITUDE = 1e-3
 _H_TOLERANCE = 1e-12  # h == 0 and h == 1 are matched to this absolute tolerance
 _PHASE_TOLERANCE_RAD = 1e-9
 _GRID_POINTS = 65
+_SCHEDULE_CANDIDATES = 4  # grid minima refined when the cameras' windows differ
 _MAX_GAUSS_NEWTON_ITERATIONS = 60
 _MAX_STEP_HALVINGS = 30
 _RANK_RTOL = 1e-10  # det(G) / trace(G)^2 below this: the 2x2 normal equations are rank 1
@@ -110,8 +133,8 @@ class VelocityResult:
     valid : ndarray of bool, shape (...)
         Where the velocity could be determined.
     depth : ndarray, shape (...)
-        Distance (m) at mid-exposure, modulo the ambiguity range c/(2 f_g); NaN where it is
-        not determined (for example a single phase offset).
+        Distance (m) at mid-exposure (of the first camera's window), modulo the ambiguity
+        range c/(2 f_g); NaN where it is not determined (for example a single phase offset).
     amplitude : ndarray, shape (...)
         Radiance A of the path (units of the standard intensity image: the g1/2 factor is
         divided out); NaN where not determined.
@@ -174,6 +197,7 @@ class _CameraSet:
     phase_rad: np.ndarray
     half_g1: np.ndarray
     waveforms: tuple[str, ...]
+    window_offset: np.ndarray  # δ_i: window start minus the first camera's, in exposures T
 
     @property
     def wavenumber(self) -> float:
@@ -227,10 +251,14 @@ def _design_columns(
     c1, c2 : ndarray, shape (n_cameras, N)
     """
     x = 2.0 * np.pi * cams.heterodyne[:, None] + doppler_phase[None, :]
-    f_re, f_im = _beat_kernel_derivative(x) if derivative else _beat_kernel(x)
-    cos_psi = np.cos(cams.phase_rad)[:, None]
-    sin_psi = np.sin(cams.phase_rad)[:, None]
-    # Re{(X + iY) e^{iψ} (f_re + i f_im)} = X p − Y q
+    delta = cams.window_offset[:, None]
+    f_re, f_im = _beat_kernel(x)
+    if derivative:  # d/da [e^{i a δ} F(x)] = e^{i a δ} (F'(x) + i δ F(x))
+        d_re, d_im = _beat_kernel_derivative(x)
+        f_re, f_im = d_re - delta * f_im, d_im + delta * f_re
+    phi = cams.phase_rad[:, None] + delta * doppler_phase[None, :]  # ψ + a δ (module docstring)
+    cos_psi, sin_psi = np.cos(phi), np.sin(phi)
+    # Re{(X + iY) e^{iφ} (f_re + i f_im)} = X p − Y q
     p = cos_psi * f_re - sin_psi * f_im
     q = sin_psi * f_re + cos_psi * f_im
     s = cams.half_g1[:, None]
@@ -246,7 +274,7 @@ def _exposure_average(amplitude, depth_m, velocity_m_s, cams: _CameraSet) -> np.
     path_start_m = 2.0 * depth_m - 0.5 * path_rate * cams.exposure_s
     expand = (slice(None),) + (None,) * np.ndim(amplitude)
     x = 2.0 * np.pi * cams.heterodyne[expand] + doppler_phase
-    theta = cams.phase_rad[expand] + k * path_start_m
+    theta = cams.phase_rad[expand] + k * path_start_m + doppler_phase * cams.window_offset[expand]
     f_re, f_im = _beat_kernel(x)
     return cams.half_g1[expand] * amplitude * (np.cos(theta) * f_re - np.sin(theta) * f_im)
 
@@ -256,14 +284,15 @@ def model_measurements(amplitude, depth_m, velocity_m_s, cameras: Sequence) -> n
 
     The light is co-located with the camera (optical path L = 2 × distance, dL/dt =
     2 × radial velocity), the radiance is constant and the velocity is constant during the
-    exposure. The inverse of :func:`velocity` and :func:`depth`.
+    exposure (over every camera's window: module docstring, capture schedules). The
+    inverse of :func:`velocity` and :func:`depth`.
 
     Parameters
     ----------
     amplitude : array_like, shape (...)
         Radiance A of the path (units of the standard intensity image).
     depth_m : array_like, broadcastable to ``amplitude``
-        Distance (m) at mid-exposure, t = T/2.
+        Distance (m) at mid-exposure, t = T/2 (of the first camera's window).
     velocity_m_s : array_like, broadcastable to ``amplitude``
         Radial velocity (m/s), positive when the distance grows.
     cameras : sequence of camera configurations
@@ -273,7 +302,7 @@ def model_measurements(amplitude, depth_m, velocity_m_s, cameras: Sequence) -> n
     -------
     ndarray, shape (n_cameras, ...)
         m_i = (g1_i A/2) [sin(θ_i + 2π h_i + a) − sin θ_i]/(2π h_i + a), with
-        θ_i = ψ_i + k L(0), a = 2 k v T.
+        θ_i = ψ_i + k L(0) + a δ_i, a = 2 k v T, δ_i the camera's window offset.
 
     Raises
     ------
@@ -343,7 +372,26 @@ def _camera_set(cameras: Sequence) -> _CameraSet:
         phase_rad=phases,
         half_g1=0.5 * g1,
         waveforms=waveforms,
+        window_offset=_window_offsets(cameras, float(exposures[0])),
     )
+
+
+def _window_offsets(cameras, exposure_s: float) -> np.ndarray:
+    """δ_i = (s_i − s_0)/T from the cameras' ``exposure_start`` (module docstring)."""
+    starts = [getattr(c, "exposure_start", None) for c in cameras]
+    given = [s is not None for s in starts]
+    if not any(given):
+        return np.zeros(len(cameras))
+    if not all(given):
+        raise ValueError(
+            "some cameras give an exposure_start and others do not (None: the render's), so "
+            f"their windows are unknown here: {starts}; pass the RenderResult, or its "
+            "result.cameras, whose starts are filled in"
+        )
+    starts = np.array([float(s) for s in starts])
+    if not np.all(np.isfinite(starts)):
+        raise ValueError(f"camera exposure_start must be finite, got {starts.tolist()} s")
+    return (starts - starts[0]) / exposure_s
 
 
 def _require_sinusoid(cams: _CameraSet, why: str) -> None:
@@ -392,14 +440,17 @@ def _same_phase(psi_a: float, psi_b: float) -> bool:
 
 def _ratio_pairs(cams: _CameraSet) -> list[tuple[int, int]] | None:
     """(homodyne, heterodyne) camera indices if every camera is in an h=0/h=1 pair
-    with the same ψ; None otherwise."""
+    with the same ψ and the same exposure window; None otherwise."""
     homodyne = [i for i in range(len(cams)) if abs(cams.heterodyne[i]) <= _H_TOLERANCE]
     heterodyne = [i for i in range(len(cams)) if abs(cams.heterodyne[i] - 1) <= _H_TOLERANCE]
     if not homodyne or len(homodyne) != len(heterodyne) or 2 * len(homodyne) != len(cams):
         return None
     pairs, free = [], list(heterodyne)
     for i in homodyne:
-        match = next((j for j in free if _same_phase(cams.phase_rad[i], cams.phase_rad[j])), None)
+        match = next(
+            (j for j in free if _same_phase(cams.phase_rad[i], cams.phase_rad[j]) and cams.window_offset[i] == cams.window_offset[j]),
+            None,
+        )
         if match is None:
             return None
         free.remove(match)
@@ -494,9 +545,18 @@ def _projected_sensitivity(fit: dict, doppler_phase: np.ndarray, cams: _CameraSe
     return jac, jac - (c1 * alpha + c2 * beta)
 
 
-def _grid_search(m: np.ndarray, cams: _CameraSet, max_phase: float) -> np.ndarray:
-    """Coarse per-pixel minimiser of the projected residual over a ∈ [−max, max]."""
-    grid = np.linspace(-max_phase, max_phase, _GRID_POINTS)
+def _grid_points(cams: _CameraSet) -> int:
+    """Grid points of the coarse search: the model's phases vary with a as fast as
+    1 + max|δ_i| (windows later by δ_i exposures gain a δ_i), so the grid is that much
+    finer for the same resolution of the residual's landscape."""
+    return (_GRID_POINTS - 1) * int(np.ceil(1.0 + np.max(np.abs(cams.window_offset)))) + 1
+
+
+def _grid_search(m: np.ndarray, cams: _CameraSet, max_phase: float, candidates: int = 1) -> np.ndarray:
+    """Coarse per-pixel minimisers of the projected residual over a ∈ [−max, max]: the
+    ``candidates`` deepest local minima of the grid, deepest first, each refined by a
+    parabola (shape (candidates, N); where a pixel has fewer, its deepest repeats)."""
+    grid = np.linspace(-max_phase, max_phase, _grid_points(cams))
     rss = np.empty((grid.size, m.shape[1]))
     for j, a in enumerate(grid):
         # The columns do not depend on the pixel here: one projector for all pixels.
@@ -505,12 +565,24 @@ def _grid_search(m: np.ndarray, cams: _CameraSet, max_phase: float) -> np.ndarra
         projector = basis @ np.linalg.pinv(basis, rcond=1e-10)
         residual = m - projector @ m
         rss[j] = np.sum(residual * residual, axis=0)
-    best = np.argmin(rss, axis=0)
+    if candidates == 1:
+        order = np.argmin(rss, axis=0)[None]
+    else:
+        padded = np.pad(rss, ((1, 1), (0, 0)), constant_values=np.inf)
+        minimum = (rss <= padded[:-2]) & (rss <= padded[2:])
+        order = np.argsort(np.where(minimum, rss, np.inf), axis=0, kind="stable")[:candidates]
+        depth = np.take_along_axis(np.where(minimum, rss, np.inf), order, axis=0)
+        order = np.where(np.isfinite(depth), order, order[:1])
+    return np.stack([_parabola(grid, rss, best) for best in order])
+
+
+def _parabola(grid: np.ndarray, rss: np.ndarray, best: np.ndarray) -> np.ndarray:
+    """Grid points ``best`` (per pixel) moved to the vertex of the parabola through their
+    neighbours' residuals, kept inside one grid step."""
     start = grid[best]
-    # parabolic refinement from the neighbours, kept inside one grid step
     spacing = grid[1] - grid[0]
     inner = (best > 0) & (best < grid.size - 1)
-    cols = np.arange(m.shape[1])
+    cols = np.arange(rss.shape[1])
     r_lo = rss[np.clip(best - 1, 0, grid.size - 1), cols]
     r_0 = rss[best, cols]
     r_hi = rss[np.clip(best + 1, 0, grid.size - 1), cols]
@@ -661,8 +733,8 @@ def _require_pairs(cams: _CameraSet):
     if pairs is None:
         raise ValueError(
             "method='ratio' needs every camera in a homodyne (h=0) / heterodyne (h=1) pair "
-            f"with the same phase; got h = {cams.heterodyne.tolist()}, "
-            f"ψ = {cams.phase_rad.tolist()} rad"
+            f"with the same phase and exposure window; got h = {cams.heterodyne.tolist()}, "
+            f"ψ = {cams.phase_rad.tolist()} rad, window offsets {cams.window_offset.tolist()} T"
         )
     return pairs
 
@@ -688,9 +760,19 @@ def _velocity_fit(flat, cams, min_amplitude, max_doppler_hz):
     if reason is not None:
         raise ValueError(reason)
     max_phase = 2.0 * np.pi * max_doppler_hz * cams.exposure_s
-    start = _grid_search(flat, cams, max_phase)
-    spacing = 2.0 * max_phase / (_GRID_POINTS - 1)
-    doppler_phase = _gauss_newton(flat, start, cams, max_step=spacing, max_phase=max_phase)
+    spacing = 2.0 * max_phase / (_grid_points(cams) - 1)
+    # Windows at different times give the residual several deep minima, whose depths on
+    # the grid can mislead: refine the deepest few and keep the best.
+    candidates = 1 if not np.any(cams.window_offset) else _SCHEDULE_CANDIDATES
+    doppler_phase, best_rss = None, None
+    for start in _grid_search(flat, cams, max_phase, candidates):
+        a = _gauss_newton(flat, start, cams, max_step=spacing, max_phase=max_phase)
+        if doppler_phase is None:
+            doppler_phase, best_rss = a, _linear_fit(flat, a, cams)["rss"]
+            continue
+        rss = _linear_fit(flat, a, cams)["rss"]
+        better = rss < best_rss
+        doppler_phase, best_rss = np.where(better, a, doppler_phase), np.where(better, rss, best_rss)
     # Per-pixel identifiability: the data must respond to a beyond what Z can absorb.
     fit = _linear_fit(flat, doppler_phase, cams)
     _, jac_perp = _projected_sensitivity(fit, doppler_phase, cams)
@@ -729,7 +811,11 @@ def velocity(
         units of the standard image times g1/2. A :class:`~dopplertof.render.RenderResult`
         gives its measurements, cameras, standard errors and covariance at once.
     cameras : sequence of n_cameras camera configurations
-        Sharing f_g (Hz) and T (s). See the module docstring.
+        Sharing f_g (Hz) and T (s). See the module docstring. Cameras in different
+        exposure windows (``exposure_start``) are taken to see one path moving at a
+        constant rate over the whole schedule, with constant radiance (module docstring,
+        capture schedules): false at moving edges, under acceleration or brightness
+        changes between windows, where the result is wrong (a motion artefact).
     measurement_stderr : array_like, shape (n_cameras, ...), optional
         Standard errors of the measurements; taken as independent between cameras unless
         ``measurement_covariance`` is given.
@@ -890,8 +976,9 @@ def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None
     shift is fitted and accounted for). Otherwise (for example homodyne cameras only) the
     linear model is solved with no Doppler shift: for 4-phase homodyne (ψ = 0, π/2, π,
     3π/2) that is the classic φ = atan2(m₃ − m₁, m₀ − m₂), d = c φ / (4π f_g). Its phase is
-    exact at mid-exposure even for a moving target; only the amplitude is reduced by
-    sinc(a/2). For non-sinusoidal waveforms this homodyne path is accepted but has the
+    exact at mid-exposure even for a moving target when the cameras share a window (only
+    the amplitude is reduced by sinc(a/2)); phases captured one after another take the
+    target as still between the windows, and its motion biases the depth. For non-sinusoidal waveforms this homodyne path is accepted but has the
     usual cyclic (wiggling) error.
 
     Parameters

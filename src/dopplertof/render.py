@@ -12,8 +12,14 @@ per-pixel sums:
   whose spread gives the standard error;
 * ground truth: sums of value × hit and of hits.
 
-Random numbers depend on (seed, pixel, sample index) only, so the result does not depend
-on the tiling or the pass split. A render stopped early (Ctrl-C, or ``stop()`` returning
+Capture schedules: cameras whose exposure windows differ
+(:attr:`~dopplertof.settings.RenderSettings.windows`) are rendered window by window, the
+schedule of passes once per window with that window's cameras, times and seed
+(:func:`~dopplertof.tracing.lanes.window_seed`), each into sums of its own; cameras of one
+window share paths, cameras of different windows are independent.
+
+Random numbers depend on (seed, window, pixel, sample index) only, so the result does not
+depend on the tiling or the pass split. A render stopped early (Ctrl-C, or ``stop()`` returning
 True between passes) returns what the finished passes hold (``result.interrupted``);
 with ``checkpoint=PATH`` its sums are saved there, and a later call with the same
 settings continues from them to a result bit-identical to an uninterrupted render.
@@ -34,7 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .outputs import ESTIMATES, TRUTH
+from .outputs import BY_NAME, ESTIMATES, TRUTH
 from .settings import DEFAULT_EXPOSURE_S, RenderSettings, scene_layer
 
 __all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S"]
@@ -53,15 +59,22 @@ class RenderResult:
     sample hit), ``velocity_3d`` (H, W, 3), ``flow`` (H, W, 2), ``coverage`` (H, W) and
     ``instance_id`` (H, W, int32), and, for 2 to ``MAX_COVARIANCE_CAMERAS`` cameras,
     ``measurement_covariance`` (n_cameras, n_cameras, H, W): the covariance of the
-    measurements' means (cameras share paths, so their errors correlate), which
+    measurements' means (cameras of one exposure window share paths, so their errors
+    correlate; cameras of different windows are independent: 0), which
     :func:`dopplertof.reconstruct.velocity` propagates. Images are float32.
+
+    With a capture schedule (cameras in several exposure windows) the measurements are
+    each camera's over its own window, in the order of ``cameras``; the intensity, its
+    standard error, the ground truth, ``coverage`` and ``instance_id`` are those of the
+    *reference* window, the first camera's (``settings.windows[0]``). ``cameras`` are the
+    rendered cameras with their window's ``exposure_start`` filled in.
     """
 
     maps: dict
     settings: RenderSettings
     spp: int  # paths per pixel done (less than asked where interrupted)
     interrupted: bool = False
-    info: dict = field(default_factory=dict)  # render time (s), passes, executor
+    info: dict = field(default_factory=dict)  # render time (s), passes, executor, exposure windows [[start, T], ...] (s)
 
     def __getattr__(self, name):
         maps = self.__dict__.get("maps", {})
@@ -71,7 +84,8 @@ class RenderResult:
 
     @property
     def cameras(self) -> list:
-        return list(self.settings.cameras)
+        """The cameras, each with its window's ``exposure_start`` (never None)."""
+        return list(self.settings.scheduled_cameras)
 
     @property
     def seed(self) -> int:
@@ -332,11 +346,12 @@ def host_bytes_per_pixel(n_cameras: int) -> int:
     return 8 * (4 * estimates + truth + pairs) + 4 * (2 * estimates + truth + 6 + n_cameras * n_cameras)
 
 
-def check_film_memory(width: int, height: int, n_cameras: int) -> None:
-    """ValueError for an empty film, or one whose buffers need more than the available memory."""
+def check_film_memory(width: int, height: int, n_cameras: int, n_windows: int = 1) -> None:
+    """ValueError for an empty film, or one whose buffers need more than the available memory
+    (each exposure window of a capture schedule keeps sums of its own)."""
     if width < 1 or height < 1:
         raise ValueError(f"the film must be at least 1x1 pixels, got {width}x{height}")
-    need = width * height * host_bytes_per_pixel(n_cameras)
+    need = width * height * (host_bytes_per_pixel(n_cameras) + (n_windows - 1) * host_bytes_per_pixel(0))
     try:
         with open("/proc/meminfo", encoding="ascii") as f:
             available = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
@@ -356,23 +371,64 @@ def fingerprint(scene, settings: RenderSettings) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def _load_checkpoint(path, acc: Accumulator, key: str):
+def _checkpoint_names(accs: list) -> list[tuple[str, Accumulator, str]]:
+    """(name in the file, accumulator, name in its state) of every array: a single window's
+    under their own names, a schedule's prefixed with their window (``w1.group_sum``)."""
+    prefix = (lambda k: "") if len(accs) == 1 else (lambda k: f"w{k}.")
+    return [(prefix(k) + name, acc, name) for k, acc in enumerate(accs) for name in acc.state]
+
+
+def _load_checkpoint(path, accs: list, key: str):
     with np.load(path, allow_pickle=False) as data:
         if str(data["fingerprint"]) != key:
             raise ValueError(f"{path}: the checkpoint belongs to a render with other settings or another scene; remove it or render into another folder")
-        for name in acc.state:
-            if name not in data or data[name].shape != acc.state[name].shape:
-                raise ValueError(f"{path}: the checkpoint is damaged ({name!r} missing or of another shape)")
-            acc.state[name] = data[name].copy()
+        for stored, acc, name in _checkpoint_names(accs):
+            if stored not in data or data[stored].shape != acc.state[name].shape:
+                raise ValueError(f"{path}: the checkpoint is damaged ({stored!r} missing or of another shape)")
+            acc.state[name] = data[stored].copy()
 
 
-def save_checkpoint(path, acc: Accumulator, key: str):
-    """Write the accumulator atomically (temporary name, then rename)."""
+def save_checkpoint(path, accs: list, key: str):
+    """Write the accumulators (one per exposure window) atomically (temporary name, then rename)."""
     from .io import atomic_path
 
+    arrays = {stored: acc.state[name] for stored, acc, name in _checkpoint_names(accs)}
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
-            np.savez(f, fingerprint=np.array(key), **acc.state)
+            np.savez(f, fingerprint=np.array(key), **arrays)
+
+
+# ----------------------------------------------------------------------------------------
+# Capture schedules
+
+
+def _merge_windows(finished: list[dict], windows, n_cameras: int, shape: tuple[int, int]) -> dict:
+    """One result's maps from the windows' (:meth:`Accumulator.finish` of each): every
+    camera's measurement and error from its window, in the cameras' order; everything else
+    from the reference window; the covariance block-diagonal (windows are independent)."""
+    if len(finished) == 1:
+        return finished[0]
+    maps = dict(finished[0])
+    for o in ESTIMATES:
+        if o.channels != "cameras":
+            continue
+        for name in (o.name, o.stderr_name):
+            merged = np.empty((n_cameras, *shape), np.float32)
+            for window, window_maps in zip(windows, finished):
+                merged[list(window.indices)] = window_maps[name]
+            maps[name] = merged
+    maps.pop("measurement_covariance", None)
+    errors = maps[BY_NAME["measurements"].stderr_name]
+    if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS and np.isfinite(errors).any():
+        covariance = np.zeros((n_cameras, n_cameras, *shape), np.float32)
+        for i in range(n_cameras):
+            covariance[i, i] = errors[i].astype(np.float64) ** 2
+        for window, window_maps in zip(windows, finished):
+            if "measurement_covariance" in window_maps:
+                idx = np.array(window.indices)
+                covariance[idx[:, None], idx[None, :]] = window_maps["measurement_covariance"]
+        maps["measurement_covariance"] = covariance
+    return maps
 
 
 # ----------------------------------------------------------------------------------------
@@ -430,7 +486,10 @@ def render(
     ----------
     scene : DynamicScene, from :func:`dopplertof.load_scene` (a file or dict) or
         :func:`dopplertof.scenes.build`.
-    cameras : list of :class:`~dopplertof.Camera`, optional. Replaces the scene's.
+    cameras : list of :class:`~dopplertof.Camera`, optional. Replaces the scene's. Cameras
+        with different exposure windows (``exposure_start``, ``exposure``) form a capture
+        schedule: each window is traced on its own, with its own random streams
+        (:class:`RenderResult` says which maps refer to which window).
     settings : :class:`RenderSettings`, optional. The settings to start from; by default
         the scene's own (:func:`dopplertof.settings.scene_layer`: its ``<integrator>``
         cameras and settings, its sampler's ``sample_count``, its sensor's shutter).
@@ -457,6 +516,7 @@ def render(
     import time
 
     from .backend import ensure_variant
+    from .tracing.lanes import window_seed
 
     ensure_variant()
     if not hasattr(scene, "static"):
@@ -472,52 +532,69 @@ def render(
 
     width, height = scene.resolution
     n_pixels = width * height
-    check_film_memory(width, height, len(settings.cameras))
-    acc = Accumulator(n_pixels, *Reducer.layout(settings))
+    windows = settings.windows
+    check_film_memory(width, height, len(settings.cameras), len(windows))
+    # Each window traces its cameras over its own times, with its own random streams.
+    window_settings = [
+        dataclasses.replace(settings, cameras=w.cameras, exposure_start=w.start_s, seed=window_seed(settings.seed, k)) for k, w in enumerate(windows)
+    ]  # fmt: skip
+    accs = [Accumulator(n_pixels, *Reducer.layout(ws)) for ws in window_settings]
     key = fingerprint(scene, settings)
     if checkpoint is not None and os.path.exists(checkpoint):
-        _load_checkpoint(checkpoint, acc, key)
+        _load_checkpoint(checkpoint, accs, key)
     passes = schedule(n_pixels, settings.spp, settings.group_size, settings.lanes_per_pass)
-    done = int(acc.state["passes_done"][0])
-    if executor == "ray":
-        from .render_ray import traced_on_ray
 
-        traced = traced_on_ray(scene, settings, passes[done:], address=address, workers=workers)
-    else:
-        traced = _traced_locally(scene, settings, passes[done:])
+    def passes_done():
+        return [int(acc.state["passes_done"][0]) for acc in accs]
 
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(passes), initial=done, unit="pass", desc="render", leave=False)
+        bar = tqdm(total=len(passes) * len(windows), initial=sum(passes_done()), unit="pass", desc="render", leave=False)
     interrupted = False
     start = time.perf_counter()
     try:
-        for p in passes[done:]:
-            if stop is not None and stop():
-                interrupted = True
+        for index, (acc, done) in enumerate(zip(accs, passes_done())):
+            if interrupted:
                 break
-            acc.apply(p, next(traced))
-            if bar is not None:
-                bar.update(1)
+            if done == len(passes):
+                continue
+            if executor == "ray":
+                from .render_ray import traced_on_ray
+
+                traced = traced_on_ray(scene, window_settings[index], passes[done:], address=address, workers=workers)
+            else:
+                traced = _traced_locally(scene, window_settings[index], passes[done:])
+            try:
+                for p in passes[done:]:
+                    if stop is not None and stop():
+                        interrupted = True
+                        break
+                    acc.apply(p, next(traced))
+                    if bar is not None:
+                        bar.update(1)
+            finally:
+                traced.close()  # a Ray render's workers stop here
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        traced.close()  # a Ray render's workers stop here
         if bar is not None:
             bar.close()
-    done = int(acc.state["passes_done"][0])
+    done = sum(passes_done())
     if done == 0:
         raise KeyboardInterrupt("render interrupted before the first pass finished")
     if checkpoint is not None:
         if interrupted:
-            save_checkpoint(checkpoint, acc, key)
+            save_checkpoint(checkpoint, accs, key)
         elif os.path.exists(checkpoint):
             os.remove(checkpoint)
-    spp_done = int(acc.state["samples"].min())
-    info = {"render_seconds": time.perf_counter() - start, "passes": len(passes), "passes_done": done, "executor": executor}
-    return RenderResult(maps=acc.finish(height, width, len(settings.cameras)), settings=settings, spp=spp_done, interrupted=interrupted, info=info)
+    spp_done = min(int(acc.state["samples"].min()) for acc in accs)
+    info = {"render_seconds": time.perf_counter() - start, "passes": len(passes) * len(windows), "passes_done": done,
+            "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows]}  # fmt: skip
+    finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
+    maps = _merge_windows(finished, windows, len(settings.cameras), (height, width))
+    return RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info)
 
 
 def _is_rgb():

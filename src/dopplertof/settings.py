@@ -52,7 +52,7 @@ class RenderSettings:
     seed: int = _setting(0, "int", "", "random seed: same seed, same image, whatever the pass split", minimum=0)
     cameras: tuple = _setting((), "cameras", "", "D-ToF camera configurations (dopplertof.Camera); none: intensity only")
     exposure: float | None = _setting(None, "float", "s", f"exposure T when no camera is given (default {DEFAULT_EXPOSURE_S})", optional=True)
-    exposure_start: float = _setting(0.0, "float", "s", "scene time at which the exposure opens")
+    exposure_start: float = _setting(0.0, "float", "s", "scene time at which the exposure opens (of the cameras that give no exposure_start of their own)")
     max_depth: int = _setting(5, "int", "", "longest path, Mitsuba semantics (1 emitters only, 2 direct light, -1 unbounded)")
     rr_depth: int = _setting(5, "int", "", "depth at which Russian roulette starts", minimum=1)
     hide_emitters: bool = _setting(False, "bool", "", "hide directly visible emitters (as stock path)")
@@ -142,10 +142,29 @@ class RenderSettings:
 
     @property
     def exposure_s(self) -> float:
-        """The exposure T (s): the cameras', else ``exposure``, else the default."""
+        """The exposure T (s) of the reference window: the first camera's, else
+        ``exposure``, else the default."""
         if self.cameras:
             return self.cameras[0].exposure
         return DEFAULT_EXPOSURE_S if self.exposure is None else self.exposure
+
+    @property
+    def windows(self) -> tuple["Window", ...]:
+        """The capture schedule: the distinct exposure windows of the cameras, in the order
+        of their first camera (the first is the *reference* window). A camera's window is
+        (its ``exposure_start``, else this render's, its ``exposure``); without cameras,
+        the one window (``exposure_start``, :attr:`exposure_s`)."""
+        if not self.cameras:
+            return (Window(self.exposure_start, self.exposure_s, (), ()),)
+        members: dict = {}
+        for index, camera in enumerate(self.cameras):
+            members.setdefault(camera.window(self.exposure_start), []).append(index)
+        return tuple(Window(start, length, tuple(self.cameras[i] for i in idx), tuple(idx)) for (start, length), idx in members.items())
+
+    @property
+    def scheduled_cameras(self) -> tuple[Camera, ...]:
+        """The cameras with their window's start filled in (``exposure_start`` never None)."""
+        return tuple(dataclasses.replace(c, exposure_start=c.window(self.exposure_start)[0]) for c in self.cameras)
 
     @property
     def correlation_spec(self) -> Correlation:
@@ -179,14 +198,13 @@ class RenderSettings:
             bad = [f"{c.label()} ({c.waveform}{'' if c.low_pass else ', full waveform'})" for c in self.cameras if not (c.low_pass and c.waveform == "sinusoidal")]
             if bad:
                 raise ValueError(f"analytic time integration is implemented for the low-pass sinusoid only; cameras {', '.join(bad)} are not")
+        # Cameras may differ in exposure: each (start, exposure) is a window of its own.
         exposures = sorted({c.exposure for c in self.cameras})
-        if len(exposures) > 1:
-            raise ValueError(f"all cameras of one render must share the exposure, got {exposures} s")
         if self.exposure is not None:
             if self.exposure <= 0:
                 raise ValueError(f"'exposure' must be > 0 seconds, got {self.exposure!r}")
-            if exposures and self.exposure != exposures[0]:
-                raise ValueError(f"exposure={self.exposure!r} s differs from the cameras' exposure {exposures[0]!r} s")
+            if exposures and exposures != [self.exposure]:
+                raise ValueError(f"exposure={self.exposure!r} s differs from the cameras' exposure {', '.join(map(repr, exposures))} s")
 
     @staticmethod
     def table() -> list[tuple[str, str, str, str]]:
@@ -195,6 +213,17 @@ class RenderSettings:
 
 
 FIELDS = {f.name: f for f in dataclasses.fields(RenderSettings)}
+
+
+@dataclass(frozen=True)
+class Window:
+    """One exposure window of a capture schedule (:attr:`RenderSettings.windows`): its
+    cameras share paths, traced at times in [start_s, start_s + exposure_s]."""
+
+    start_s: float
+    exposure_s: float
+    cameras: tuple  # the window's cameras, in the render's order
+    indices: tuple  # their positions in RenderSettings.cameras
 
 
 def _validated(f, value):

@@ -12,6 +12,10 @@ Random numbers are replayable (DESIGN §3.2): two PCG32 streams per lane, seeded
 lanes of a group replay each other's paths and the result does not depend on how the
 samples are split into passes or the pixels into tiles.
 
+Windows of a capture schedule (:attr:`dopplertof.settings.RenderSettings.windows`) are
+traced with seeds of their own (:func:`window_seed`), so their estimates are independent;
+the first window keeps the render's seed.
+
 Replicates: the G = spp / N groups of a pixel are split into R contiguous runs of nearly
 equal size (:func:`replicate_layout`); each run is stratified over its own groups
 (:mod:`dopplertof.timesampling`), so the R run means are independent and their spread
@@ -20,6 +24,7 @@ is an honest standard error even where stratification makes groups dependent.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 STREAM_SHARED = 0x5EED0001
@@ -64,6 +69,15 @@ def replicate_bounds(n_groups: int, replicates: int) -> list[tuple[int, int]]:
     """[(first group, group count)] of each replicate (host side, same layout)."""
     count, base, extra = replicate_layout(n_groups, replicates)
     return [(r * base + min(r, extra), base + (r < extra)) for r in range(count)]
+
+
+def window_seed(seed: int, window: int) -> int:
+    """The seed of window ``window`` of a capture schedule: ``seed`` itself for the first,
+    else a 32-bit hash of (seed, window), far from ``seed + i`` (an animation's frames)."""
+    if window == 0:
+        return seed
+    digest = hashlib.sha256(f"dopplertof window {seed} {window}".encode()).digest()
+    return int.from_bytes(digest[:4], "little")
 
 
 def opaque_u32(value):
