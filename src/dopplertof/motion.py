@@ -16,7 +16,8 @@ model                  meaning
 :class:`Keyframed`     any number of keys ``(time_s, 4x4 matrix)``; translation
                        and scale interpolated linearly, rotation by slerp (constant
                        angular velocity between keys); clamped outside the key
-                       range (zero velocity there)
+                       range (zero velocity there; at the last key, the last
+                       segment's)
 :class:`Parametric`    ``M(t) = Translate(pivot + v t) · Rotate(ω t) ·
                        Translate(−pivot) · M0``: linear velocity ``v`` (m/s) and
                        angular velocity ``ω`` (rad/s, axis·rate) about ``pivot``
@@ -369,7 +370,9 @@ class Keyframed(Motion):
             idx = mi.UInt32(0)
         t0 = dr.gather(mi.Float64, d["t"], idx)
         duration = dr.gather(mi.Float64, d["duration"], idx)
-        inside = (t >= dr.gather(mi.Float64, d["t"], 0)) & (t < dr.gather(mi.Float64, d["t"], n - 1))
+        # Moving from the first key to the last, both included: at the last key the velocity
+        # is the last segment's (what an exposure ending there saw), zero only beyond it.
+        inside = (t >= dr.gather(mi.Float64, d["t"], 0)) & (t <= dr.gather(mi.Float64, d["t"], n - 1))
         alpha64 = dr.clip((t - t0) / duration, 0.0, 1.0)
         if n == 1:
             alpha64 = mi.Float64(0.0)

@@ -272,7 +272,7 @@ class PoseTable:
         idx = dr.select(n > 1, start - 1, first)
         t0 = dr.gather(mi.Float64, d["t"], idx, active)
         duration = dr.gather(mi.Float64, d["duration"], idx, active)
-        inside = (t >= dr.gather(mi.Float64, d["t"], first, active)) & (t < dr.gather(mi.Float64, d["t"], first + n - 1, active))
+        inside = (t >= dr.gather(mi.Float64, d["t"], first, active)) & (t <= dr.gather(mi.Float64, d["t"], first + n - 1, active))
         alpha64 = dr.clip((t - t0) / duration, 0.0, 1.0)
         alpha64 = dr.select(n > 1, alpha64, mi.Float64(0.0))
         F = mi.Float64 if precise else mi.Float
