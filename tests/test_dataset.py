@@ -311,6 +311,7 @@ def test_default_config_is_printed_and_round_trips():
         ("[nope]\nx = 1\n", "unknown config section [nope]"),
         ("[camera]\nheterodyne = [0.0, 1.0]\n", "same length"),
         ("[scene]\nkinds = { forest = 1.0 }\n", "unknown name(s) ['forest']"),
+        ("[ego]\nstreet_probability = 1.5\n", "'ego.street_probability' is a probability in [0, 1]"),
         ("render = [\n", "not valid TOML"),
     ],
 )
@@ -362,6 +363,7 @@ def test_info_prints_statistics_and_a_contact_sheet(reference, tmp_path):
     assert res.exit_code == 0, res.output
     assert "8 samples read of 8 planned" in res.output and "depth (m)" in res.output and "body speed (m/s)" in res.output
     assert "moving fraction" in res.output
+    assert "moving cameras:" in res.output and "camera speed (m/s)" in res.output
     import imageio.v3 as iio
 
     picture = iio.imread(sheet)

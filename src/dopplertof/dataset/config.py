@@ -74,6 +74,13 @@ PARAMETERS: tuple[Param, ...] = (
     Param("camera.phase_deg", [0.0, 90.0, 0.0, 90.0], "deg", "sensor phase ψ of each captured measurement (as many as `heterodyne`)", "floats"),
     Param("camera.fov_deg", [40.0, 60.0], "deg", "field of view (Mitsuba `fov`, horizontal)", "range"),
     Param("camera.light_intensity_w_sr", [100.0, 300.0], "W/sr", "intensity of the modulated point light at the camera", "range"),
+    # -- ego (the camera's own motion; its light moves with it) -------------------------------
+    Param("ego.indoor_probability", 0.3, "-", "probability that an indoor sample's camera moves (hand-held or robot: horizontal translation in a random direction, and a yaw)", "float", minimum=0.0),
+    Param("ego.indoor_speed_m_s", [0.5, 2.0], "m/s", "speed of a moving indoor camera", "range"),
+    Param("ego.indoor_yaw_rate_rad_s", [0.0, 0.5], "rad/s", "yaw rate of a moving indoor camera about the vertical through its aperture (random sign)", "range"),
+    Param("ego.street_probability", 0.5, "-", "probability that a street sample's camera moves (as on a vehicle: along the road, the way it looks, and a yaw)", "float", minimum=0.0),
+    Param("ego.street_speed_m_s", [5.0, 20.0], "m/s", "speed of a moving street camera", "range"),
+    Param("ego.street_yaw_rate_rad_s", [0.0, 0.1], "rad/s", "yaw rate of a moving street camera about the vertical through its aperture (random sign)", "range"),
     # -- scene -------------------------------------------------------------------------------
     Param("scene.kinds", {"indoor": 1.0, "street": 1.0}, "-", "relative probability of each scene kind", "weights", SCENE_KINDS),
     Param("scene.checker_floor_probability", 0.5, "-", "probability that the floor (or road) is a checkerboard", "float", minimum=0.0),
@@ -117,6 +124,7 @@ _BY_KEY = {p.key: p for p in PARAMETERS}
 SECTION_DOCS = {
     "render": "the two renders of a sample (full global illumination and direct light)",
     "camera": "the D-ToF camera and its co-located modulated point light",
+    "ego": "ego-motion: a moving camera, its light attached (constant velocity and yaw rate over the exposure)",
     "scene": "the procedural scene: an indoor room or a street",
     "bodies": "the rigid bodies: shape, placement and motion over the exposure",
     "materials": "materials of the bodies",
@@ -284,7 +292,7 @@ def validate(config: dict) -> dict:
     lo, hi = cam["fov_deg"]
     if not (0 < lo and hi < 180):
         raise ValueError(f"config key 'camera.fov_deg' must lie in (0, 180) degrees, got {cam['fov_deg']!r}")
-    for key in ("scene.checker_floor_probability", "bodies.moving_probability"):
+    for key in ("scene.checker_floor_probability", "bodies.moving_probability", "ego.indoor_probability", "ego.street_probability"):
         sec, name = key.split(".")
         if not 0 <= out[sec][name] <= 1:
             raise ValueError(f"config key {key!r} is a probability in [0, 1], got {out[sec][name]!r}")
@@ -302,7 +310,8 @@ def validate(config: dict) -> dict:
         if out[sec][name][0] <= 0:
             raise ValueError(f"config key {key!r} must be > 0, got {out[sec][name]!r}")
     for key in ("bodies.speed_m_s", "bodies.vehicle_speed_m_s", "bodies.person_speed_m_s", "bodies.spin_rad_s", "materials.roughness",
-                "sensor.ambient_electrons_per_s", "sensor.read_noise_e", "materials.checker_scale"):
+                "sensor.ambient_electrons_per_s", "sensor.read_noise_e", "materials.checker_scale", "ego.indoor_speed_m_s", "ego.indoor_yaw_rate_rad_s",
+                "ego.street_speed_m_s", "ego.street_yaw_rate_rad_s"):
         sec, name = key.split(".")
         if out[sec][name][0] < 0:
             raise ValueError(f"config key {key!r} must not be negative, got {out[sec][name]!r}")

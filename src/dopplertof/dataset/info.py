@@ -48,11 +48,11 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
     -------
     dict
         ``lines`` (the printable report) and ``stats`` (numbers: samples, shards, scene
-        kinds, depth and velocity ranges, moving fractions, body speeds).
+        kinds, depth and velocity ranges, moving fractions, body speeds, moving cameras).
     """
     ds = open_dataset(folder)
     m = ds.manifest
-    depths, speeds, body_speeds, spins = [], [], [], []
+    depths, speeds, body_speeds, spins, ego_speeds = [], [], [], [], []
     kinds: Counter = Counter()
     moving_px = total_px = sees_motion_px = 0
     rows = []
@@ -71,6 +71,9 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
             moving_px += int(sample["moving_mask"].sum())
         body_speeds += [b["speed_m_s"] for b in rec["bodies"]]
         spins += [b["spin_rad_s"] for b in rec["bodies"]]
+        ego = rec.get("camera_motion", {"moving": False})  # records before ego-motion: a static camera
+        if ego["moving"]:
+            ego_speeds.append(ego["speed_m_s"])
         if sheet and len(rows) < sheet_samples:
             rows.append(_sheet_row(sample))
         n += 1
@@ -90,13 +93,14 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
         "pixels_seeing_motion_fraction": sees_motion_px / total_px if total_px else None,
         "moving_mask_fraction": moving_px / total_px if (has_mask and total_px) else None,
         "moving_bodies": len(body_speeds),
+        "moving_cameras": len(ego_speeds),
     }
     lines = [
         f"dataset {os.fspath(folder)}: {n} samples read of {m['samples']} planned; {m['shards_done']}/{len(m['shards'])} shards done"
         f"{'' if m['complete'] else ' (incomplete)'}; seed {m['seed']}, {m['config']['render']['resolution']}², {m['config']['render']['spp']} spp, "
         f"variant {m['variant']}",
         f"fields: {', '.join(ds.fields)}" + (f"; missing (renderer lacks them): {', '.join(m['missing_fields'])}" if m["missing_fields"] else ""),
-        f"scene kinds: {', '.join(f'{k} {c}' for k, c in sorted(kinds.items()))}; moving bodies: {len(body_speeds)}",
+        f"scene kinds: {', '.join(f'{k} {c}' for k, c in sorted(kinds.items()))}; moving bodies: {len(body_speeds)}; moving cameras: {len(ego_speeds)}",
         f"moving fraction: {stats['moving_mask_fraction']:.4f} of pixels (moving_mask)" if stats["moving_mask_fraction"] is not None
         else "moving fraction (moving_mask): n/a, the dataset has no instance_id",
         f"pixels whose radial velocity exceeds {MOVING_PIXEL_SPEED_M_S * 1e3:g} mm/s: {stats['pixels_seeing_motion_fraction']:.4f}"
@@ -110,6 +114,8 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
         *_histogram_lines(np.asarray(body_speeds, dtype=np.float64), "m/s"),
         "body spin rate (rad/s):",
         *_histogram_lines(np.asarray(spins, dtype=np.float64), "r/s"),
+        "camera speed (m/s), moving cameras:",
+        *_histogram_lines(np.asarray(ego_speeds, dtype=np.float64), "m/s"),
     ]
     if sheet and rows:
         from .. import viz

@@ -6,7 +6,7 @@ Two steps, so that a sample's JSON record alone re-renders it:
    from the configuration (:mod:`dopplertof.dataset.config`) with a
    ``numpy.random.Generator``; nothing here touches Mitsuba.
 2. :func:`build_scene` turns a description into a :class:`~dopplertof.scene.DynamicScene`
-   (a Mitsuba scene dict with a ``"motion"`` per moving body, loaded by
+   (a Mitsuba scene dict with a ``"motion"`` per moving body and for a moving camera, loaded by
    :func:`dopplertof.load_scene`).
 
 The description (all lengths in m, world frame, y up):
@@ -15,8 +15,14 @@ The description (all lengths in m, world frame, y up):
 key                   meaning
 ====================  ==================================================================
 ``kind``              ``indoor`` or ``street``
-``camera``            ``origin``, ``target``, ``up`` (m), ``fov_deg`` (horizontal)
-``light``             ``position`` (m, the camera's) and ``intensity_w_sr`` of the point light
+``camera``            ``origin``, ``target``, ``up`` (m), ``fov_deg`` (horizontal): the pose
+                      at t = 0; its motion (ego-motion) ``linear_velocity_m_s``,
+                      ``angular_velocity_rad_s`` (world frame) about ``pivot_m`` (the
+                      aperture), all zeros for a static camera
+``light``             ``position`` (m, world, t = 0: the camera's origin) and
+                      ``intensity_w_sr`` of the modulated point light, attached to the
+                      camera: it moves with it (its offset from ``camera.origin`` is
+                      kept in the camera's frame)
 ``static``            list of primitives of the static scene (walls, floor, furniture,
                       buildings, poles, bodies drawn as static)
 ``bodies``            list of moving bodies, in the order of their instance id (0, 1, …):
@@ -37,6 +43,14 @@ Every body moves rigidly over the exposure: constant linear velocity plus a rota
 constant rate about an axis through its centre (``pivot_m``). Vehicles drive along the
 road and turn about the vertical axis; people walk horizontally; boxes, spheres and
 cylinders fly in a random direction and spin about a random axis.
+
+The camera moves too with probability ``ego.<kind>_probability`` (ego-motion; the same
+rigid motion about its aperture): in a street along the road, the way it looks (−z), in a
+room horizontally in a random direction, at ``ego.<kind>_speed_m_s``, turning about the
+vertical at ``ego.<kind>_yaw_rate_rad_s`` (random sign). The ego-motion is drawn last, so
+a description differs from that of a static camera only in the camera's velocities. The
+ground truth is relative to the moving camera (static geometry has a velocity; its
+instance id stays −1: ``bodies`` are what moves in the world).
 """
 
 from __future__ import annotations
@@ -261,6 +275,18 @@ def _street(rng, config) -> tuple[dict, list, callable, float, float]:
     return camera, static, place, road_w, walk_w
 
 
+def _ego_motion(rng, config, kind: str, camera: dict) -> None:
+    """Add the camera's motion (ego-motion; zeros for a static camera) to ``camera``."""
+    e = config["ego"]
+    linear, angular = np.zeros(3), np.zeros(3)
+    if rng.random() < e[f"{kind}_probability"]:
+        speed = draw(rng, config, f"ego.{kind}_speed_m_s")
+        heading = np.array([0.0, 0.0, -1.0]) if kind == "street" else _horizontal(float(rng.uniform(0, 2 * math.pi)))
+        linear = speed * heading
+        angular[1] = draw(rng, config, f"ego.{kind}_yaw_rate_rad_s") * (1.0 if rng.random() < 0.5 else -1.0)
+    camera.update(linear_velocity_m_s=_vec(linear), angular_velocity_rad_s=_vec(angular), pivot_m=list(camera["origin"]))
+
+
 def sample_scene(rng: np.random.Generator, config: dict) -> dict:
     """Draw one scene description (see the module docstring) from ``config``.
 
@@ -317,6 +343,7 @@ def sample_scene(rng: np.random.Generator, config: dict) -> dict:
     for i, body in enumerate(static_bodies):
         body["name"] = f"static-body-{i}"
     light = {"position": list(camera["origin"]), "intensity_w_sr": draw(rng, config, "camera.light_intensity_w_sr")}
+    _ego_motion(rng, config, kind, camera)
     return {"kind": kind, "camera": camera, "light": light, "static": static, "bodies": bodies, "static_bodies": static_bodies}
 
 
@@ -361,22 +388,52 @@ def _shape(prim: dict) -> dict:
     raise ValueError(f"unknown primitive type {t!r}")
 
 
+def camera_rotation(camera: dict) -> np.ndarray:
+    """The (3, 3) rotation from the camera frame (x left, y up, z forward) to the world at
+    t = 0 of a description's ``camera`` (Mitsuba's ``look_at``, in float64)."""
+    origin, target, up = (np.asarray(camera[k], dtype=np.float64) for k in ("origin", "target", "up"))
+    forward = (target - origin) / np.linalg.norm(target - origin)
+    left = np.cross(up, forward)
+    left /= np.linalg.norm(left)
+    return np.column_stack([left, np.cross(forward, left), forward])
+
+
+def camera_motion(camera: dict) -> dict | None:
+    """The sensor's ``"motion"`` (a parametric dict) of a description's ``camera``; None for
+    a static camera (and for descriptions written before cameras moved)."""
+    linear = camera.get("linear_velocity_m_s", [0.0] * 3)
+    angular = camera.get("angular_velocity_rad_s", [0.0] * 3)
+    if not (any(linear) or any(angular)):
+        return None
+    return {"type": "parametric", "linear_velocity": linear, "angular_velocity": angular, "pivot": camera.get("pivot_m", camera["origin"])}
+
+
 def scene_dict(description: dict, resolution: int) -> dict:
-    """The Mitsuba scene dict (with ``"motion"`` entries) of a scene description."""
+    """The Mitsuba scene dict (with ``"motion"`` entries) of a scene description.
+
+    The light is attached to the camera: with a moving camera it sits in the sensor dict
+    (its position in the camera frame) and moves with it; a static camera's light is the
+    same light placed in the world, which takes the renderer's static-emitter path (the
+    renders of static cameras are those of the releases before ego-motion, bit for bit).
+    """
     import mitsuba as mi
 
     cam = description["camera"]
-    out = {
-        "type": "scene",
-        "sensor": {
-            "type": "perspective",
-            "fov": cam["fov_deg"],
-            "to_world": mi.ScalarTransform4f().look_at(origin=cam["origin"], target=cam["target"], up=cam["up"]),
-            "film": {"type": "hdrfilm", "width": int(resolution), "height": int(resolution), "rfilter": {"type": "box"}},
-        },
-        "light": {"type": "point", "position": description["light"]["position"],
-                  "intensity": {"type": "rgb", "value": [description["light"]["intensity_w_sr"]] * 3}},
+    sensor = {
+        "type": "perspective",
+        "fov": cam["fov_deg"],
+        "to_world": mi.ScalarTransform4f().look_at(origin=cam["origin"], target=cam["target"], up=cam["up"]),
+        "film": {"type": "hdrfilm", "width": int(resolution), "height": int(resolution), "rfilter": {"type": "box"}},
     }
+    light = {"type": "point", "intensity": {"type": "rgb", "value": [description["light"]["intensity_w_sr"]] * 3}}
+    out = {"type": "scene", "sensor": sensor}
+    motion = camera_motion(cam)
+    if motion is None:
+        out["light"] = {**light, "position": description["light"]["position"]}
+    else:
+        offset = camera_rotation(cam).T @ (np.asarray(description["light"]["position"], dtype=np.float64) - np.asarray(cam["origin"], dtype=np.float64))
+        sensor["motion"] = motion
+        sensor["light"] = {**light, "position": _vec(offset)}  # camera frame: [0, 0, 0] is the aperture
     for i, prim in enumerate(description["static"]):
         out[f"static-{i:03d}"] = _shape(prim)
     for body in description["bodies"]:
@@ -390,7 +447,8 @@ def build_scene(description: dict, resolution: int):
     """A :class:`~dopplertof.scene.DynamicScene` from a scene description.
 
     Body ``k`` of the description is ``scene.bodies[k]`` (its instance id); a ValueError
-    says so if the loader grouped them otherwise.
+    says so if the loader grouped them otherwise. A moving camera is ``scene.camera_motion``
+    and its light ``scene.lights[0]`` (see :func:`scene_dict`).
     """
     from ..loader import load_scene
 

@@ -90,6 +90,9 @@ def make_record(config: dict, seed: int, index: int, variant: str) -> dict:
          "spin_rad_s": float(np.linalg.norm(b["angular_velocity_rad_s"])), "moving": True}
         for k, b in enumerate(scene["bodies"])
     ]
+    cam = scene["camera"]
+    ego = {"moving": randomize.camera_motion(cam) is not None, "speed_m_s": float(np.linalg.norm(cam["linear_velocity_m_s"])),
+           "yaw_rate_rad_s": float(cam["angular_velocity_rad_s"][1])}
     return {
         "key": f"sample-{index:08d}",
         "index": int(index),
@@ -100,6 +103,7 @@ def make_record(config: dict, seed: int, index: int, variant: str) -> dict:
                    "time_sampling": r["time_sampling"], "correlation": r["correlation"], "seed": render_seed, "direct_seed": direct_seed},
         "sensor": sensor,
         "bodies": bodies,
+        "camera_motion": ego,
         "versions": versions(variant),
     }
 
@@ -187,7 +191,7 @@ def render_record(record: dict, fields=schema.FIELD_NAMES) -> tuple[dict, dict, 
             if value is None:
                 raise ValueError(f"field {name!r} is not rendered for this capture set (a camera covariance needs 2 to 8 cameras); remove it from the config's fields")
             out[name] = value
-    if "moving_mask" in fields:
+    if "moving_mask" in fields:  # bodies that move in the world; the camera's own motion is in the velocities
         moving = np.array([not b.motion.is_static() for b in scene.bodies] + [False], dtype=bool)
         ids = np.asarray(out["instance_id"])
         out["moving_mask"] = ((ids >= 0) & moving[np.where(ids >= 0, ids, len(scene.bodies))]).astype(np.uint8)

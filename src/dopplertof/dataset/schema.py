@@ -46,11 +46,13 @@ FIELDS: tuple[Field, ...] = (
     Field("intensity", "float32", ("H", "W", 3), "radiance", "standard (intensity) image, linear RGB"),
     Field("depth", "float32", ("H", "W"), "m", "camera-ray hit distance from the aperture (NaN: no hit)"),
     Field("velocity", "float32", ("H", "W"), "m/s",
-          "radial velocity seen by the pixel: d/dt of the hit distance along the fixed camera ray, positive receding (NaN: no hit)"),
+          "radial velocity seen by the pixel, relative to the (possibly moving) camera: d/dt of the hit distance along the camera ray "
+          "fixed in the camera's frame, positive receding (NaN: no hit)"),
     Field("velocity_3d", "float32", ("H", "W", 3), "m/s", "velocity of the hit point relative to the camera, camera frame (x left, y up, z forward)", needs="velocity_3d"),
     Field("flow", "float32", ("H", "W", 2), "px/s", "image-plane motion of the hit point (x right, y down)", needs="flow"),
     Field("instance_id", "int32", ("H", "W"), "-", "moving body hit (index into the record's scene.bodies), −1 static or background", needs="instance_id"),
-    Field("moving_mask", "uint8", ("H", "W"), "-", "1 where instance_id ≥ 0 and that body moves during the exposure", needs="instance_id"),
+    Field("moving_mask", "uint8", ("H", "W"), "-", "1 where instance_id ≥ 0 and that body moves in the world during the exposure (the camera's own motion does not count: "
+          "static geometry seen by a moving camera has a velocity but 0 here)", needs="instance_id"),
 )
 
 FIELD_NAMES = tuple(f.name for f in FIELDS)
@@ -60,11 +62,13 @@ RECORD = {
     "key": "sample key, sample-%08d of the index",
     "index": "sample index in the dataset",
     "dataset_seed": "the dataset seed S; the sample depends only on (S, index)",
-    "scene": "scene description (dopplertof.dataset.randomize): camera, light, static primitives, moving bodies in instance order",
+    "scene": "scene description (dopplertof.dataset.randomize): camera (pose and velocities), light (attached to the camera), static primitives, "
+             "moving bodies in instance order",
     "cameras": "the capture set: dopplertof.Camera parameters per measurement",
     "render": "resolution, spp, max_depth, time sampling, correlation, and the seeds of the full and direct renders",
     "sensor": "sensor parameters of `raw` (dopplertof.sensor.SensorModel arguments) and its noise seed",
     "bodies": "per moving body: instance id, shape, speed (m/s), spin rate (rad/s), moving",
+    "camera_motion": "the camera's own motion (ego-motion): moving, speed (m/s), yaw rate (rad/s, about the vertical, right-handed)",
     "versions": "dopplertof, mitsuba, drjit, numpy and the Mitsuba variant",
 }
 
