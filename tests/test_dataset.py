@@ -220,6 +220,32 @@ def test_torch_adapter(reference):
     assert isinstance(item["measurements"], torch.Tensor) and item["raw"].dtype == torch.int32
 
 
+def test_torch_adapter_without_torch_installed(reference, monkeypatch):
+    """The adapter's own logic through a stand-in for the two torch entry points it uses
+    (``torch.utils.data.Dataset`` and ``torch.from_numpy``), where torch is not installed;
+    and the clear ImportError where nothing provides torch."""
+    import sys
+    import types
+
+    if "torch" not in sys.modules:
+        monkeypatch.setitem(sys.modules, "torch", None)  # an import of torch fails
+        with pytest.raises(ImportError, match="does not depend on it"):
+            dt.dataset.open(reference).torch()
+    fake = types.ModuleType("torch")
+    fake.from_numpy = lambda a: ("tensor", a)
+    fake.utils = types.SimpleNamespace(data=types.SimpleNamespace(Dataset=object))
+    data = types.ModuleType("torch.utils.data")
+    data.Dataset = object
+    for name, module in (("torch", fake), ("torch.utils", fake.utils), ("torch.utils.data", data)):
+        monkeypatch.setitem(sys.modules, name, module)
+    ds = dt.dataset.open(reference).torch()
+    assert len(ds) == 8
+    item, plain = ds[1], dt.dataset.open(reference)[1]
+    assert item["measurements"][0] == "tensor" and np.array_equal(item["measurements"][1], plain["measurements"])
+    assert plain["raw"].dtype == np.uint16 and item["raw"][1].dtype == np.int32  # torch has no uint16
+    assert item["json"] == plain["json"]
+
+
 def test_record_rerenders_its_sample(reference):
     ds = dt.dataset.open(reference)
     stored = ds[3]
