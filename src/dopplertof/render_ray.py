@@ -1,10 +1,10 @@
 """One big render on Ray: ``render(..., executor="ray")`` and ``dopplertof render … --ray``.
 
-The render's passes (:func:`dopplertof.render.schedule`) are traced by Ray actors, each of
+The render's passes (:func:`dopplertof.passes.schedule`) are traced by Ray actors, each of
 which rebuilds the scene from its recipe (:func:`dopplertof.scenes.from_recipe`: a file's
 path, ``$name`` values and film size, or a built-in scene's name and arguments; a scene
 file must be readable at the same path on every node) and reduces every pass to per-pixel
-Float64 increments on its device (:meth:`dopplertof.render.Reducer.reduce`). The driver
+Float64 increments on its device (:meth:`dopplertof.passes.Reducer.reduce`). The driver
 adds them to its sums strictly in pass order, buffering the ones that finish early: the
 very numpy additions of the local render, in the same order, so the result is
 bit-identical to it, and a stop (``stop()``, Ctrl-C, SIGTERM) keeps a prefix of the passes
@@ -45,7 +45,7 @@ class _PassWorker:
             import drjit as dr
 
             dr.set_thread_count(threads)
-        from .render import PassTracer
+        from .passes import PassTracer
         from .scenes import from_recipe
 
         self.error = None
@@ -68,7 +68,7 @@ class _PassWorker:
 
 
 def traced_on_ray(scene, settings, passes, address=None, workers=None, max_retries=3):
-    """The increments of ``passes`` (:meth:`~dopplertof.render.Reducer.reduce`), traced on
+    """The increments of ``passes`` (:meth:`~dopplertof.passes.Reducer.reduce`), traced on
     Ray, yielded in pass order (a generator; closing it stops the workers).
 
     Parameters
@@ -76,7 +76,7 @@ def traced_on_ray(scene, settings, passes, address=None, workers=None, max_retri
     scene : DynamicScene with a ``recipe`` (from a file or :func:`dopplertof.scenes.build`),
         else ValueError.
     settings : RenderSettings, built.
-    passes : list of :class:`~dopplertof.render.Pass`.
+    passes : list of :class:`~dopplertof.passes.Pass`.
     address : str, optional. Ray cluster address; default the running Ray, else a local one.
     workers : int, optional. Ray actors (module docstring).
     max_retries : int. Restarts of a dead worker, and retries of its passes.

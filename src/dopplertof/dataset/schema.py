@@ -84,7 +84,7 @@ def available_fields(n_cameras: int) -> tuple[list[str], list[str]]:
     (:data:`dopplertof.outputs.OUTPUTS`, and the camera covariance for 2 to
     ``MAX_COVARIANCE_CAMERAS`` cameras) are missing."""
     from ..outputs import OUTPUTS
-    from ..render import MAX_COVARIANCE_CAMERAS
+    from ..passes import MAX_COVARIANCE_CAMERAS
 
     outputs = {o.name for o in OUTPUTS}
     if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:

@@ -1,0 +1,296 @@
+"""A render's passes: the schedule, tracing and reducing a pass, and adding it up.
+
+:func:`schedule` splits the film × spp into passes of at most ``lanes_per_pass`` lanes.
+:class:`PassTracer` traces a pass where its scene is (this process, or a Ray worker:
+:mod:`dopplertof.render_ray`) and reduces it there (:meth:`Reducer.reduce`) to per-pixel
+Float64 increments, which :meth:`Accumulator.apply` adds, pass by pass in order, to the sums
+:mod:`dopplertof.render` turns into the result (see there for what the sums are).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .outputs import ESTIMATES, TRUTH
+from .settings import RenderSettings
+
+MAX_COVARIANCE_CAMERAS = 8  # beyond, the per-pixel camera covariance is not kept (memory)
+
+
+@dataclass(frozen=True)
+class Pass:
+    first_sample: int
+    samples: int
+    pixel_start: int
+    n_pixels: int
+
+
+def schedule(n_pixels: int, spp: int, group: int, lanes_per_pass: int) -> list[Pass]:
+    """Passes covering ``n_pixels`` × ``spp``: sample ranges (whole groups) outermost,
+    tiles of pixels innermost, each pass at most ``lanes_per_pass`` lanes (at least one
+    group of one pixel)."""
+    samples = min(spp, max(group, (lanes_per_pass // n_pixels) // group * group))
+    pixels = min(n_pixels, max(1, lanes_per_pass // samples))
+    return [
+        Pass(s0, min(samples, spp - s0), p0, min(pixels, n_pixels - p0)) for s0 in range(0, spp, samples) for p0 in range(0, n_pixels, pixels)
+    ]
+
+
+# ----------------------------------------------------------------------------------------
+# Accumulation
+
+
+class Reducer:
+    """How a render's passes reduce to per-pixel increments of the sums (module docstring).
+
+    The half of the accumulation that runs where the pass was traced (this process, or a
+    Ray worker: :mod:`dopplertof.render_ray`); :class:`Accumulator` adds the increments.
+
+    ===============  =====  ==========================================================
+    color_channels   int    3 (RGB) or 1 (mono)
+    n_cameras        int    D-ToF cameras
+    spp              int    paths per pixel
+    group            int    correlated samples per group (``settings.group_size``)
+    lanes_per_group  int    lanes a group takes (1 where primal and partner share a lane)
+    replicates       int    independent replicates per pixel (``settings.replicates``)
+    ===============  =====  ==========================================================
+    """
+
+    def __init__(self, color_channels, n_cameras, spp, group, lanes_per_group, replicates):
+        from .tracing.lanes import replicate_bounds
+
+        self.color_channels, self.n_cameras = color_channels, n_cameras
+        self.group, self.lanes_per_group = group, lanes_per_group
+        self.bounds = replicate_bounds(max(spp // group, 1), replicates)
+        self.sizes = {start + n: n for start, n in self.bounds}  # replicate end -> its groups
+        self.replicated = len(self.bounds) > 1
+        self.pairs = []
+        if self.replicated and 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:  # cameras share paths: their errors correlate
+            self.pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
+
+    @staticmethod
+    def layout(settings: RenderSettings) -> tuple:
+        """The arguments above of a render with ``settings`` (in the active variant)."""
+        import mitsuba as mi
+
+        group = settings.group_size
+        return 3 if mi.is_rgb else 1, len(settings.cameras), settings.spp, group, 1 if settings.paired else group, settings.replicates
+
+    def groups(self, p: Pass) -> tuple[int, int]:
+        """The pass's groups of every pixel: [g0, g1)."""
+        return p.first_sample // self.group, (p.first_sample + p.samples) // self.group
+
+    def segments(self, p: Pass) -> list[tuple[int, int, int]]:
+        """The pass's groups split at replicate ends: (first group, end group, replicate end)."""
+        g0, g1 = self.groups(p)
+        return [(max(a, g0), min(a + n, g1), a + n) for a, n in self.bounds if max(a, g0) < min(a + n, g1)]
+
+    def reduce(self, p: Pass, out: dict) -> dict:
+        """One pass's per-lane outputs (Dr.Jit arrays), reduced in Float64 on the device to
+        per-pixel host increments (numpy), which :meth:`Accumulator.apply` adds.
+
+        Group sums are gathers (Dr.Jit's block reductions over blocks of 2 lanes cost
+        several times the reduction itself); replicates that lie wholly in the pass are
+        reduced to per-pixel sums of their means, squares and camera products there too,
+        so only per-pixel arrays reach the host.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        group, lanes_per_group = self.group, self.lanes_per_group
+        lanes_per_pixel = p.samples // group * lanes_per_group
+        intensity = out["intensity"]
+        channels = [intensity[c] for c in range(self.color_channels)] + list(out["measurements"])
+        truth = [x for o in TRUTH for x in _components(out[o.name], o.channels)] + [out["hits"]]
+        dr.eval(channels, truth, out["instance_id"])  # one kernel traces every output (DESIGN §3.3)
+
+        g0, g1 = self.groups(p)
+        segments = self.segments(p)
+        n_groups = p.n_pixels * (g1 - g0)
+        first = dr.arange(mi.UInt32, n_groups) * lanes_per_group
+
+        def group_means(x):
+            total = mi.Float64(dr.gather(mi.Float, x, first))
+            for k in range(1, lanes_per_group):
+                total += mi.Float64(dr.gather(mi.Float, x, first + k))
+            return total * (1.0 / lanes_per_group)
+
+        means = [group_means(x) for x in channels]
+        truth_sums = [dr.block_sum(mi.Float64(x), lanes_per_pixel) for x in truth]
+        inc = {}
+        if self.whole(segments):  # the usual pass: complete replicates of one size, reduced to per-pixel sums
+            size, count = segments[0][1] - segments[0][0], len(segments)
+            reps = [dr.block_sum(m, size) * (1.0 / size) if size > 1 else m for m in means]
+            cams = reps[self.color_channels :]
+            sums = [dr.block_sum(r, count) for r in reps]
+            squares = [dr.block_sum(r * r, count) for r in reps]
+            cross = [dr.block_sum(cams[i] * cams[j], count) for i, j in self.pairs]
+            dr.eval(sums, squares, cross, truth_sums)
+            inc["rep_sum"] = np.stack([np.asarray(x.numpy()) for x in sums])
+            inc["rep_sq"] = np.stack([np.asarray(x.numpy()) for x in squares])
+            inc["rep_cross"] = [np.asarray(x.numpy()) for x in cross]
+        else:
+            dr.eval(means, truth_sums)
+            host = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in means])  # (channels, pixels, groups)
+            inc["parts"] = np.stack([host[:, :, a - g0 : b - g0].sum(axis=2) for a, b, _ in segments], axis=2)
+        truth_sums = [np.asarray(x.numpy()) for x in truth_sums]
+        inc["truth_sum"] = np.stack(truth_sums[:-1])
+        inc["hits"] = np.rint(truth_sums[-1]).astype(np.int32)  # counts of hits: whole numbers
+        if p.first_sample == 0:  # the label of the pixel's first sample
+            inc["instance_id"] = np.asarray(out["instance_id"].numpy()).reshape(p.n_pixels, lanes_per_pixel)[:, 0].astype(np.int32)
+        return inc
+
+    def whole(self, segments) -> bool:
+        """Whether a pass's segments are complete replicates of one size."""
+        equal = len({b - a for a, b, _ in segments}) == 1
+        return self.replicated and equal and all(b - a == self.sizes[end] for a, b, end in segments)
+
+
+class Accumulator(Reducer):
+    """Float64 per-pixel sums (module docstring) of ``n_pixels`` pixels; ``state`` is what a
+    checkpoint holds. A pass is added by ``apply(p, reduce(p, out))``, wherever ``reduce``
+    ran: the same numpy operations in pass order, so the sums are bit-identical.
+    """
+
+    def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates):
+        super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates)
+        c, n = color_channels + n_cameras, n_pixels
+        self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int32)}
+        if self.replicated:
+            self.state.update(open_sum=np.zeros((c, n)), rep_sum=np.zeros((c, n)), rep_sq=np.zeros((c, n)), reps_closed=np.zeros(n, np.int32))
+            if self.pairs:
+                self.state["rep_cross"] = np.zeros((len(self.pairs), n))
+        truth_channels = sum(o.channels for o in TRUTH)
+        self.state.update(truth_sum=np.zeros((truth_channels, n)), hits=np.zeros(n, np.int32), samples=np.zeros(n, np.int32))
+        self.state["instance_id"] = np.full(n, -1, np.int32)
+
+    def apply(self, p: Pass, inc: dict):
+        """Add one pass's increments (from :meth:`Reducer.reduce`) to the sums."""
+        s = self.state
+        pix = slice(p.pixel_start, p.pixel_start + p.n_pixels)
+        if "rep_sum" in inc:
+            segments = self.segments(p)
+            size, count = segments[0][1] - segments[0][0], len(segments)
+            s["group_sum"][:, pix] += inc["rep_sum"] * size
+            s["rep_sum"][:, pix] += inc["rep_sum"]
+            s["rep_sq"][:, pix] += inc["rep_sq"]
+            for k, x in enumerate(inc["rep_cross"]):
+                s["rep_cross"][k, pix] += x
+            s["reps_closed"][pix] += count
+        else:
+            parts = inc["parts"]
+            s["group_sum"][:, pix] += parts.sum(axis=2)
+            if self.replicated:
+                for k, (a, b, end) in enumerate(self.segments(p)):
+                    s["open_sum"][:, pix] += parts[:, :, k]
+                    if b == end:  # the replicate is complete: its mean is one independent unit
+                        self._close(pix, (s["open_sum"][:, pix] / self.sizes[end])[:, :, None])
+                        s["open_sum"][:, pix] = 0.0
+        g0, g1 = self.groups(p)
+        s["groups_done"][pix] += g1 - g0
+        s["truth_sum"][:, pix] += inc["truth_sum"]
+        s["hits"][pix] += inc["hits"]
+        s["samples"][pix] += p.samples
+        if "instance_id" in inc:
+            s["instance_id"][pix] = inc["instance_id"]
+        s["passes_done"][0] += 1
+
+    def _close(self, pix, rep_means):
+        """Add complete replicates: their means, (channels, pixels, replicates)."""
+        s = self.state
+        s["rep_sum"][:, pix] += rep_means.sum(axis=2)
+        s["rep_sq"][:, pix] += np.einsum("cpr,cpr->cp", rep_means, rep_means)
+        cams = rep_means[self.color_channels :]
+        for j, (i1, i2) in enumerate(self.pairs):
+            s["rep_cross"][j, pix] += np.einsum("pr,pr->p", cams[i1], cams[i2])
+        s["reps_closed"][pix] += rep_means.shape[2]
+
+    def finish(self, height, width, n_cameras) -> dict:
+        """The result's maps (float32). Consumes the state: each Float64 sum is freed as soon
+        as its maps are made, so the peak is the sums or the maps, not both."""
+        s = self.state
+        cc = self.color_channels
+        n_pix = height * width
+
+        def image(rows):  # float32 rows (k, pixels) -> (H, W) or (H, W, k)
+            return rows[0].reshape(height, width) if len(rows) == 1 else np.stack(rows, axis=-1).reshape(height, width, len(rows))
+
+        with np.errstate(invalid="ignore", divide="ignore"):
+            groups = s.pop("groups_done")
+            mean = [(row / groups).astype(np.float32) for row in s.pop("group_sum")]
+            del groups
+            if "rep_sum" in s:
+                n = s.pop("reps_closed").astype(np.float64)
+                rep_mean = s.pop("rep_sum") / n
+                var = np.maximum(s.pop("rep_sq") / n - rep_mean * rep_mean, 0.0) * n / (n - 1)
+                err = np.where(n >= 2, np.sqrt(var / n), np.nan).astype(np.float32)
+                del var
+            else:
+                err = np.full((len(mean), n_pix), np.nan, np.float32)
+            covariance = None
+            if self.pairs:  # covariance of the cameras' means, from the same replicates
+                covariance = np.zeros((n_cameras, n_cameras, n_pix), np.float32)
+                for i in range(n_cameras):
+                    covariance[i, i] = err[cc + i].astype(np.float64) ** 2
+                for k, (i, j) in enumerate(self.pairs):
+                    cross = (s["rep_cross"][k] / n - rep_mean[cc + i] * rep_mean[cc + j]) * n / (n - 1) / n
+                    covariance[i, j] = covariance[j, i] = np.where(n >= 2, cross, np.nan)
+                del s["rep_cross"]
+            hits = s.pop("hits")
+            truth_rows = [(row / hits).astype(np.float32) for row in s.pop("truth_sum")]
+            coverage = (hits / s.pop("samples")).astype(np.float32)
+        maps = {}
+        for o in ESTIMATES:
+            if o.channels == "color":
+                maps[o.name], maps[o.stderr_name] = image(mean[:cc]), image(list(err[:cc]))
+            else:
+                maps[o.name] = np.stack(mean[cc:]).reshape(n_cameras, height, width) if n_cameras else np.zeros((0, height, width), np.float32)
+                maps[o.stderr_name] = err[cc:].reshape(n_cameras, height, width)
+        k = 0
+        for o in TRUTH:
+            maps[o.name] = image(truth_rows[k : k + o.channels])
+            k += o.channels
+        maps["coverage"] = coverage.reshape(height, width)
+        maps["instance_id"] = s["instance_id"].reshape(height, width)
+        if covariance is not None:
+            maps["measurement_covariance"] = covariance.reshape(n_cameras, n_cameras, height, width)
+        return maps
+
+
+def _components(value, channels):
+    return [value] if channels == 1 else [value[i] for i in range(channels)]
+
+
+class PassTracer:
+    """Traces the passes of one render where its scene is (this process, or a Ray worker:
+    :mod:`dopplertof.render_ray`); ``tracer(p)`` is pass ``p``'s increments
+    (:meth:`Reducer.reduce`). Fits the scene's time window to the exposure.
+
+    ========  ================  ============================================
+    scene     DynamicScene      the scene, its film the render's
+    settings  RenderSettings    the render's settings (built, not overrides)
+    ========  ================  ============================================
+    """
+
+    def __init__(self, scene, settings: RenderSettings):
+        from .tracing.materials import MaterialTables
+
+        scene.set_time_window(settings.exposure_start, settings.exposure_start + settings.exposure_s)
+        self.scene, self.settings = scene, settings
+        self.tables = MaterialTables.of(scene)
+        self.reducer = Reducer(*Reducer.layout(settings))
+
+    def __call__(self, p: Pass) -> dict:
+        from .tracing import trace_pass
+        from .tracing.lanes import LaneSetup
+
+        s = self.settings
+        width, height = self.scene.resolution
+        setup = LaneSetup(
+            width=width, height=height, pixel_start=p.pixel_start, n_pixels=p.n_pixels, first_sample=p.first_sample,
+            samples=p.samples, spp_total=s.spp, n_times=s.group_size, replicates=s.replicates,
+            exposure_start_s=float(s.exposure_start), exposure_s=float(s.exposure_s), seed=s.seed,
+        )  # fmt: skip
+        return self.reducer.reduce(p, trace_pass(self.scene, s, setup, self.tables))
