@@ -43,8 +43,8 @@ OUTPUTS = (
         "measurement_stderr", preview="signed",
     ),  # fmt: skip
     Output("depth", "truth", 1, "m", "distance from the aperture to the camera ray's first hit", preview="depth"),
-    Output("velocity", "truth", 1, "m/s", "radial velocity as the camera sees it: d/dt of the hit distance along the fixed camera ray, positive receding", preview="velocity"),
-    Output("point_velocity", "truth", 1, "m/s", "v·d̂ of the hit surface point (d̂ the camera ray's direction), positive receding"),
+    Output("velocity", "truth", 1, "m/s", "radial velocity as the camera sees it: d/dt of the hit distance along the camera ray fixed in the (possibly moving) camera's frame, positive receding", preview="velocity"),
+    Output("point_velocity", "truth", 1, "m/s", "(v − v_aperture)·d̂ of the hit surface point (d̂ the camera ray's direction): d/dt of its distance from the moving aperture, positive receding"),
     Output("velocity_3d", "truth", 3, "m/s", "velocity of the hit point relative to the camera, in the camera frame (x left, y up, z forward)", components=("x", "y", "z")),
     Output("flow", "truth", 2, "pixels/s", "optical flow: rate of change of the hit point's film position (x right, y down); NaN for sensors without a projection (orthographic)", components=("u", "v")),
     Output("coverage", "coverage", 1, "", "fraction of samples whose camera ray hit a surface"),
