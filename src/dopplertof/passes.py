@@ -118,7 +118,9 @@ class Reducer:
             return total * (1.0 / lanes_per_group)
 
         means = [group_means(x) for x in channels]
-        truth_sums = [dr.block_sum(mi.Float64(x), lanes_per_pixel) for x in truth]
+        truth64 = [mi.Float64(x) for x in truth]
+        dr.eval(means, truth64)  # one kernel for every channel, not one per reduction
+        truth_sums = [dr.block_sum(x, lanes_per_pixel) for x in truth64]
         inc = {}
         if self.whole(segments):  # the usual pass: complete replicates of one size, reduced to per-pixel sums
             size, count = segments[0][1] - segments[0][0], len(segments)

@@ -28,6 +28,7 @@ class MaterialTables:
     relative_ior: object  # mi.Float indexed by BSDF id
     film: object = None  # the FilterSampler of the scene's film (dopplertof.tracing.film)
     pinhole: tuple | None = None  # the sensor's projection scales for optical flow (path.pinhole_scales)
+    refracts: bool = True  # some surface refracts: optical lengths need relative_ior (else the kernel skips it)
 
     @classmethod
     def of(cls, scene) -> "MaterialTables":
@@ -57,7 +58,7 @@ class MaterialTables:
 
         # Nothing moves: no apparent motion, no projection needed.
         pinhole = pinhole_scales(scene.sensor) if scene.motions() else (0.0, 0.0)
-        return cls(*arrays, film=FilterSampler(scene.sensor.film()), pinhole=pinhole)
+        return cls(*arrays, film=FilterSampler(scene.sensor.film()), pinhole=pinhole, refracts=any(v != 1.0 for v in ior.values()))
 
     def gather(self, table, bsdf, active):
         import drjit as dr

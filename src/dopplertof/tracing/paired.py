@@ -230,9 +230,9 @@ def trace_pair(scene, settings, setup, tables):
         next2 &= ~reconnect | landed
 
         # ---------------------------------------------------- optical lengths and Jacobians
-        index1_next = segment_index(index1, tables.gather(tables.relative_ior, bsdf1, next1), si1.wi, bs1.wo)
+        index1_next = segment_index(index1, tables, bsdf1, next1, si1.wi, bs1.wo)
         wo2 = dr.select(reconnect, si2.to_local(d2), bs2.wo)
-        index2_next = segment_index(index2, tables.gather(tables.relative_ior, bsdf2, next2), si2.wi, wo2)
+        index2_next = segment_index(index2, tables, bsdf2, next2, si2.wi, wo2)
         length1_next, x1n, _ = extend(scene, poses1_64, hit1n, x1, ray1_next.d, length1, index1_next, next1)
         length2_next, x2n, _ = extend(scene, poses2_64, hit2n, x2, ray2_next.d, length2, index2_next, next2)
         # A reconnected pair shares the body-local point: its lengths differ by the motion only.

@@ -126,12 +126,16 @@ def extend(scene, poses64, hit, x_prev, direction, length_m, index, active, prec
     return grown, x_hit, t64
 
 
-def segment_index(index, relative_ior, wi_local, wo_local):
-    """Refractive index of the segment leaving a vertex towards ``wo_local``, arriving from
-    ``wi_local`` in a medium of ``index``: times η entering, 1/η leaving a refracting
-    surface (:mod:`dopplertof.tracing.materials`), unchanged on reflection."""
+def segment_index(index, tables, bsdf, active, wi_local, wo_local):
+    """Refractive index of the segment leaving a vertex of ``bsdf`` towards ``wo_local``,
+    arriving from ``wi_local`` in a medium of ``index``: times η entering, 1/η leaving a
+    refracting surface (η from :class:`~dopplertof.tracing.materials.MaterialTables`),
+    unchanged on reflection, and everywhere in a scene without refracting surfaces."""
     import drjit as dr
 
+    if not tables.refracts:
+        return index
+    relative_ior = tables.gather(tables.relative_ior, bsdf, active)
     transmits = wi_local.z * wo_local.z < 0
     factor = dr.select(wi_local.z > 0, relative_ior, dr.rcp(relative_ior))
     return dr.select(transmits, index * factor, index)
@@ -191,7 +195,7 @@ def sample_emitter(scene, si, bsdf, bsdf_ctx, sample, time_s, poses, length_m, i
     active &= ~scene.occluded(si.spawn_ray_to(ds.p), time_s, active, poses=poses)
     wo = si.to_local(ds.d)
     value, pdf = bsdf.eval_pdf(mi.BSDFContext(), si, wo, active)
-    index_out = segment_index(index, tables.gather(tables.relative_ior, bsdf, active), si.wi, wo)
+    index_out = segment_index(index, tables, bsdf, active, si.wi, wo)
     length = length_to_emitter(length_m, index_out, x, p_light)
     return LightSample(ds, weight, value, pdf, length, active)
 

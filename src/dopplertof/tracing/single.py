@@ -96,7 +96,7 @@ def trace(scene, settings, setup, tables):
         sample_1 = streams.next_1d(corr_bounce)
         sample_2 = streams.next_2d(corr_bounce)
         bs, bsdf_weight = bsdf.sample(bsdf_ctx, si, sample_1, sample_2, go_on)
-        index_next = segment_index(index, tables.gather(tables.relative_ior, bsdf, go_on), si.wi, bs.wo)
+        index_next = segment_index(index, tables, bsdf, go_on, si.wi, bs.wo)
 
         # ---------------------------------------------------- Russian roulette
         beta_next = beta * bsdf_weight
