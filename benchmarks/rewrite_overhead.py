@@ -5,6 +5,7 @@ one before it, side by side in one process, on the scenes and configurations of
 
     python benchmarks/rewrite_overhead.py            # 256x256, 32 spp, 5 reps (~5 min on 2 cores)
     python benchmarks/rewrite_overhead.py --quick    # 64x64, 8 spp, 3 reps
+    python benchmarks/rewrite_overhead.py --reps 15 --scenes 2-moving   # one scene, more repetitions
 
 The baseline is the package at git commit ``BASELINE`` (the last commit before the
 rewrite), extracted with ``git archive`` into a temporary folder and imported as
@@ -47,6 +48,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--reps", type=int, default=None)
+    parser.add_argument("--scenes", nargs="+", choices=("static", "2-moving", "8-moving"), default=["static", "2-moving", "8-moving"])
     parser.add_argument("--csv", default=os.path.join(os.path.dirname(__file__), "results", "rewrite_overhead.csv"))
     args = parser.parse_args(argv)
     resolution, spp, reps = (64, 8, 3) if args.quick else (256, 32, 5)
@@ -58,7 +60,7 @@ def main(argv=None):
         cam1 = [dict(heterodyne=1.0)]
         cam4 = [dict(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
         rows = []
-        for name in ("static", "2-moving", "8-moving"):
+        for name in args.scenes:
             ours_dict, _ = throughput.scene_dicts(name, resolution, 5)
             scenes = {"baseline": old.load_scene(ours_dict), "current": dopplertof.load_scene(ours_dict)}
             packages = {"baseline": old, "current": dopplertof}
