@@ -32,6 +32,12 @@ Dict: as for ``mi.load_dict``; a shape may carry ``"motion"``:
 In both forms, shapes with identical motion (the same keyframe times and transforms, or
 the same parametric velocities and pivot, whatever their ``to_world``) form one rigid body:
 each body costs a sub-scene intersection per ray.
+
+Cameras and lights move the same way: an ``<animation>`` in the ``<sensor>`` or in a point
+or spot ``<emitter>`` (a ``"motion"`` entry in a dict), area emitters with the shape they
+are on. An ``<emitter>`` inside the ``<sensor>`` (in a dict, an emitter dict inside the
+sensor's) rides with the camera, placed in its frame. Emitters that cannot move, and
+motions that would scale a camera or a point or spot light, are refused.
 """
 
 from __future__ import annotations
