@@ -67,8 +67,7 @@ class Body:
     swept_max: object = None
     swept_box: tuple = None  # the same AABB as (min xyz, max xyz) numpy float64 arrays
     swept_times: tuple = None  # the times (t0, t1) s it covers, clamped into the key range
-    local_box: tuple = None  # bounds_local padded a little, (min xyz, max xyz) numpy arrays
-    local_min: object = None  # the same as mi.Point3f (opaque)
+    local_min: object = None  # bounds_local padded a little, mi.Point3f (opaque)
     local_max: object = None
 
 
@@ -361,7 +360,6 @@ class DynamicScene:
                 # for hits on the bounds themselves (a cube's faces).
                 lo, hi = body.bounds_local
                 pad = 1e-4 * float(np.max(hi - lo)) + 1e-6
-                body.local_box = (lo - pad, hi + pad)
                 body.local_min = mi.Point3f(*[float(v) for v in lo - pad])
                 body.local_max = mi.Point3f(*[float(v) for v in hi + pad])
                 dr.make_opaque(body.local_min, body.local_max)

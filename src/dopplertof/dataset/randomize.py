@@ -390,12 +390,11 @@ def _shape(prim: dict) -> dict:
 
 def camera_rotation(camera: dict) -> np.ndarray:
     """The (3, 3) rotation from the camera frame (x left, y up, z forward) to the world at
-    t = 0 of a description's ``camera`` (Mitsuba's ``look_at``, in float64)."""
-    origin, target, up = (np.asarray(camera[k], dtype=np.float64) for k in ("origin", "target", "up"))
-    forward = (target - origin) / np.linalg.norm(target - origin)
-    left = np.cross(up, forward)
-    left /= np.linalg.norm(left)
-    return np.column_stack([left, np.cross(forward, left), forward])
+    t = 0 of a description's ``camera``: that of the sensor's ``look_at``, in float64."""
+    import mitsuba as mi
+
+    look = mi.ScalarTransform4d().look_at(origin=camera["origin"], target=camera["target"], up=camera["up"])
+    return np.array(look.matrix, dtype=np.float64)[:3, :3]
 
 
 def camera_motion(camera: dict) -> dict | None:
