@@ -263,13 +263,15 @@ def _sees_front_face(res, centre, z_face, fov_deg=40.0):
     return y_in[:, None] & x_in[None, :]
 
 
-def test_translating_cubes_ground_truth_is_exact():
+@pytest.mark.parametrize("traversal", ["per-body", "tree"])
+def test_translating_cubes_ground_truth_is_exact(traversal):
     """One ray per pixel at one instant, camera at the origin: on a cube's front face
     (normal +z, at z_f) the hit is depth·d̂ with d_z = z_f / depth inside the pixel, and the
     ray-fixed velocity (n·v)/(n·d̂) = v_z / d_z = v_z · depth / z_f."""
     res = 64
     scene = dt.load_scene(_scene_dict(res=res))
-    assert scene.uses_tree()
+    scene.traversal = traversal
+    assert len(scene.bodies) == 32 and scene.uses_tree() == (traversal == "tree")
     r = dt.render(scene, spp=1, time_sampling="uniform", max_depth=2, exposure=1e-9, seed=3)
     dz_min, dz_max = _pixel_dz_range(res)
     cubes = _lattice()

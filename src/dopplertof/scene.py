@@ -19,7 +19,7 @@ Two traversals of the bodies give the same hits (DESIGN §5.3):
                 swept-box test: a SIMD packet none of whose lanes enter the box skips the
                 body's pose, the change of frame and the sub-scene query, and only lanes
                 inside the body's own (local) bounds are traced; K box tests per ray,
-                cheapest for a few bodies
+                cheapest up to a few dozen bodies
 ``tree``        a bounding-volume tree over the swept boxes, walked per lane in a Dr.Jit
                 loop (stackless: depth-first order with skip links); a lane queries, through
                 one ``dr.switch``, only the bodies whose boxes it enters before its closest
@@ -27,7 +27,13 @@ Two traversals of the bodies give the same hits (DESIGN §5.3):
 ==============  ==========================================================================
 
 ``DynamicScene.traversal`` picks one (``"auto"``: ``tree`` above
-:data:`PER_BODY_MAX_BODIES` bodies).
+:data:`PER_BODY_MAX_BODIES` bodies). Either takes the bodies' poses from
+:meth:`DynamicScene.poses`: all evaluated up front up to :data:`LISTED_POSES_MAX_BODIES`
+bodies, else per lane for the one body asked for.
+
+What a moving body costs on the CPU is its Embree calls: each SIMD packet with a lane near
+a body pays a call of about a static query's price, even where it traces one lane
+(``benchmarks/body_cost.py``; benchmarks/README.md, "Many moving bodies").
 
 The camera may move too (``camera_motion``: the sensor's frame at time t is
 ``camera_motion.pose(t)`` applied to the sensor's own ``to_world``), and so may emitters:
@@ -46,7 +52,10 @@ from .motion import Motion
 
 # Above this many bodies ``traversal="auto"`` walks the tree of swept boxes; at or below,
 # the per-body loop is as fast or faster (benchmarks/README.md, "Many moving bodies").
-PER_BODY_MAX_BODIES = 16
+PER_BODY_MAX_BODIES = 32
+# At or below this many bodies :meth:`DynamicScene.poses` evaluates every body's pose up
+# front (a list, selected per lane); above, one pose per lane and use, from the pose table.
+LISTED_POSES_MAX_BODIES = 16
 
 TRAVERSALS = ("auto", "per-body", "tree")
 
@@ -431,11 +440,13 @@ class DynamicScene:
         return None if self.camera_motion is None else self.camera_motion.pose(time_s, precise)
 
     def poses(self, time_s, precise: bool = False):
-        """Pose of every body at per-lane times ``time_s`` (mi.Float64, s): a list with the
-        per-body traversal, a :class:`LanePoses` (evaluated on demand) with the tree."""
+        """Pose of every body at per-lane times ``time_s`` (mi.Float64, s): a list up to
+        :data:`LISTED_POSES_MAX_BODIES` bodies (each lane selects among them), above that a
+        :class:`LanePoses`, evaluated per lane for the body asked for (a lane's K-way select
+        grows with K, a table lookup does not)."""
         import mitsuba as mi
 
-        if self.uses_tree():
+        if len(self.bodies) > LISTED_POSES_MAX_BODIES:
             return LanePoses(mi.Float64(time_s), precise)
         return [body.motion.pose(time_s, precise) for body in self.bodies]
 
@@ -470,12 +481,12 @@ class DynamicScene:
         body_index = mi.UInt32(0)
         if self.bodies:
             poses = poses if poses is not None else self.poses(time_s)
-            if isinstance(poses, LanePoses):
-                pi, body_index = self._tree_closest(ray, poses.time_s, pi, active)
+            if self.uses_tree():
+                pi, body_index = self._tree_closest(ray, mi.Float64(time_s), pi, active)
                 pose = self.select_pose(poses, body_index)
                 ray_hit = dr.select(body_index > 0, self._to_local(ray, pose, ray.maxt), ray_hit)
             else:
-                pi, ray_hit, body_index, pose = self._per_body_closest(ray, time_s, pi, active)
+                pi, ray_hit, body_index, pose = self._per_body_closest(ray, poses, pi, active)
         si = pi.compute_surface_interaction(ray_hit, mi.RayFlags.All, active)
         p_local, n_local = mi.Point3f(si.p), mi.Normal3f(si.n)
         is_mesh = active & si.is_valid() & si.shape.is_mesh()
@@ -500,26 +511,29 @@ class DynamicScene:
 
         active = mi.Bool(active)
         blocked = self.static.ray_test(ray, active)
-        if self.bodies:
-            poses = poses if poses is not None else self.poses(time_s)
-            if isinstance(poses, LanePoses):
-                return self._tree_blocked(ray, poses.time_s, blocked, active)
-            return self._per_body_blocked(ray, time_s, blocked, active)
-        return blocked
+        if not self.bodies:
+            return blocked
+        if self.uses_tree():
+            return self._tree_blocked(ray, mi.Float64(time_s), blocked, active)
+        return self._per_body_blocked(ray, poses if poses is not None else self.poses(time_s), blocked, active)
 
     # ------------------------------------------------------------------------------------
     # Per-body traversal
 
-    def _per_body_closest(self, ray, time_s, pi, active):
+    def _body_pose(self, poses, b):
+        """The pose of ``bodies[b]`` from ``poses`` (a list or :class:`LanePoses`)."""
+        return poses[b] if isinstance(poses, list) else self.bodies[b].motion.pose(poses.time_s, poses.precise)
+
+    def _per_body_closest(self, ray, poses, pi, active):
         """The closest of ``pi`` (the static scene's) and the bodies' hits, the ray it was
         found with (in the body's frame), the body index (0: static) and the body's pose.
 
         Each body's work (pose, ray to its frame, sub-scene query) sits in a ``dr.if_stmt``
         on its swept-box test, which the LLVM backend compiles to a branch: a SIMD packet
-        none of whose lanes enter the box skips it. Inside, only lanes whose ray enters the
-        body's padded local bounds (before the closest hit so far) call the sub-scene:
-        Embree's cost grows with the lanes it traces, about that of a whole static-scene
-        query per lane even for a cube (benchmarks/README.md, "Many moving bodies")."""
+        none of whose lanes enter the box skips it. The sub-scene query, in a second branch,
+        is made only by packets with a lane whose ray enters the body's padded local bounds
+        (before the closest hit so far): a call costs about a static-scene query whatever
+        the number of lanes it traces (benchmarks/README.md, "Many moving bodies")."""
         import drjit as dr
         import mitsuba as mi
 
@@ -528,7 +542,7 @@ class DynamicScene:
             enters = active & self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, dr.minimum(ray.maxt, state[0].t))
 
             def query(pi, body_index, pose_hit, b=b, body=body, enters=enters):
-                pose = body.motion.pose(time_s)
+                pose = self._body_pose(poses, b)
                 ray_local = self._to_local(ray, pose, ray.maxt)
                 near = enters & self._box_hit(ray_local.o, ray_local.d, body.local_min, body.local_max, dr.minimum(ray.maxt, pi.t))
 
@@ -543,7 +557,7 @@ class DynamicScene:
         pi, body_index, pose = state
         return pi, dr.select(body_index > 0, self._to_local(ray, pose, ray.maxt), mi.Ray3f(ray)), body_index, pose
 
-    def _per_body_blocked(self, ray, time_s, blocked, active):
+    def _per_body_blocked(self, ray, poses, blocked, active):
         """``blocked`` (by the static scene) or blocked by a body; as in
         :meth:`_per_body_closest`, a body is queried only by packets entering its box."""
         import drjit as dr
@@ -551,8 +565,8 @@ class DynamicScene:
         for b, body in enumerate(self.bodies):
             enters = active & ~blocked & self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, ray.maxt)
 
-            def query(blocked, body=body, enters=enters):
-                ray_local = self._to_local(ray, body.motion.pose(time_s), ray.maxt)
+            def query(blocked, b=b, body=body, enters=enters):
+                ray_local = self._to_local(ray, self._body_pose(poses, b), ray.maxt)
                 near = enters & self._box_hit(ray_local.o, ray_local.d, body.local_min, body.local_max, ray.maxt)
                 return dr.if_stmt((blocked,), near, lambda blocked: blocked | body.scene.ray_test(ray_local, near), lambda blocked: blocked)
 
