@@ -78,13 +78,14 @@ def _one_call_closest(self, ray, poses, pi, active):
     near_any, ray_local = mi.Bool(False), mi.Ray3f(ray)
     for b, body in enumerate(self.bodies):
         enters = active & self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, dr.minimum(ray.maxt, pi.t))
-        local = self._to_local(ray, poses[b], ray.maxt)
+        local = self._to_local(ray, self._body_pose(poses, b), ray.maxt)
         near = enters & self._box_hit(local.o, local.d, body.local_min, body.local_max, dr.minimum(ray.maxt, pi.t))
         ray_local, near_any = dr.select(near, local, ray_local), near_any | near
     pib = self.bodies[0].scene.ray_intersect_preliminary(ray_local, coherent=False, active=near_any)
     closer = near_any & pib.is_valid() & (pib.t < pi.t)
     body_index = dr.select(closer, mi.UInt32(1), mi.UInt32(0))
-    return dr.select(closer, pib, pi), dr.select(closer, self._to_local(ray, poses[0], ray.maxt), mi.Ray3f(ray)), body_index, poses[0]
+    pose = self._body_pose(poses, 0)
+    return dr.select(closer, pib, pi), dr.select(closer, self._to_local(ray, pose, ray.maxt), mi.Ray3f(ray)), body_index, pose
 
 
 def _one_call_blocked(self, ray, poses, blocked, active):
@@ -95,7 +96,7 @@ def _one_call_blocked(self, ray, poses, blocked, active):
     near_any, ray_local = mi.Bool(False), mi.Ray3f(ray)
     for b, body in enumerate(self.bodies):
         enters = active & ~blocked & self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, ray.maxt)
-        local = self._to_local(ray, poses[b], ray.maxt)
+        local = self._to_local(ray, self._body_pose(poses, b), ray.maxt)
         near = enters & self._box_hit(local.o, local.d, body.local_min, body.local_max, ray.maxt)
         ray_local, near_any = dr.select(near, local, ray_local), near_any | near
     return blocked | self.bodies[0].scene.ray_test(ray_local, near_any)
@@ -126,7 +127,7 @@ def ablation(name, scene):
 
 def parse_args(argv=None):
     p = _common.argument_parser(__doc__)
-    p.add_argument("--scene", choices=[s for s in throughput.SCENE_NAMES if s.endswith("-moving")], default="8-moving")
+    p.add_argument("--scene", choices=[s for s in throughput.ALL_SCENES if s.endswith("-moving")], default="8-moving")
     p.add_argument("--resolution", type=int, default=None, help="square film side, pixels (default 128; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel, even (default 32; quick 4)")
     p.add_argument("--reps", type=int, default=None, help="interleaved repetitions (default 7; quick 2)")

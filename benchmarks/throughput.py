@@ -12,7 +12,8 @@ Scenes (Cornell-like box, point light at the camera):
 * ``static``  -- the short and tall boxes at rest;
 * ``2-moving`` -- the same boxes, each translating 15 mm over the 1.5 ms exposure;
 * ``8-moving`` -- eight small cubes, each with its own 15 mm translation;
-* ``32-moving``, ``128-moving`` -- 32 or 128 cubes on a jittered lattice filling the room
+* ``32-moving``, ``128-moving`` (and, with ``--scenes``, ``16-moving``, ``64-moving``) -- that
+  many cubes on a jittered lattice filling the room
   (some on the floor), each with its own 15 mm translation; their size shrinks as
   1/sqrt(count) so that they show as much surface as the eight;
 * ``moving-camera`` -- the static boxes, the camera (with its light attached) moving 15 mm
@@ -59,7 +60,9 @@ CONFIG_LABELS = {
     "dtof1": "D-ToF 1 camera (antithetic, replay)",
     "dtof4": "D-ToF 4 cameras (antithetic, replay)",
 }
-SCENE_NAMES = ("static", "2-moving", "8-moving", "32-moving", "128-moving", "moving-camera")
+SCENE_NAMES = ("static", "2-moving", "8-moving", "32-moving", "128-moving", "moving-camera")  # the default run
+LATTICE_SCENES = ("16-moving", "32-moving", "64-moving", "128-moving")
+ALL_SCENES = ("static", "2-moving", "8-moving", *LATTICE_SCENES, "moving-camera")
 # Eight directions of travel, cycled over the cubes.
 DIRECTIONS = [(0, 0, 1), (0, 0, -1), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (0.5**0.5, 0, 0.5**0.5), (-(0.5**0.5), 0, 0.5**0.5), (0.5**0.5, 0.5**0.5, 0)]
 
@@ -86,7 +89,7 @@ def _bodies(name):
             m0 = transform((x, y, z), rotate_y_deg=11.0 * i, scale=(0.1, 0.1, 0.1))
             cubes.append((f"cube-{i}", m0, tuple(d * c for c in direction)))
         return cubes
-    if name in ("32-moving", "128-moving"):
+    if name in LATTICE_SCENES:
         return _cube_lattice(int(name.split("-")[0]))
     raise ValueError(f"unknown scene {name!r}")
 
@@ -283,7 +286,7 @@ def parse_args(argv=None):
     p.add_argument("--spp", type=int, default=None, help="paths per pixel (even; default 32; --full 64; quick 8)")
     p.add_argument("--max-depth", type=int, default=None, help="path depth, Mitsuba semantics (default 5)")
     p.add_argument("--reps", type=int, default=None, help="timed repetitions per configuration (default 3; --full 5; quick 2)")
-    p.add_argument("--scenes", nargs="+", choices=SCENE_NAMES, default=list(SCENE_NAMES))
+    p.add_argument("--scenes", nargs="+", choices=ALL_SCENES, default=list(SCENE_NAMES))
     p.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
     p.add_argument("--traversal", choices=TRAVERSALS, default="auto", help="how our renders find the moving bodies a ray hits (default auto)")
     p.add_argument("--full", action="store_true", help="256x256, 64 spp, 5 reps (about 9 min on 2 idle cores)")
