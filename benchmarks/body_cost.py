@@ -5,8 +5,8 @@ One process, one timer (``time.process_time``: CPU time of both threads, less se
 other load than wall time), configurations interleaved, every render timed against stock
 ``path`` on the same geometry baked static in the same repetition::
 
-    python benchmarks/body_cost.py                 # 8 moving cubes, 128x128, 32 spp, 7 reps (~4 min)
-    python benchmarks/body_cost.py --scene 32-moving
+    python benchmarks/body_cost.py                 # 8 moving cubes, 128x128, 32 spp, 7 reps (~1 min on 2 cores)
+    python benchmarks/body_cost.py --scene 32-moving   # (~2 min)
     python benchmarks/body_cost.py --quick         # 32x32, 4 spp, 2 reps (smoke test)
 
 The scenes are ``benchmarks/throughput.py``'s. Ablations (every one but ``baked`` renders a
@@ -18,10 +18,10 @@ The scenes are ``benchmarks/throughput.py``'s. Ablations (every one but ``baked`
   frame, branches, the tree walk (a body's query returns "no hit" without calling Embree);
 * ``masked-calls``  -- the bodies' Embree queries made with every lane masked off: the fixed
   cost of a call, paid by each SIMD packet with a lane near the body;
-* ``one-call``      -- one Embree query per ray query for all lanes near *any* body (each lane
-  traces the nearest such body's sub-scene stand-in, body 0's): the cost of any scheme that
-  resolves the bodies in one extra query per SIMD packet (a single "atlas" of the bodies);
-  it replaces the per-body loop, which it then uses whatever the number of bodies.
+* ``one-call``      -- one Embree query per ray query for all lanes near *any* body (each such
+  lane traces body 0's sub-scene, in the frame of a body it is near): the cost of any scheme
+  that resolves the bodies in one extra query per SIMD packet (a single "atlas" of the
+  bodies); it replaces the per-body loop, which it then uses whatever the number of bodies.
 
 Configurations: ``ours`` (intensity, uniform time sampling) and ``dtof4`` (D-ToF with 4
 cameras, antithetic time sampling, replay), as in throughput.py. Reported: median over the
@@ -70,17 +70,27 @@ class _MaskedScene:
         return self._scene.ray_test(ray, mi.Bool(False)) if self._call else mi.Bool(False)
 
 
+def _lanes_near_a_body(scene, ray, poses, active, t_max):
+    """(ray in the frame of the last body it is near, lanes near any body): the per-body
+    loop's box tests, without its branches."""
+    import drjit as dr
+    import mitsuba as mi
+
+    near_any, ray_local = mi.Bool(False), mi.Ray3f(ray)
+    for b, body in enumerate(scene.bodies):
+        enters = active & scene._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, t_max)
+        local = scene._to_local(ray, scene._body_pose(poses, b), ray.maxt)
+        near = enters & scene._box_hit(local.o, local.d, body.local_min, body.local_max, t_max)
+        ray_local, near_any = dr.select(near, local, ray_local), near_any | near
+    return ray_local, near_any
+
+
 def _one_call_closest(self, ray, poses, pi, active):
     """Stand-in for DynamicScene._per_body_closest: one query for every lane near a body."""
     import drjit as dr
     import mitsuba as mi
 
-    near_any, ray_local = mi.Bool(False), mi.Ray3f(ray)
-    for b, body in enumerate(self.bodies):
-        enters = active & self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, dr.minimum(ray.maxt, pi.t))
-        local = self._to_local(ray, self._body_pose(poses, b), ray.maxt)
-        near = enters & self._box_hit(local.o, local.d, body.local_min, body.local_max, dr.minimum(ray.maxt, pi.t))
-        ray_local, near_any = dr.select(near, local, ray_local), near_any | near
+    ray_local, near_any = _lanes_near_a_body(self, ray, poses, active, dr.minimum(ray.maxt, pi.t))
     pib = self.bodies[0].scene.ray_intersect_preliminary(ray_local, coherent=False, active=near_any)
     closer = near_any & pib.is_valid() & (pib.t < pi.t)
     body_index = dr.select(closer, mi.UInt32(1), mi.UInt32(0))
@@ -90,15 +100,7 @@ def _one_call_closest(self, ray, poses, pi, active):
 
 def _one_call_blocked(self, ray, poses, blocked, active):
     """Stand-in for DynamicScene._per_body_blocked: one query for every lane near a body."""
-    import drjit as dr
-    import mitsuba as mi
-
-    near_any, ray_local = mi.Bool(False), mi.Ray3f(ray)
-    for b, body in enumerate(self.bodies):
-        enters = active & ~blocked & self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, ray.maxt)
-        local = self._to_local(ray, self._body_pose(poses, b), ray.maxt)
-        near = enters & self._box_hit(local.o, local.d, body.local_min, body.local_max, ray.maxt)
-        ray_local, near_any = dr.select(near, local, ray_local), near_any | near
+    ray_local, near_any = _lanes_near_a_body(self, ray, poses, active & ~blocked, ray.maxt)
     return blocked | self.bodies[0].scene.ray_test(ray_local, near_any)
 
 
