@@ -100,8 +100,9 @@ class Hit:
 
 
 class LanePoses:
-    """Poses of every body at per-lane times, for the tree traversal: nothing is evaluated
-    here; :meth:`DynamicScene.select_pose` evaluates, per lane, the one body it asks for.
+    """Poses of every body at per-lane times, above :data:`LISTED_POSES_MAX_BODIES` bodies:
+    nothing is evaluated here; :meth:`DynamicScene.select_pose` evaluates, per lane, the one
+    body it asks for.
 
     ========  ==============  ===================================================
     time_s    mi.Float64      per-lane times (s)
