@@ -1,6 +1,6 @@
 """Many moving bodies: the tree traversal of :class:`dopplertof.scene.DynamicScene` against
-the per-body loop (bit-identical hits, occlusion, poses and renders) and against exact
-ground truth for translating cubes.
+the per-body loop (bit-identical hits, occlusion, poses and renders, with the bodies' poses
+listed or from the table) and against exact ground truth for translating cubes.
 
 The scene has 32 translating cubes on a lattice, two of them crossing (overlapping swept
 boxes), a keyframed cube with three keys (rotation and scale: the pose table's key search)
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import dopplertof as dt
-from dopplertof.scene import PER_BODY_MAX_BODIES, PoseTable
+from dopplertof.scene import LISTED_POSES_MAX_BODIES, PER_BODY_MAX_BODIES, PoseTable
 
 T = mi.ScalarTransform4f
 EXPOSURE = 1.5e-3
@@ -239,6 +239,23 @@ def test_render_is_identical_through_both_traversals(scene):
     for name in ("intensity", "measurements", "depth", "velocity", "instance_id"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     assert len(np.unique(a.instance_id)) > 20
+
+
+def test_few_bodies_render_identically_through_both_traversals():
+    """Up to LISTED_POSES_MAX_BODIES bodies the poses are a list, which either traversal
+    takes: a few cubes (two crossing), the keyframed cube and the spinning sphere."""
+    d = _scene_dict(res=12)
+    for key in [k for k in d if k.startswith("cube-")][6:]:
+        del d[key]
+    scene = dt.load_scene(_extra_bodies(d))
+    assert 2 < len(scene.bodies) <= LISTED_POSES_MAX_BODIES and isinstance(scene.poses(mi.Float64(0.0)), list)
+    results = []
+    for traversal in ("per-body", "tree"):
+        scene.traversal = traversal
+        results.append(dt.render(scene, cameras=[dt.Camera(heterodyne=1.0, phase=0.5)], spp=4, max_depth=3, seed=7))
+    for name in ("intensity", "measurements", "depth", "velocity", "instance_id"):
+        np.testing.assert_array_equal(getattr(results[0], name), getattr(results[1], name), err_msg=name)
+    assert len(np.unique(results[0].instance_id)) > 4
 
 
 def _pixel_dz_range(res, fov_deg=40.0):
