@@ -525,54 +525,57 @@ class DynamicScene:
         """The pose of ``bodies[b]`` from ``poses`` (a list or :class:`LanePoses`)."""
         return poses[b] if isinstance(poses, list) else self.bodies[b].motion.pose(poses.time_s, poses.precise)
 
-    def _per_body_closest(self, ray, poses, pi, active):
-        """The closest of ``pi`` (the static scene's) and the bodies' hits, the ray it was
-        found with (in the body's frame), the body index (0: static) and the body's pose.
+    def _per_body_visit(self, ray, poses, active, state, t_max_m, on_body, done, label):
+        """Visit each body whose swept box ``ray`` enters before ``t_max_m(state)`` (unless
+        ``done(state)``): ``on_body(state, b, ray_local, pose, near)`` returns the new state
+        (``ray_local``: the ray in the body's frame at the lane's time, ``near``: the lanes
+        whose ray enters the body's padded local bounds, the only ones to trace).
 
         Each body's work (pose, ray to its frame, sub-scene query) sits in a ``dr.if_stmt``
         on its swept-box test, which the LLVM backend compiles to a branch: a SIMD packet
-        none of whose lanes enter the box skips it. The sub-scene query, in a second branch,
-        is made only by packets with a lane whose ray enters the body's padded local bounds
-        (before the closest hit so far): a call costs about a static-scene query whatever
-        the number of lanes it traces (benchmarks/README.md, "Many moving bodies")."""
+        none of whose lanes enter the box skips it. ``on_body`` runs in a second branch, only
+        for packets with a lane ``near`` the body: a sub-scene call costs about a
+        static-scene query whatever the number of lanes it traces (benchmarks/README.md,
+        "Many moving bodies")."""
+        import drjit as dr
+
+        for b, body in enumerate(self.bodies):
+            enters = active & ~done(state) & self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, t_max_m(state))
+
+            def query(*state, b=b, body=body, enters=enters):
+                pose = self._body_pose(poses, b)
+                ray_local = self._to_local(ray, pose, ray.maxt)
+                near = enters & self._box_hit(ray_local.o, ray_local.d, body.local_min, body.local_max, t_max_m(state))
+                trace = lambda *state: on_body(state, b, ray_local, pose, near)  # noqa: E731
+                return dr.if_stmt(state, near, trace, lambda *state: state, label=f"dopplertof body {b}: {label}, traced")
+
+            state = dr.if_stmt(state, enters, query, lambda *state: state, label=f"dopplertof body {b}: {label}")
+        return state
+
+    def _per_body_closest(self, ray, poses, pi, active):
+        """The closest of ``pi`` (the static scene's) and the bodies' hits, the ray it was
+        found with (in the body's frame), the body index (0: static) and the body's pose."""
         import drjit as dr
         import mitsuba as mi
 
+        def on_body(state, b, ray_local, pose, near):
+            pi, body_index, pose_hit = state
+            pib = self.bodies[b].scene.ray_intersect_preliminary(ray_local, coherent=False, active=near)
+            closer = near & pib.is_valid() & (pib.t < pi.t)
+            return dr.select(closer, pib, pi), dr.select(closer, mi.UInt32(b + 1), body_index), dr.select(closer, pose, pose_hit)
+
         state = (pi, mi.UInt32(0), _identity_pose(False))
-        for b, body in enumerate(self.bodies):
-            enters = active & self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, dr.minimum(ray.maxt, state[0].t))
-
-            def query(pi, body_index, pose_hit, b=b, body=body, enters=enters):
-                pose = self._body_pose(poses, b)
-                ray_local = self._to_local(ray, pose, ray.maxt)
-                near = enters & self._box_hit(ray_local.o, ray_local.d, body.local_min, body.local_max, dr.minimum(ray.maxt, pi.t))
-
-                def trace(pi, body_index, pose_hit):
-                    pib = body.scene.ray_intersect_preliminary(ray_local, coherent=False, active=near)
-                    closer = near & pib.is_valid() & (pib.t < pi.t)
-                    return dr.select(closer, pib, pi), dr.select(closer, mi.UInt32(b + 1), body_index), dr.select(closer, pose, pose_hit)
-
-                return dr.if_stmt((pi, body_index, pose_hit), near, trace, lambda *state: state, label=f"dopplertof body {b}: trace")
-
-            state = dr.if_stmt(state, enters, query, lambda *state: state, label=f"dopplertof body {b}: closest")
+        state = self._per_body_visit(ray, poses, active, state, lambda state: dr.minimum(ray.maxt, state[0].t), on_body, lambda state: mi.Bool(False), "closest")
         pi, body_index, pose = state
         return pi, dr.select(body_index > 0, self._to_local(ray, pose, ray.maxt), mi.Ray3f(ray)), body_index, pose
 
     def _per_body_blocked(self, ray, poses, blocked, active):
-        """``blocked`` (by the static scene) or blocked by a body; as in
-        :meth:`_per_body_closest`, a body is queried only by packets entering its box."""
-        import drjit as dr
+        """``blocked`` (by the static scene) or blocked by a body."""
 
-        for b, body in enumerate(self.bodies):
-            enters = active & ~blocked & self._box_hit(ray.o, ray.d, body.swept_min, body.swept_max, ray.maxt)
+        def on_body(state, b, ray_local, pose, near):
+            return (state[0] | self.bodies[b].scene.ray_test(ray_local, near),)
 
-            def query(blocked, b=b, body=body, enters=enters):
-                ray_local = self._to_local(ray, self._body_pose(poses, b), ray.maxt)
-                near = enters & self._box_hit(ray_local.o, ray_local.d, body.local_min, body.local_max, ray.maxt)
-                return dr.if_stmt((blocked,), near, lambda blocked: blocked | body.scene.ray_test(ray_local, near), lambda blocked: blocked)
-
-            blocked = dr.if_stmt((blocked,), enters, query, lambda blocked: blocked, label=f"dopplertof body {b}: blocked")
-        return blocked
+        return self._per_body_visit(ray, poses, active, (blocked,), lambda state: ray.maxt, on_body, lambda state: state[0], "blocked")[0]
 
     # ------------------------------------------------------------------------------------
     # Tree traversal
