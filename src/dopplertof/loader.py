@@ -61,6 +61,7 @@ _SHAPE_TAGS = {"shape"}
 _DEFINITION_TAGS = {"bsdf", "texture", "spectrum", "rgb", "default", "medium"}
 _ORIGINAL_SAMPLERS = {"correlated", "timestratified"}
 MOVABLE_EMITTERS = ("point", "spot")
+SHUTTER_PARAMETERS = ("shutter_open", "shutter_close")
 SENSOR_TYPES = {"perspective", "thinlens", "orthographic", "radiancemeter", "irradiancemeter", "distant", "batch"}
 EMITTER_TYPES = {"point", "spot", "area", "constant", "envmap", "directional", "directionalarea", "projector"}
 
@@ -78,6 +79,17 @@ def load_scene(source, *, film_resolution=None, **params) -> DynamicScene:
         Film (width, height) in pixels (an int: square), replacing the scene's.
     **params
         XML ``$name`` substitutions, as in ``mi.load_file`` (they override ``<default>``).
+        A name the file (with its includes) neither declares nor uses is a SceneError
+        listing the names it has.
+
+    Raises
+    ------
+    SceneError (a ValueError)
+        Naming the file or dict entry: malformed input, an emitter whose radiance,
+        intensity or irradiance is not finite or negative, more than one sensor, a
+        shutter interval that is not finite or of zero length, a motion key beyond
+        :data:`~dopplertof.motion.MAX_COORDINATE_M`, a speed at or above the speed of
+        light, bad ``<integrator>`` parameters, unknown ``$name`` parameters.
     """
     from .backend import ensure_variant
 
@@ -225,15 +237,18 @@ def _describe(el, index: int) -> str:
 _TOKEN = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")
 
 
-def _substitute(root, values: dict, path: str) -> dict:
+def _substitute(root, values: dict, path: str, found: dict) -> dict:
     """Replace ``$name`` in attributes by ``values`` (which win) or the file's ``<default>``s,
     and return the values in force. As Mitsuba 3 (``src/core/xml.cpp``): the first
     definition of a name wins, a default may use earlier ones, and the longest name is
-    replaced first, so with ``res`` and ``resx`` defined ``$resx`` is resx's value."""
+    replaced first, so with ``res`` and ``resx`` defined ``$resx`` is resx's value.
+    ``found["defaults"]`` gains the names the file declares, ``found["texts"]`` the
+    attribute values that hold a ``$`` (to tell given names the scene does not use)."""
     values = dict(values)
 
     def replace(el, key):
         val = el.attrib[key]
+        found["texts"].append(val)
         for name in sorted(values, key=len, reverse=True):
             val = val.replace(f"${name}", values[name])
         if "$" in val:
@@ -242,6 +257,7 @@ def _substitute(root, values: dict, path: str) -> dict:
         return val
 
     for d in root.findall("default"):
+        found["defaults"].add(d.attrib.get("name"))
         if "name" in d.attrib and d.attrib["name"] not in values:  # the first definition wins
             values[d.attrib["name"]] = replace(d, "value") if "value" in d.attrib else ""
         root.remove(d)
@@ -261,7 +277,7 @@ def _parse(path: str, where: str):
         raise SceneError(f"{where}: malformed XML ({exc})") from None
 
 
-def _read_scene(path: str, values: dict, where: str, stack: tuple = ()):
+def _read_scene(path: str, values: dict, where: str, found: dict, stack: tuple = ()):
     """The ``<scene>`` root of ``path`` with ``$name`` substituted and every ``<include
     filename="...">`` replaced by the included file's elements, recursively (a file name
     is relative to the including file, else to the scene's folder, where Mitsuba's resolver
@@ -269,7 +285,7 @@ def _read_scene(path: str, values: dict, where: str, stack: tuple = ()):
     and so is mixing Mitsuba 0.6 and 3 versions."""
     root = _parse(path, where)
     stack = (*stack, os.path.abspath(path))
-    values.update(_substitute(root, values, path))
+    values.update(_substitute(root, values, path, found))
     for parent in list(root.iter()):
         for index, inc in reversed(list(enumerate(parent))):
             if inc.tag != "include":
@@ -280,7 +296,7 @@ def _read_scene(path: str, values: dict, where: str, stack: tuple = ()):
             target = os.path.abspath(next((c for c in candidates if name and os.path.isfile(c)), candidates[0]))
             if target in stack:
                 raise SceneError(f"{here}: include cycle ({' -> '.join(os.path.basename(p) for p in (*stack, target))})")
-            included = _read_scene(target, values, f"{here}: {target}", stack)
+            included = _read_scene(target, values, f"{here}: {target}", found, stack)
             if included.tag != "scene":
                 parent[index:index + 1] = [included]
                 continue
@@ -304,7 +320,15 @@ def _set_film_size(root, size, path: str) -> None:
 def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     import mitsuba as mi
 
-    root = _read_scene(path, {k: str(v) for k, v in params.items()}, path)
+    found = {"defaults": set(), "texts": []}
+    root = _read_scene(path, {k: str(v) for k, v in params.items()}, path, found)
+    unknown = [n for n in params if n not in found["defaults"] and not any(f"${n}" in text for text in found["texts"])]
+    if unknown:
+        known = sorted(found["defaults"] | {m for text in found["texts"] for m in _TOKEN.findall(text)})
+        raise SceneError(
+            f"{path}: unknown parameter{'s' if len(unknown) > 1 else ''} {', '.join('$' + n for n in unknown)}; "
+            f"the scene's parameters: {', '.join('$' + n for n in known) if known else 'none'}"
+        )
     if root.tag != "scene":
         raise SceneError(f"{path}: the root element must be <scene>, got <{root.tag}>")
     strict_normals = mitsuba06.is_legacy(root) and mitsuba06.translate(root, path)
@@ -319,6 +343,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     moving_lights = []  # (where, element, motion) of every animated emitter
     attached = []  # (element, where) of the emitters inside the sensor
     camera_motion = None
+    shutter_given = False
     for index, el in enumerate(list(root)):
         where = f"{path}: {_describe(el, index)}"
         if el.tag == "integrator":
@@ -329,6 +354,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
             root.remove(el)
         elif el.tag == "sensor":
             camera_motion = _pull_animation(el, where) or camera_motion
+            shutter_given |= any(p.attrib.get("name") in SHUTTER_PARAMETERS for p in el)
             attached += [(em, f"{where}, <emitter> #{k}") for k, em in enumerate(el.findall("emitter"))]
             for em in el.findall("emitter"):
                 el.remove(em)
@@ -398,7 +424,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     if strict_normals:
         mitsuba06.check_flat_shading([static, *(b.scene for b in bodies)], path)
     scene = DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path, camera_motion=camera_motion, lights=lights)
-    return _checked_scene(scene)
+    return _checked_scene(scene, shutter_given)
 
 
 def _pull_animation(el, where: str):
@@ -433,11 +459,23 @@ def _camera_light_motion(static, camera_motion, where: str) -> Motion:
     raise SceneError(f"{where}: a light attached to a camera whose motion is a {type(camera_motion).__name__} on top of a to_world is not supported")
 
 
-def _checked_scene(scene: DynamicScene) -> DynamicScene:
+def _checked_scene(scene: DynamicScene, shutter_given: bool = False) -> DynamicScene:
     """Refuse what the tracer would silently drop, and validate the ``<integrator>`` now
     (not after a long render): participating media, emitters or sensors on moving bodies,
-    bad integrator parameters."""
+    more than one sensor, a shutter interval that is not finite or (``shutter_given``: the
+    scene sets it) of zero length, bad integrator parameters."""
     where = scene.source
+    n_sensors = len(scene.static.sensors())
+    if n_sensors > 1:
+        raise SceneError(f"{where}: the scene has {n_sensors} sensors; dopplertof renders one (remove the others)")
+    open_s, length_s = float(scene.sensor.shutter_open()), float(scene.sensor.shutter_open_time())
+    if not (np.isfinite(open_s) and np.isfinite(length_s)):
+        raise SceneError(f"{where}: the sensor's shutter_open={open_s!r} and shutter_close={open_s + length_s!r} s must be finite")
+    if shutter_given and length_s == 0:
+        raise SceneError(
+            f"{where}: the sensor's shutter_open and shutter_close are both {open_s!r} s, a shutter that never opens; "
+            "give shutter_close > shutter_open, or neither (the exposure is then the <integrator>'s or the default)"
+        )
     for label, mi_scene in [("", scene.static)] + [(f"moving body {b.name!r}: ", b.scene) for b in scene.bodies]:
         for shape in mi_scene.shapes():
             if shape.interior_medium() is not None or shape.exterior_medium() is not None:
@@ -585,6 +623,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
     moving_lights = []  # (where, emitter dict, motion) of every moving emitter
     attached = []  # (where, emitter dict) of the emitters inside the sensor
     camera_motion = None
+    shutter_given = False
     integrator_params = {}
     for key, value in scene_dict.items():
         where = f"<dict>: entry {key!r}"
@@ -594,6 +633,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
         kind = value.get("type") if isinstance(value, dict) else None
         if kind in SENSOR_TYPES:
             sensor = dict(value)
+            shutter_given |= any(k in sensor for k in SHUTTER_PARAMETERS)
             if "motion" in sensor:
                 spec = sensor.pop("motion")
                 if isinstance(spec, Motion):
@@ -646,4 +686,4 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
 
     lights = [MovingLight(where, light_scene(light, where), motion) for where, light, motion in moving_lights]
     lights += [MovingLight(where, light_scene(light, where), _camera_light_motion(static, camera_motion, where)) for where, light in attached]
-    return _checked_scene(DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, camera_motion=camera_motion, lights=lights))
+    return _checked_scene(DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, camera_motion=camera_motion, lights=lights), shutter_given)

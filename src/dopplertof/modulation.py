@@ -39,6 +39,22 @@ WAVEFORMS = ("sinusoidal", "rectangular", "triangular", "trapezoidal")
 # 2e7 rad, still resolving 1e-8 rad); no D-ToF sensor comes near them.
 MAX_MODULATION_FREQUENCY_HZ = 1e12
 MAX_HETERODYNE = 1e9
+# D-ToF exposures are microseconds to milliseconds. Longer than a minute is a unit mistake
+# (the time grid, 2^-23 T, would be coarser than 7 µs), and a T of 1e300 s overflows the
+# scene times t = start + u T.
+MAX_EXPOSURE_S = 60.0
+
+
+def checked_exposure(name: str, value_s: float, where: str = "") -> float:
+    """``value_s`` if it is an exposure T in (0, :data:`MAX_EXPOSURE_S`] seconds, else
+    ValueError naming ``name`` (and ``where``) and the value."""
+    from .validation import checked
+
+    value_s = checked(name, value_s, "float", where)
+    if not 0.0 < value_s <= MAX_EXPOSURE_S:
+        prefix = f"{where}: " if where else ""
+        raise ValueError(f"{prefix}{name!r} must be in (0, {MAX_EXPOSURE_S:g}] s, got {value_s!r}")
+    return value_s
 
 
 @dataclass(frozen=True)
@@ -48,11 +64,12 @@ class Camera:
     Parameters
     ----------
     modulation_frequency : float, Hz. Light modulation f_g. Default 30 MHz.
-    exposure : float, s. Exposure T. Default 1.5 ms.
+    exposure : float, s. Exposure T, in (0, 60] s (:data:`MAX_EXPOSURE_S`). Default 1.5 ms.
     heterodyne : float. h, beat cycles per exposure (0 homodyne, 1 "perfect" heterodyne).
     phase : float, rad. Sensor phase offset ψ.
     waveform : str. One of ``sinusoidal``, ``rectangular``, ``triangular``, ``trapezoidal``.
-    g1, g0 : float. Light modulation amplitude and DC offset (g0 enters full-waveform only).
+    g1, g0 : float. Light modulation amplitude (> 0) and DC offset (>= 0; g0 enters
+        full-waveform only).
     low_pass : bool. Low-pass (correlation) model if True, else the full waveform product.
     exposure_start : float or None, s of scene time. When this configuration's exposure
         opens; None: the render's ``exposure_start``. Its window is
@@ -84,8 +101,11 @@ class Camera:
             raise ValueError(f"Camera: modulation_frequency must be in (0, {MAX_MODULATION_FREQUENCY_HZ:g}] Hz, got {self.modulation_frequency!r}")
         if abs(self.heterodyne) > MAX_HETERODYNE:
             raise ValueError(f"Camera: |heterodyne| must be <= {MAX_HETERODYNE:g} beat cycles per exposure, got {self.heterodyne!r}")
-        if self.exposure <= 0:
-            raise ValueError(f"Camera: exposure must be > 0 s, got {self.exposure!r}")
+        checked_exposure("exposure", self.exposure, "Camera")
+        if self.g1 <= 0:
+            raise ValueError(f"Camera: 'g1' (light modulation amplitude) must be > 0, got {self.g1!r}")
+        if self.g0 < 0:
+            raise ValueError(f"Camera: 'g0' (light DC offset) must be >= 0, got {self.g0!r}")
         if self.waveform not in WAVEFORMS:
             raise ValueError(f"Camera: unknown waveform {self.waveform!r}; choose one of {', '.join(WAVEFORMS)}")
 
@@ -116,28 +136,36 @@ class Camera:
         Accepts ``time``, ``w_g`` (MHz), ``w_s`` (MHz), ``g_1``, ``g_0``, ``hetero_frequency``,
         ``hetero_offset`` (fraction of 2π, overrides ``sensor_phase_offset``),
         ``sensor_phase_offset`` (rad), ``wave_function_type``,
-        ``low_frequency_component_only``. Other keys are ignored here.
+        ``low_frequency_component_only``. Other keys are ignored here. Values may be
+        given as text (as in a scene file), parsed strictly: a boolean is ``true``/``false``
+        (``yes``/``no``, ``1``/``0``, ``on``/``off``), anything else is a ValueError naming
+        the key.
         """
-        exposure = float(params.get("time", 1.5e-3))
-        f_g = float(params.get("w_g", 30.0)) * 1e6
+        from .validation import checked_or_text
+
+        def get(key, kind, default):
+            return checked_or_text(key, params.get(key, default), kind, where)
+
+        exposure = get("time", "float", 1.5e-3)
+        f_g = get("w_g", "float", 30.0) * 1e6
         if "hetero_frequency" in params:
-            h = float(params["hetero_frequency"])
+            h = get("hetero_frequency", "float", None)
         else:  # the original's w_s, converted without float32 cancellation
-            h = (float(params.get("w_s", params.get("w_g", 30.0))) * 1e6 - f_g) * exposure
+            h = (get("w_s", "float", get("w_g", "float", 30.0)) * 1e6 - f_g) * exposure
         if "hetero_offset" in params:
-            psi = TWO_PI * float(params["hetero_offset"])
+            psi = TWO_PI * get("hetero_offset", "float", None)
         else:
-            psi = float(params.get("sensor_phase_offset", 0.0))
+            psi = get("sensor_phase_offset", "float", 0.0)
         try:
             return cls(
                 modulation_frequency=f_g,
                 exposure=exposure,
                 heterodyne=h,
                 phase=psi,
-                waveform=str(params.get("wave_function_type", "sinusoidal")),
-                g1=float(params.get("g_1", 0.5)),
-                g0=float(params.get("g_0", 0.5)),
-                low_pass=bool(params.get("low_frequency_component_only", True)),
+                waveform=get("wave_function_type", "str", "sinusoidal"),
+                g1=get("g_1", "float", 0.5),
+                g0=get("g_0", "float", 0.5),
+                low_pass=get("low_frequency_component_only", "bool", True),
             )
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None

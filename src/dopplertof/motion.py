@@ -30,9 +30,30 @@ recompile the rendering kernel; only the number of keys is baked in.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
+
+from .modulation import SPEED_OF_LIGHT_M_S
+
+# Positions (translations, pivots) beyond this are refused: scenes are metres to kilometres
+# across, and a body 1e30 m away is a typo that makes it vanish (Float32 hit points there
+# are ~1e23 m apart).
+MAX_COORDINATE_M = 1e6
+# A body faster than this is almost surely a unit mistake (mm/s given as m/s, say): it
+# warns. The speed of light is refused: no such motion is physical.
+SUSPICIOUS_SPEED_M_S = 1e-3 * SPEED_OF_LIGHT_M_S
+
+
+def check_speed(speed_m_s: float, what: str, where: str) -> None:
+    """ValueError for a speed at or above the speed of light, a warning above
+    :data:`SUSPICIOUS_SPEED_M_S`; ``what`` names the velocity (``linear_velocity``,
+    ``the keys at t=0 and 1e-9 s``), ``where`` the motion."""
+    if speed_m_s >= SPEED_OF_LIGHT_M_S:
+        raise ValueError(f"{where}: {what} is {speed_m_s:g} m/s, at or above the speed of light ({SPEED_OF_LIGHT_M_S:g} m/s)")
+    if speed_m_s > SUSPICIOUS_SPEED_M_S:
+        warnings.warn(f"{where}: {what} is {speed_m_s:g} m/s, above {SUSPICIOUS_SPEED_M_S:g} m/s (1e-3 c); is the unit m/s?", stacklevel=3)
 
 # ----------------------------------------------------------------------------------------
 # Host-side (numpy) decomposition of 4x4 matrices
@@ -95,13 +116,16 @@ def decompose(matrix, where: str = "transform") -> tuple[np.ndarray, np.ndarray,
     """Split an affine 4x4 matrix into (translation, quaternion (w,x,y,z), scale).
 
     The matrix must be ``Translate · Rotate · Scale`` with a per-axis scale (no shear,
-    no reflection). Raises ValueError naming ``where`` otherwise.
+    no reflection) and a translation within :data:`MAX_COORDINATE_M` on every axis.
+    Raises ValueError naming ``where`` otherwise.
     """
     m = np.asarray(matrix, dtype=np.float64)
     if m.shape != (4, 4):
         raise ValueError(f"{where}: expected a 4x4 matrix, got shape {m.shape}")
     if not np.isfinite(m).all():
         raise ValueError(f"{where}: transform has non-finite entries (NaN or inf): {m.tolist()}")
+    if np.abs(m[:3, 3]).max() > MAX_COORDINATE_M:
+        raise ValueError(f"{where}: translation {m[:3, 3].tolist()} m is beyond the {MAX_COORDINATE_M:g} m any coordinate may reach")
     if not np.allclose(m[3], [0, 0, 0, 1], atol=1e-9):
         raise ValueError(f"{where}: projective matrices cannot be rigid motion keys (last row {m[3]})")
     linear = m[:3, :3]
@@ -266,7 +290,11 @@ class Keyframed(Motion):
     times : sequence of float
         Key times in seconds, strictly increasing.
     matrices : sequence of 4x4 array_like
-        World transforms ``T · R · S`` at each key (no shear).
+        World transforms ``T · R · S`` at each key (no shear; translations within
+        :data:`MAX_COORDINATE_M` m).
+
+    Translations between keys faster than light are refused, faster than
+    :data:`SUSPICIOUS_SPEED_M_S` warn (:func:`check_speed`).
     """
 
     def __init__(self, times, matrices, where: str = "motion"):
@@ -287,6 +315,9 @@ class Keyframed(Motion):
             quats.append(p[1] if np.dot(p[1], quats[-1]) >= 0 else -p[1])
         self.quaternions = np.array(quats)
         self.scales = np.array([p[2] for p in parts])
+        for i in range(len(times) - 1):
+            speed = np.linalg.norm(self.translations[i + 1] - self.translations[i]) / (times[i + 1] - times[i])
+            check_speed(float(speed), f"the translation between the keys at t={times[i]:g} and {times[i + 1]:g} s", where)
         self._axes, self._angles, self._durations = self._segments()
         self._upload()
 
@@ -419,8 +450,11 @@ class Parametric(Motion):
     ----------
     linear_velocity : (3,) array_like, m/s
     angular_velocity : (3,) array_like, rad/s (axis times rate, right-handed)
-    pivot : (3,) array_like, m. Default: the origin.
+    pivot : (3,) array_like, m. Default: the origin. Within :data:`MAX_COORDINATE_M`.
     base : 4x4 array_like. Pose at t = 0 (``M0``). Default: identity.
+
+    A linear speed at or above the speed of light is refused, above
+    :data:`SUSPICIOUS_SPEED_M_S` it warns (:func:`check_speed`).
     """
 
     def __init__(self, linear_velocity=(0, 0, 0), angular_velocity=(0, 0, 0), pivot=(0, 0, 0), base=None, where="motion"):
@@ -433,6 +467,9 @@ class Parametric(Motion):
         self.linear_velocity = vec3("linear_velocity", linear_velocity)
         self.angular_velocity = vec3("angular_velocity", angular_velocity)
         self.pivot = vec3("pivot", pivot)
+        if np.abs(self.pivot).max() > MAX_COORDINATE_M:
+            raise ValueError(f"{where}: pivot {self.pivot.tolist()} m is beyond the {MAX_COORDINATE_M:g} m any coordinate may reach")
+        check_speed(float(np.linalg.norm(self.linear_velocity)), "linear_velocity", where)
         self.base = np.eye(4) if base is None else np.asarray(base, dtype=np.float64)
         self.b0, self.q0, self.s0 = decompose(self.base, f"{where}: base transform")
         rate = np.linalg.norm(self.angular_velocity)

@@ -58,6 +58,32 @@ PER_BODY_MAX_BODIES = 32
 LISTED_POSES_MAX_BODIES = 16
 
 TRAVERSALS = ("auto", "per-body", "tree")
+# Emitter parameters that hold emitted power (their texture's values, a bitmap's data).
+EMITTED_PARAMETERS = ("radiance", "intensity", "irradiance", "scale")
+
+
+def check_emitters(mi_scene, where: str) -> None:
+    """SceneError naming the emitter and its parameter where an emitted radiance,
+    intensity or irradiance (or its scale) is not finite or is negative: a NaN light makes
+    every pixel NaN, a negative one is no light."""
+    import mitsuba as mi
+
+    for index, emitter in enumerate(mi_scene.emitters()):
+        params = mi.traverse(emitter)
+        for key in params.keys():
+            if key.split(".")[0] not in EMITTED_PARAMETERS:
+                continue
+            values = np.asarray(params[key], dtype=np.float64).ravel()
+            if np.isfinite(values).all() and (values >= 0).all():
+                continue
+            shape = emitter.get_shape() if hasattr(emitter, "get_shape") else None
+            name = repr(emitter.id()) if emitter.id() else f"#{index}"
+            on = f" on shape {shape.id()!r}" if shape is not None and shape.id() else ""
+            shown = values[:6].tolist()
+            raise SceneError(
+                f"{where}: emitter {name} ({emitter.class_name()}{on}): {key!r} = {shown}{' ...' if values.size > 6 else ''}; "
+                "emitted radiance, intensity and irradiance must be finite and >= 0"
+            )
 
 
 class SceneError(ValueError):
@@ -355,6 +381,9 @@ class DynamicScene:
         self._poses = None  # PoseTable of the bodies' motions, built on first use
         self._targets = {}  # dr.switch targets per query, traced once per body list
         self._emitters = None
+        groups = [(self.source, self.static)] + [(f"{self.source}: moving body {b.name!r}", b.scene) for b in self.bodies]
+        for where, mi_scene in groups + [(light.name, light.scene) for light in self.lights]:
+            check_emitters(mi_scene, where)
         self._fit_bounds(None, None)
 
     # ------------------------------------------------------------------------------------

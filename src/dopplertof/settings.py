@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .correlation import MODES, PAIRED, Correlation
-from .modulation import Camera
+from .modulation import Camera, checked_exposure
 from .timesampling import ANALYTIC, METHODS
 from .validation import checked
 
@@ -201,8 +201,7 @@ class RenderSettings:
         # Cameras may differ in exposure: each (start, exposure) is a window of its own.
         exposures = sorted({c.exposure for c in self.cameras})
         if self.exposure is not None:
-            if self.exposure <= 0:
-                raise ValueError(f"'exposure' must be > 0 seconds, got {self.exposure!r}")
+            checked_exposure("exposure", self.exposure)
             if exposures and exposures != [self.exposure]:
                 raise ValueError(f"exposure={self.exposure!r} s differs from the cameras' exposure {', '.join(map(repr, exposures))} s")
 

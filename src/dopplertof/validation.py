@@ -32,6 +32,21 @@ def checked(name: str, value, kind: str, where: str = ""):
     raise ValueError(f"{prefix}{name!r} must be {_NOUNS[kind]}, got {value!r}")
 
 
+def checked_or_text(name: str, value, kind: str, where: str = ""):
+    """As :func:`checked`, but a value given as text (a scene file's, the original code's
+    parameters) is parsed first, strictly: ``"false"`` is False (:func:`parse_bool`),
+    ``"2.5"`` is 2.5, ``"maybe"`` is a ValueError naming ``name``."""
+    if isinstance(value, str) and kind != "str":
+        prefix = f"{where}: " if where else ""
+        if kind == "bool":
+            return parse_bool(value, f"{prefix}{name!r}")
+        try:
+            value = float(value.strip())
+        except ValueError:
+            raise ValueError(f"{prefix}{name!r} must be {_NOUNS[kind]}, got {value!r}") from None
+    return checked(name, value, kind, where)
+
+
 def parse_bool(text: str, name: str) -> bool:
     """A boolean written as text (CLI, XML): true/false, yes/no, 1/0, on/off; else
     ValueError beginning with ``name`` (say what and where, e.g. ``"camera 'h=1': 'low_pass'"``)."""
