@@ -13,7 +13,7 @@ import sys
 
 import click
 
-from .clitools import StopOnSignal, cameras_layer, fail, given_settings, settings_options
+from .clitools import StopOnSignal, cameras_layer, fail, given_settings, settings_options, show_warning
 
 def scene_description(scene_arg: str, resolution, defines) -> dict:
     """What metadata.json records of the scene: built-in name and arguments, or file and hash."""
@@ -59,6 +59,9 @@ class _Group(click.Group):
             formatter.write_dl(rows)
 
     def main(self, *args, **kwargs):
+        import warnings
+
+        warnings.showwarning = show_warning
         try:
             return super().main(*args, standalone_mode=False, **kwargs)
         except click.exceptions.Abort:
@@ -143,6 +146,9 @@ def render(scene, output, camera_specs, resolution, defines, overwrite, resume, 
         executor = {"executor": "ray", "address": address, "workers": workers} if use_ray else {}
         with StopOnSignal() as stop:
             result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=os.path.join(output, out_folder.CHECKPOINT), stop=stop, **executor)
+        if result.info["passes_done"] == 0:
+            click.echo(f"{stop.name}: stopped before the first pass finished; nothing written", err=True)
+            sys.exit(stop.exit_status)
         metadata = {"scene": scene_description(scene, resolution, defines), "film": [width, height], "command": sys.argv}
         written = out_folder.write_result(result, output, metadata)
     except KeyboardInterrupt:

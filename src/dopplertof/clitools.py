@@ -1,7 +1,8 @@
 """What every command-line command shares: one-line errors, stopping on signals, and the
 render-setting options generated from :class:`dopplertof.settings.RenderSettings`.
 
-Bad input prints one line ``error: …`` and exits with status 2, no traceback.
+Bad input prints one line ``error: …`` and exits with status 2, no traceback; a legal
+but suspicious value (a Python warning) prints one line ``warning: …`` and goes on.
 SIGINT, SIGTERM and SIGHUP stop a render at the end of the pass in progress
 (:class:`StopOnSignal`); the command then writes what is done and exits with 128 + the
 signal's number (130, 143, 129). A second signal of the same kind acts at once.
@@ -24,6 +25,11 @@ def fail(message: str):
     """Print ``error: message`` on stderr and exit with status 2."""
     click.echo(f"error: {' '.join(str(message).split())}", err=True)
     sys.exit(EXIT_BAD_INPUT)
+
+
+def show_warning(message, category, filename, lineno, file=None, line=None):
+    """``warnings.showwarning`` of the command line: one line ``warning: message`` on stderr."""
+    click.echo(f"warning: {' '.join(str(message).split())}", err=True)
 
 
 class StopOnSignal:

@@ -156,17 +156,18 @@ class Camera:
             psi = TWO_PI * get("hetero_offset", "float", None)
         else:
             psi = get("sensor_phase_offset", "float", 0.0)
+        values = dict(
+            modulation_frequency=f_g,
+            exposure=exposure,
+            heterodyne=h,
+            phase=psi,
+            waveform=get("wave_function_type", "str", "sinusoidal"),
+            g1=get("g_1", "float", 0.5),
+            g0=get("g_0", "float", 0.5),
+            low_pass=get("low_frequency_component_only", "bool", True),
+        )
         try:
-            return cls(
-                modulation_frequency=f_g,
-                exposure=exposure,
-                heterodyne=h,
-                phase=psi,
-                waveform=get("wave_function_type", "str", "sinusoidal"),
-                g1=get("g_1", "float", 0.5),
-                g0=get("g_0", "float", 0.5),
-                low_pass=get("low_frequency_component_only", "bool", True),
-            )
+            return cls(**values)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
 

@@ -37,6 +37,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,6 +45,7 @@ import numpy as np
 from .outputs import BY_NAME, ESTIMATES, TRUTH
 from .passes import MAX_COVARIANCE_CAMERAS, Accumulator, PassTracer, Reducer, schedule
 from .settings import DEFAULT_EXPOSURE_S, RenderSettings, scene_layer
+from .validation import checked
 
 __all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S"]
 
@@ -113,6 +115,24 @@ def check_film_memory(width: int, height: int, n_cameras: int, n_windows: int = 
         return  # not Linux: no check
     if need > available:
         raise ValueError(f"a {width}x{height} film with {n_cameras} camera(s) needs about {need / 2**30:.1f} GiB of memory for its buffers; {available / 2**30:.1f} GiB are available")
+
+
+# A rough rate for the warning below: DESIGN §3 measures about 3e6 paths/s for the D-ToF
+# tracer on 2 CPU cores (stock path 4.8e6, ours 1.59x slower); a GPU is faster.
+ROUGH_PATHS_PER_SECOND = 3e6
+LONG_RENDER_S = 24 * 3600.0
+
+
+def warn_if_long(width: int, height: int, spp: int, n_windows: int = 1) -> None:
+    """Warn when the render would take more than a day at :data:`ROUGH_PATHS_PER_SECOND`:
+    an spp of 1e9 is almost surely a mistake."""
+    paths = float(width) * height * spp * n_windows
+    seconds = paths / ROUGH_PATHS_PER_SECOND
+    if seconds > LONG_RENDER_S:
+        warnings.warn(
+            f"spp={spp} on a {width}x{height} film{f' in {n_windows} exposure windows' if n_windows > 1 else ''} is {paths:.3g} paths: "
+            f"about {seconds / 86400:.3g} days at {ROUGH_PATHS_PER_SECOND:.0e} paths/s (2 CPU cores)", stacklevel=3,
+        )  # fmt: skip
 
 
 # ----------------------------------------------------------------------------------------
@@ -211,16 +231,22 @@ def render(
         with different exposure windows (``exposure_start``, ``exposure``) form a capture
         schedule: each window is traced on its own, with its own random streams
         (:class:`RenderResult` says which maps refer to which window).
-    settings : :class:`RenderSettings`, optional. The settings to start from; by default
-        the scene's own (:func:`dopplertof.settings.scene_layer`: its ``<integrator>``
-        cameras and settings, its sampler's ``sample_count``, its sensor's shutter).
+    settings : :class:`RenderSettings` or dict, optional. A RenderSettings: the settings
+        to start from, replacing the scene's. A dict of setting names (``{"spp": 4}``):
+        applied on top of the scene's own, as ``**overrides`` are. By default the scene's
+        own (:func:`dopplertof.settings.scene_layer`: its ``<integrator>`` cameras and
+        settings, its sampler's ``sample_count``, its sensor's shutter). Anything else is
+        a TypeError.
     **overrides
         Any :class:`RenderSettings` field (``spp``, ``seed``, ``max_depth``,
         ``time_sampling``, ``correlation``, …), applied on top.
-    progress : bool. Show a progress bar.
+    progress : bool. Show a progress bar (a bool: ``"no"`` is a ValueError).
     checkpoint : path, optional. Continue from this checkpoint if it exists (same
         settings, else ValueError); save the sums there if the render stops early.
-    stop : callable, optional. Checked after every pass; True stops the render there.
+    stop : callable, optional. Called before every pass; when it returns True the render
+        stops there and returns what the finished passes hold: ``result.interrupted`` is
+        True and ``result.spp`` the paths per pixel done, 0 (every estimate NaN, nothing
+        checkpointed) where it stopped before the first pass. A stop never raises.
     executor : ``"local"`` (default) or ``"ray"``. ``"ray"`` traces the passes on Ray
         workers (:mod:`dopplertof.render_ray`), each rebuilding the scene from its file or
         built-in name (a scene loaded from a dict cannot be: ValueError), and adds them here
@@ -233,6 +259,12 @@ def render(
     Returns
     -------
     RenderResult
+
+    Raises
+    ------
+    KeyboardInterrupt
+        Only a Ctrl-C (SIGINT) that arrives before the first pass finished; after that the
+        render returns the finished passes as for ``stop``.
     """
     import time
 
@@ -246,15 +278,24 @@ def render(
         raise ValueError(f"executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
     if executor != "ray" and (address is not None or workers is not None):
         raise ValueError("address and workers apply to executor='ray'")
+    progress = checked("progress", progress, "bool")
+    if stop is not None and not callable(stop):
+        raise TypeError(f"stop must be a callable returning True to stop, got {stop!r}")
     if cameras is not None:
         overrides["cameras"] = cameras
-    base = scene_layer(scene) if settings is None else {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
-    settings = RenderSettings.build(base, overrides)
+    if isinstance(settings, RenderSettings):
+        layers = [{f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}]
+    elif settings is None or isinstance(settings, dict):
+        layers = [scene_layer(scene), settings or {}]
+    else:
+        raise TypeError(f"settings must be a dopplertof.RenderSettings or a dict of setting names, got {type(settings).__name__}")
+    settings = RenderSettings.build(*layers, overrides)
 
     width, height = scene.resolution
     n_pixels = width * height
     windows = settings.windows
     check_film_memory(width, height, len(settings.cameras), len(windows))
+    warn_if_long(width, height, settings.spp, len(windows))
     # Each window traces its cameras over its own times, with its own random streams.
     window_settings = [
         dataclasses.replace(settings, cameras=w.cameras, exposure_start=w.start_s, seed=window_seed(settings.seed, k)) for k, w in enumerate(windows)
@@ -298,15 +339,15 @@ def render(
             finally:
                 traced.close()  # a Ray render's workers stop here
     except KeyboardInterrupt:
+        if sum(passes_done()) == 0:
+            raise  # a Ctrl-C with nothing to return
         interrupted = True
     finally:
         if bar is not None:
             bar.close()
     done = sum(passes_done())
-    if done == 0:
-        raise KeyboardInterrupt("render interrupted before the first pass finished")
     if checkpoint is not None:
-        if interrupted:
+        if interrupted and done:
             save_checkpoint(checkpoint, accs, key)
         elif os.path.exists(checkpoint):
             os.remove(checkpoint)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -192,6 +193,12 @@ class RenderSettings:
             raise ValueError(f"correlation={self.correlation!r} pairs two times (n_times=2), got n_times={n}")
         if self.spp % n:
             raise ValueError(f"spp={self.spp} must be a multiple of the {n} correlated times per group ({self.time_sampling})")
+        groups = self.spp // n
+        if self.replicates != FIELDS["replicates"].default and self.replicates > groups:
+            warnings.warn(
+                f"replicates={self.replicates} exceeds the {groups} group(s) of correlated times per pixel (spp={self.spp} / n_times={n}): "
+                f"the standard errors come from {groups} replicate(s){'' if groups >= 2 else ', so they are NaN'}", stacklevel=2,
+            )  # fmt: skip
         if self.time_sampling == ANALYTIC:
             if self.correlation not in ("replay", "reconnection", "adaptive") or self.correlation_depth is not None:
                 raise ValueError(f"analytic time integration needs a fully correlated partner (replay, reconnection or adaptive), got {self.correlation!r}")
