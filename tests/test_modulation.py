@@ -45,8 +45,13 @@ def test_lowpass_shapes_at_known_points():
     "kwargs,match",
     [
         ({"waveform": "square"}, "unknown waveform"),
-        ({"exposure": 0.0}, "exposure must be > 0"),
-        ({"exposure": -1e-3}, "exposure must be > 0"),
+        ({"exposure": 0.0}, r"'exposure' must be in \(0, 60\] s, got 0.0"),
+        ({"exposure": -1e-3}, r"'exposure' must be in \(0, 60\] s, got -0.001"),
+        ({"exposure": 1e300}, r"'exposure' must be in \(0, 60\] s, got 1e\+300"),
+        ({"g1": -1}, r"'g1' .* must be > 0, got -1.0"),
+        ({"g1": 0}, r"'g1' .* must be > 0, got 0.0"),
+        ({"g0": -5}, r"'g0' .* must be >= 0, got -5.0"),
+        ({"low_pass": "no"}, r"'low_pass' must be a boolean"),
         ({"modulation_frequency": 0}, r"modulation_frequency must be in \(0, "),
         ({"heterodyne": float("nan")}, "'heterodyne' must be a finite number"),
     ],
@@ -54,6 +59,28 @@ def test_lowpass_shapes_at_known_points():
 def test_camera_rejects_bad_values(kwargs, match):
     with pytest.raises(ValueError, match=match):
         Camera(**kwargs)
+
+
+@pytest.mark.parametrize("text,expected", [("false", False), ("False", False), ("0", False), ("no", False), ("true", True), ("1", True), (False, False), (True, True)])
+def test_camera_from_original_parses_boolean_text_strictly(text, expected):
+    assert Camera.from_original({"low_frequency_component_only": text}).low_pass is expected
+
+
+@pytest.mark.parametrize("params,match", [
+    ({"low_frequency_component_only": "maybe"}, r"'low_frequency_component_only' must be true or false, got 'maybe'"),
+    ({"low_frequency_component_only": 2}, r"'low_frequency_component_only' must be a boolean"),
+    ({"time": "soon"}, r"'time' must be a finite number, got 'soon'"),
+    ({"g_1": "-1"}, r"'g1' .* must be > 0, got -1.0"),
+])  # fmt: skip
+def test_camera_from_original_refuses_bad_values(params, match):
+    with pytest.raises(ValueError, match=match):
+        Camera.from_original(params)
+
+
+def test_camera_from_original_reads_numbers_given_as_text():
+    cam = Camera.from_original({"time": "0.002", "w_g": "20", "hetero_frequency": "1"})
+    assert (cam.exposure, cam.modulation_frequency, cam.heterodyne) == (0.002, 20e6, 1.0)
+    assert Camera.from_original({"w_g": "30"}).heterodyne == 0.0  # w_s defaults to w_g exactly: homodyne
 
 
 def test_camera_from_original_parameter_names():

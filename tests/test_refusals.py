@@ -1,0 +1,258 @@
+"""Nonsense is refused, naming the input; legal but suspicious values warn (issue 16).
+
+Each refusal is checked where it enters (scene file, scene dict, Mitsuba plugin, API
+argument) and, for a representative few, through the command line in a subprocess: one
+``error:`` line on stderr, exit status 2.
+"""
+
+import math
+import subprocess
+import sys
+import warnings
+
+import mitsuba as mi
+import numpy as np
+import pytest
+
+import dopplertof as dt
+from dopplertof.modulation import SPEED_OF_LIGHT_M_S
+
+FILM = '<film type="hdrfilm"><integer name="width" value="4"/><integer name="height" value="4"/></film>'
+
+
+def xml_scene(tmp_path, body="", sensor_inner="", name="scene.xml"):
+    path = tmp_path / name
+    path.write_text(f'<scene version="3.0.0"><sensor type="perspective">{FILM}{sensor_inner}</sensor><shape type="sphere"/>{body}</scene>\n')
+    return path
+
+
+def dict_scene(sensor_extra=None, **entries):
+    sensor = {"type": "perspective", "film": {"type": "hdrfilm", "width": 4, "height": 4}, **(sensor_extra or {})}
+    return {"type": "scene", "sensor": sensor, "ball": {"type": "sphere"}, **entries}
+
+
+def cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "dopplertof.cli", *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=600)
+
+
+def assert_cli_error(result, *fragments):
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    assert "Traceback" not in result.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], lines[0]
+
+
+# ----------------------------------------------------------------------------------------
+# Emitted radiance
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-1"])
+def test_xml_emitter_intensity_must_be_finite_and_not_negative(tmp_path, value):
+    path = xml_scene(tmp_path, f'<emitter type="point" id="lamp"><rgb name="intensity" value="{value}"/></emitter>')
+    with pytest.raises(dt.SceneError, match=r"scene\.xml: emitter 'lamp' \(PointLight\): 'intensity.value' = .*must be finite and >= 0"):
+        dt.load_scene(path)
+
+
+def test_dict_area_emitter_radiance_names_its_shape():
+    scene = dict_scene(panel={"type": "rectangle", "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [1.0, math.nan, 1.0]}}})
+    with pytest.raises(dt.SceneError, match=r"AreaLight on shape 'panel'\): 'radiance.value' = \[1.0, nan, 1.0\]"):
+        dt.load_scene(scene)
+
+
+def test_emitter_on_a_moving_body_and_a_moving_light_are_checked_too():
+    moving = {"type": "parametric", "linear_velocity": [0, 0, 1]}
+    panel = {"type": "rectangle", "motion": moving, "emitter": {"type": "area", "radiance": -2.0}}
+    with pytest.raises(dt.SceneError, match=r"moving body 'panel'.*'radiance.value'"):
+        dt.load_scene(dict_scene(panel=panel))
+    lamp = {"type": "point", "intensity": math.inf, "motion": moving}
+    with pytest.raises(dt.SceneError, match=r"entry 'lamp'.*'intensity.value' = \[inf"):
+        dt.load_scene(dict_scene(lamp=lamp))
+
+
+def test_plugin_refuses_a_nan_emitter():
+    scene = mi.load_dict({**dict_scene(lamp={"type": "point", "intensity": math.nan}), "integrator": {"type": "dopplertof"}})
+    with pytest.raises(Exception) as info:
+        mi.render(scene, spp=2)
+    chain = [info.value]  # Dr.Jit wraps the integrator's error in its own
+    while chain[-1].__cause__ or chain[-1].__context__:
+        chain.append(chain[-1].__cause__ or chain[-1].__context__)
+    assert any(isinstance(e, dt.SceneError) and "emitter 'lamp' (PointLight): 'intensity.value'" in str(e) for e in chain), chain
+
+
+def test_cli_refuses_a_scene_file_with_nan_radiance(tmp_path):
+    path = xml_scene(tmp_path, '<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="nan"/></emitter></shape>')
+    assert_cli_error(cli("render", path, "-o", tmp_path / "out", "--spp", 2), "scene.xml", "'radiance.value'", "must be finite and >= 0")
+    assert not (tmp_path / "out").exists()
+
+
+# ----------------------------------------------------------------------------------------
+# Sensors and shutters
+
+
+def test_a_second_sensor_is_refused(tmp_path):
+    second = f'<sensor type="perspective">{FILM}</sensor>'
+    with pytest.raises(dt.SceneError, match=r"scene has 2 sensors; dopplertof renders one"):
+        dt.load_scene(xml_scene(tmp_path, second))
+    with pytest.raises(dt.SceneError, match=r"<dict>: the scene has 2 sensors; dopplertof renders one"):
+        dt.load_scene(dict_scene(other={"type": "perspective"}))
+    assert_cli_error(cli("render", xml_scene(tmp_path, second), "-o", tmp_path / "out"), "scene has 2 sensors; dopplertof renders one")
+
+
+@pytest.mark.parametrize("shutter,match", [
+    ('<float name="shutter_close" value="nan"/>', r"shutter_open=0.0 and shutter_close=nan s must be finite"),
+    ('<float name="shutter_close" value="inf"/>', r"shutter_close=inf s must be finite"),
+    ('<float name="shutter_open" value="0.25"/><float name="shutter_close" value="0.25"/>', r"shutter_open and shutter_close are both 0.25 s, a shutter that never opens"),
+    ('<float name="shutter_close" value="0"/>', r"are both 0.0 s"),
+])  # fmt: skip
+def test_xml_shutter_must_be_finite_and_open(tmp_path, shutter, match):
+    with pytest.raises(dt.SceneError, match=match):
+        dt.load_scene(xml_scene(tmp_path, sensor_inner=shutter))
+
+
+def test_dict_zero_length_shutter_is_refused_and_no_shutter_is_fine():
+    with pytest.raises(dt.SceneError, match=r"<dict>: the sensor's shutter_open and shutter_close are both 0.5 s"):
+        dt.load_scene(dict_scene({"shutter_open": 0.5, "shutter_close": 0.5}))
+    assert dt.load_scene(dict_scene()).sensor.shutter_open_time() == 0.0  # none given: the default exposure
+
+
+# ----------------------------------------------------------------------------------------
+# Motion
+
+
+def test_absurd_keyframe_translation_names_the_key_and_the_body(tmp_path):
+    keys = '<transform time="0"><translate z="0"/></transform><transform time="1e-3"><translate z="1e30"/></transform>'
+    body = f'<shape type="cube" id="crate"><animation name="to_world">{keys}</animation></shape>'
+    with pytest.raises(dt.SceneError, match=r"id='crate'.*key at t=0.001 s: translation \[0.0, 0.0, 1e\+30\] m is beyond the 1e\+06 m"):
+        dt.load_scene(xml_scene(tmp_path, body))
+
+
+def test_absurd_pivot_is_refused():
+    with pytest.raises(ValueError, match=r"pivot \[0.0, 10000000.0, 0.0\] m is beyond the 1e\+06 m"):
+        dt.motion.Parametric(angular_velocity=(0, 1, 0), pivot=(0, 1e7, 0))
+
+
+@pytest.mark.parametrize("speed", [SPEED_OF_LIGHT_M_S, 3e8, 1e12])
+def test_parametric_speed_of_light_or_more_is_refused_naming_the_motion(speed):
+    motion = {"type": "parametric", "linear_velocity": [0, 0, speed]}
+    with pytest.raises(dt.SceneError, match=r"entry 'crate': linear_velocity is .* m/s, at or above the speed of light"):
+        dt.load_scene(dict_scene(crate={"type": "cube", "motion": motion}))
+
+
+def test_keyframes_faster_than_light_are_refused():
+    with pytest.raises(ValueError, match=r"crate: the translation between the keys at t=0 and 1e-09 s is 1e\+09 m/s, at or above"):
+        dt.motion.Keyframed([0.0, 1e-9], [np.eye(4), _translation(z=1.0)], where="crate")
+
+
+def test_fast_but_possible_motion_warns_and_slow_motion_does_not():
+    with pytest.warns(UserWarning, match=r"linear_velocity is 1e\+06 m/s, above 299792 m/s \(1e-3 c\)"):
+        dt.motion.Parametric(linear_velocity=(1e6, 0, 0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        dt.motion.Parametric(linear_velocity=(100.0, 0, 0))
+        dt.motion.Keyframed([0.0, 1e-3], [np.eye(4), _translation(z=0.015)])
+
+
+def _translation(x=0.0, y=0.0, z=0.0):
+    m = np.eye(4)
+    m[:3, 3] = [x, y, z]
+    return m
+
+
+# ----------------------------------------------------------------------------------------
+# Cameras and settings (ranges in Camera and RenderSettings; Camera's own in test_modulation)
+
+
+def test_settings_exposure_shares_the_camera_bound():
+    with pytest.raises(ValueError, match=r"'exposure' must be in \(0, 60\] s, got 1e\+300"):
+        dt.RenderSettings(exposure=1e300)
+
+
+@pytest.mark.parametrize("spec,fragment", [("g1=-1", "'g1' (light modulation amplitude) must be > 0, got -1.0"),
+                                           ("h=1,T=1e300", "'exposure' must be in (0, 60] s, got 1e+300"),
+                                           ("g0=-5", "'g0' (light DC offset) must be >= 0, got -5.0")])  # fmt: skip
+def test_cli_refuses_absurd_camera_values(tmp_path, spec, fragment):
+    assert_cli_error(cli("render", xml_scene(tmp_path), "--camera", spec, "-o", tmp_path / "out"), f"camera {spec!r}", fragment)
+
+
+# ----------------------------------------------------------------------------------------
+# $name parameters
+
+
+def test_unknown_name_parameters_are_refused_with_the_known_ones(tmp_path):
+    path = tmp_path / "scene.xml"
+    path.write_text(
+        f'<scene version="3.0.0"><default name="radius" value="1"/><sensor type="perspective">{FILM}</sensor>'
+        '<shape type="sphere"><float name="radius" value="$radius"/><transform name="to_world"><translate z="$depth"/></transform></shape></scene>'
+    )  # fmt: skip
+    assert dt.load_scene(path, radius="2", depth="1") is not None
+    with pytest.raises(dt.SceneError, match=r"scene\.xml: unknown parameters \$radus, \$spp; the scene's parameters: \$depth, \$radius"):
+        dt.load_scene(path, radus="2", depth="1", spp="4")
+    assert_cli_error(cli("render", path, "-D", "radus=2", "-D", "depth=1", "-o", tmp_path / "out"), "unknown parameter $radus", "$depth, $radius")
+
+
+# ----------------------------------------------------------------------------------------
+# render() arguments
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    return dt.load_scene(dict_scene(lamp={"type": "point", "position": [0, 0, 3], "intensity": 10.0}))
+
+
+@pytest.mark.parametrize("progress", ["no", "false", 0, None])
+def test_progress_must_be_a_bool(tiny, progress):
+    with pytest.raises(ValueError, match=rf"'progress' must be a boolean \(true/false\), got {progress!r}"):
+        dt.render(tiny, spp=2, progress=progress)
+
+
+def test_settings_may_be_a_dict_of_setting_names(tiny):
+    result = dt.render(tiny, settings={"spp": 4, "seed": 3})
+    assert result.spp == 4 and result.settings.seed == 3
+    with pytest.raises(ValueError, match=r"unknown setting 'sp'; did you mean 'spp'"):
+        dt.render(tiny, settings={"sp": 4})
+    with pytest.raises(TypeError, match=r"settings must be a dopplertof.RenderSettings or a dict of setting names, got list"):
+        dt.render(tiny, settings=[("spp", 4)])
+
+
+def test_stop_before_the_first_pass_returns_an_empty_interrupted_result(tiny, tmp_path):
+    checkpoint = tmp_path / "checkpoint.npz"
+    result = dt.render(tiny, spp=4, stop=lambda: True, checkpoint=checkpoint)
+    assert result.interrupted and result.spp == 0 and result.info["passes_done"] == 0
+    assert np.isnan(result.intensity).all()
+    assert not checkpoint.exists()  # nothing done, nothing to continue from
+    with pytest.raises(TypeError, match=r"stop must be a callable"):
+        dt.render(tiny, spp=4, stop=True)
+
+
+# ----------------------------------------------------------------------------------------
+# Warnings: legal but almost surely a mistake
+
+
+def test_a_render_of_days_warns_with_its_estimated_time():
+    scene = dt.load_scene(dict_scene(), film_resolution=64)
+    with pytest.warns(UserWarning, match=r"spp=1000000000 on a 64x64 film is 4.1e\+12 paths: about 15.8 days at 3e\+06 paths/s"):
+        result = dt.render(scene, spp=10**9, stop=lambda: True)  # stopped before its first pass
+    assert result.spp == 0
+
+
+def test_more_replicates_than_groups_warns_and_the_default_does_not():
+    with pytest.warns(UserWarning, match=r"replicates=64 exceeds the 2 group\(s\) .* standard errors come from 2 replicate\(s\)"):
+        dt.RenderSettings(spp=4, replicates=64)
+    with pytest.warns(UserWarning, match=r"come from 1 replicate\(s\), so they are NaN"):
+        dt.RenderSettings(spp=2, replicates=8)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        dt.RenderSettings(spp=4)  # the default 16 replicates, fewer groups: the user asked for neither
+        dt.RenderSettings(spp=64, replicates=32)
+
+
+def test_cli_prints_a_warning_as_one_line(tmp_path):
+    blocker = tmp_path / "out"
+    blocker.write_text("not a folder")  # the render stops at its output folder, after the settings
+    result = cli("render", xml_scene(tmp_path), "--spp", 4, "--replicates", 64, "-o", blocker)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 2, result.stderr
+    assert lines[0].startswith("warning: replicates=64 exceeds the 2 group(s)") and lines[1].startswith("error: ")
