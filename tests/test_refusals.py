@@ -256,3 +256,26 @@ def test_cli_prints_a_warning_as_one_line(tmp_path):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 2, result.stderr
     assert lines[0].startswith("warning: replicates=64 exceeds the 2 group(s)") and lines[1].startswith("error: ")
+
+
+# ----------------------------------------------------------------------------------------
+# render_animation() arguments
+
+
+def test_render_animation_takes_settings_as_a_dict_and_refuses_the_rest(tiny, tmp_path):
+    from dopplertof.animate import render_animation
+
+    with pytest.raises(TypeError, match=r"settings must be a dopplertof.RenderSettings or a dict of setting names, got list"):
+        render_animation(tiny, str(tmp_path / "clip"), frames=1, settings=[("spp", 4)])
+    with pytest.raises(ValueError, match=r"unknown setting 'sp'"):
+        render_animation(tiny, str(tmp_path / "clip"), frames=1, settings={"sp": 4})
+    with pytest.raises(ValueError, match=r"'overwrite' must be a boolean \(true/false\), got 'no'"):
+        render_animation(tiny, str(tmp_path / "clip"), frames=1, overwrite="no")
+
+
+def test_render_animation_stopped_raises_its_own_exception(tiny, tmp_path):
+    from dopplertof.animate import AnimationStopped, render_animation
+
+    with pytest.raises(AnimationStopped, match=r"stopped in frame 0"):
+        render_animation(tiny, str(tmp_path / "clip"), frames=1, settings={"spp": 4}, stop=lambda: True, log=lambda line: None)
+    assert not (tmp_path / "clip" / "frame_0000" / "done.json").exists()

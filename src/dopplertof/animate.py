@@ -141,6 +141,10 @@ def _write_done(folder: str, summary: dict) -> None:
     os.replace(temporary, os.path.join(folder, DONE_FILE))
 
 
+class AnimationStopped(Exception):
+    """:func:`render_animation` stopped before its last frame (its ``stop()`` or a Ctrl-C)."""
+
+
 def _render_frame(scene, index, fps, settings, method, folder, progress, stop):
     from .folder import write_result
     from .render import render
@@ -149,7 +153,7 @@ def _render_frame(scene, index, fps, settings, method, folder, progress, stop):
     cameras = list(settings.cameras)
     result = render(scene, settings=settings.replace(seed=settings.seed + index, exposure_start=start_s), progress=progress, stop=stop)
     if result.interrupted:  # a frame must be whole
-        raise KeyboardInterrupt
+        raise AnimationStopped(f"stopped in frame {index}; the frames before it are done, a rerun resumes there")
     os.makedirs(folder, exist_ok=True)
     write_result(result, folder, {"frame": index, "time_s": start_s})
     reconstruction = reconstruct(result.measurements, cameras, method, result.measurement_stderr, result.maps.get("measurement_covariance"))
@@ -204,8 +208,9 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
         Number of frames, > 0.
     fps : float
         Frames per second, > 0: frame ``i`` opens its exposure at i/fps seconds.
-    settings : :class:`~dopplertof.settings.RenderSettings`, optional
-        The settings of every frame (default: the defaults with :func:`default_cameras`);
+    settings : :class:`~dopplertof.settings.RenderSettings` or dict, optional
+        The settings of every frame, or a dict of setting names on top of the defaults
+        (default: the defaults with :func:`default_cameras`); anything else is a TypeError;
         frame ``i`` uses seed ``settings.seed + i`` and opens its exposure at i/fps. The
         cameras must determine velocity (see
         :func:`dopplertof.render_folder.resolve_method`); checked before rendering.
@@ -214,11 +219,15 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
     scene_label : str, optional
         Identifies the scene in ``animation.json`` (default ``scene.source``).
     overwrite : bool
-        Delete the frames of a previous clip in ``output`` instead of refusing other settings.
+        Delete the frames of a previous clip in ``output`` instead of refusing other settings
+        (a bool, else ValueError).
     progress : bool
-        A progress bar per frame.
+        A progress bar per frame (a bool, else ValueError).
     log : callable
         Receives one line per frame.
+    stop : callable, optional
+        Passed to :func:`dopplertof.render`: True stops the frame in progress
+        (:class:`AnimationStopped`).
 
     Returns
     -------
@@ -230,12 +239,21 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
     ValueError
         Bad frames/fps, a camera set that cannot determine velocity, cameras with an
         ``exposure_start`` of their own, or ``output`` holding a clip with other settings.
+    AnimationStopped
+        When ``stop()`` returned True (or a Ctrl-C came) in a frame, after the finished
+        frames are safe; the frame in progress is dropped and a rerun resumes there.
     KeyboardInterrupt
-        On Ctrl-C, after the finished frames are safe; a rerun resumes.
+        On Ctrl-C before a frame's first pass finished, after the finished frames are safe.
     """
     from .settings import RenderSettings
+    from .validation import checked
 
     frames, fps = check_frames_and_fps(frames, fps)
+    overwrite, progress = checked("overwrite", overwrite, "bool"), checked("progress", progress, "bool")
+    if isinstance(settings, dict):
+        settings = RenderSettings.build(settings)
+    elif settings is not None and not isinstance(settings, RenderSettings):
+        raise TypeError(f"settings must be a dopplertof.RenderSettings or a dict of setting names, got {type(settings).__name__}")
     settings = settings or RenderSettings(cameras=default_cameras())
     if not settings.cameras:
         settings = settings.replace(cameras=default_cameras())
@@ -319,7 +337,7 @@ def animate_command(scene, frames, fps, resolution, defines, output, camera_spec
         fail(str(exc))
     except OSError as exc:
         fail(f"cannot write {output!r}: {exc.strerror or exc}")
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, AnimationStopped):
         click.echo(f"interrupted: the finished frames are in {os.path.abspath(output)}/; "
                    "run the same command again to resume", err=True)
         raise SystemExit(stop.exit_status) from None
