@@ -71,6 +71,14 @@ def test_emitter_on_a_moving_body_and_a_moving_light_are_checked_too():
         dt.load_scene(dict_scene(lamp=lamp))
 
 
+def test_envmap_pixels_are_checked():
+    pixels = np.ones((8, 16, 3), np.float32)
+    pixels[2, 3, 1] = np.nan
+    scene = {"type": "scene", "sensor": dict_scene()["sensor"], "sky": {"type": "envmap", "bitmap": mi.Bitmap(pixels)}}
+    with pytest.raises(dt.SceneError, match=r"emitter 'sky' \(EnvironmentMapEmitter\): 'data' has 1 bad values of \d+, the first nan"):
+        dt.load_scene(scene)
+
+
 def test_plugin_refuses_a_nan_emitter():
     scene = mi.load_dict({**dict_scene(lamp={"type": "point", "intensity": math.nan}), "integrator": {"type": "dopplertof"}})
     with pytest.raises(Exception) as info:

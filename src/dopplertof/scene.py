@@ -58,8 +58,8 @@ PER_BODY_MAX_BODIES = 32
 LISTED_POSES_MAX_BODIES = 16
 
 TRAVERSALS = ("auto", "per-body", "tree")
-# Emitter parameters that hold emitted power (their texture's values, a bitmap's data).
-EMITTED_PARAMETERS = ("radiance", "intensity", "irradiance", "scale")
+# Emitter parameters that hold emitted power: their textures' values, an envmap's pixels and scale.
+EMITTED_PARAMETERS = ("radiance", "intensity", "irradiance", "data", "scale")
 
 
 def check_emitters(mi_scene, where: str) -> None:
@@ -74,14 +74,15 @@ def check_emitters(mi_scene, where: str) -> None:
             if key.split(".")[0] not in EMITTED_PARAMETERS:
                 continue
             values = np.asarray(params[key], dtype=np.float64).ravel()
-            if np.isfinite(values).all() and (values >= 0).all():
+            bad = ~(np.isfinite(values) & (values >= 0))
+            if not bad.any():
                 continue
             shape = emitter.get_shape() if hasattr(emitter, "get_shape") else None
             name = repr(emitter.id()) if emitter.id() else f"#{index}"
             on = f" on shape {shape.id()!r}" if shape is not None and shape.id() else ""
-            shown = values[:6].tolist()
+            shown = f"= {values.tolist()}" if values.size <= 6 else f"has {bad.sum()} bad values of {values.size}, the first {float(values[bad][0])!r}"
             raise SceneError(
-                f"{where}: emitter {name} ({emitter.class_name()}{on}): {key!r} = {shown}{' ...' if values.size > 6 else ''}; "
+                f"{where}: emitter {name} ({emitter.class_name()}{on}): {key!r} {shown}; "
                 "emitted radiance, intensity and irradiance must be finite and >= 0"
             )
 
