@@ -1,6 +1,7 @@
 """Modulation weights: normalisation, wrapping, camera validation."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -59,6 +60,14 @@ def test_lowpass_shapes_at_known_points():
 def test_camera_rejects_bad_values(kwargs, match):
     with pytest.raises(ValueError, match=match):
         Camera(**kwargs)
+
+
+def test_a_modulation_frequency_in_the_wrong_unit_warns():
+    with pytest.warns(UserWarning, match=r"modulation_frequency=30 Hz, a wavelength of 9.99e\+06 m; the unit is Hz"):
+        Camera(modulation_frequency=30)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Camera(modulation_frequency=10e6)
 
 
 @pytest.mark.parametrize("text,expected", [("false", False), ("False", False), ("0", False), ("no", False), ("true", True), ("1", True), (False, False), (True, True)])

@@ -256,14 +256,18 @@ def test_more_replicates_than_groups_warns_and_the_default_does_not():
         dt.RenderSettings(spp=64, replicates=32)
 
 
-def test_cli_prints_a_warning_as_one_line(tmp_path):
+@pytest.mark.parametrize("args,warning", [
+    (("--spp", 4, "--replicates", 64), "warning: replicates=64 exceeds the 2 group(s)"),
+    (("--camera", "h=1,f=30"), "warning: Camera: modulation_frequency=30 Hz"),
+])  # fmt: skip
+def test_cli_prints_a_warning_as_one_line(tmp_path, args, warning):
     blocker = tmp_path / "out"
     blocker.write_text("not a folder")  # the render stops at its output folder, after the settings
-    result = cli("render", xml_scene(tmp_path), "--spp", 4, "--replicates", 64, "-o", blocker)
+    result = cli("render", xml_scene(tmp_path), *args, "-o", blocker)
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 2, result.stderr
-    assert lines[0].startswith("warning: replicates=64 exceeds the 2 group(s)") and lines[1].startswith("error: ")
+    assert lines[0].startswith(warning) and lines[1].startswith("error: "), result.stderr
 
 
 # ----------------------------------------------------------------------------------------

@@ -26,6 +26,7 @@ trapezoidal      sensor sign(cos θ), light   clamp(4 − 8c, −2, 2)
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 from .validation import parse_bool
@@ -39,6 +40,9 @@ WAVEFORMS = ("sinusoidal", "rectangular", "triangular", "trapezoidal")
 # 2e7 rad, still resolving 1e-8 rad); no D-ToF sensor comes near them.
 MAX_MODULATION_FREQUENCY_HZ = 1e12
 MAX_HETERODYNE = 1e9
+# Below this the modulation wavelength c/f_g exceeds 3 km and a scene's phase hardly
+# changes: no D-ToF sensor modulates so slowly, so it warns (MHz given as Hz, say).
+SUSPICIOUS_MODULATION_FREQUENCY_HZ = 1e5
 # D-ToF exposures are microseconds to milliseconds. Longer than a minute is a unit mistake
 # (the time grid, 2^-23 T, would be coarser than 7 µs), and a T of 1e300 s overflows the
 # scene times t = start + u T.
@@ -63,7 +67,8 @@ class Camera:
 
     Parameters
     ----------
-    modulation_frequency : float, Hz. Light modulation f_g. Default 30 MHz.
+    modulation_frequency : float, Hz. Light modulation f_g, in (0, 1e12]; below 100 kHz
+        (a wavelength over 3 km) it warns. Default 30 MHz.
     exposure : float, s. Exposure T, in (0, 60] s (:data:`MAX_EXPOSURE_S`). Default 1.5 ms.
     heterodyne : float. h, beat cycles per exposure (0 homodyne, 1 "perfect" heterodyne).
     phase : float, rad. Sensor phase offset ψ.
@@ -101,6 +106,11 @@ class Camera:
             raise ValueError(f"Camera: modulation_frequency must be in (0, {MAX_MODULATION_FREQUENCY_HZ:g}] Hz, got {self.modulation_frequency!r}")
         if abs(self.heterodyne) > MAX_HETERODYNE:
             raise ValueError(f"Camera: |heterodyne| must be <= {MAX_HETERODYNE:g} beat cycles per exposure, got {self.heterodyne!r}")
+        if self.modulation_frequency < SUSPICIOUS_MODULATION_FREQUENCY_HZ:
+            warnings.warn(
+                f"Camera: modulation_frequency={self.modulation_frequency:g} Hz, a wavelength of {SPEED_OF_LIGHT_M_S / self.modulation_frequency:.3g} m; "
+                "the unit is Hz (30 MHz is 30e6)", stacklevel=3,
+            )  # fmt: skip
         checked_exposure("exposure", self.exposure, "Camera")
         if self.g1 <= 0:
             raise ValueError(f"Camera: 'g1' (light modulation amplitude) must be > 0, got {self.g1!r}")
