@@ -200,6 +200,15 @@ def test_unknown_name_parameters_are_refused_with_the_known_ones(tmp_path):
     assert_cli_error(cli("render", path, "-D", "radus=2", "-D", "depth=1", "-o", tmp_path / "out"), "unknown parameter $radus", "$depth, $radius")
 
 
+def test_a_name_used_only_in_an_included_file_is_known(tmp_path):
+    (tmp_path / "ball.xml").write_text('<scene version="3.0.0"><shape type="sphere"><float name="radius" value="$r"/></shape></scene>')
+    path = tmp_path / "scene.xml"
+    path.write_text(f'<scene version="3.0.0"><sensor type="perspective">{FILM}</sensor><include filename="ball.xml"/></scene>')
+    assert dt.load_scene(path, r="0.5") is not None
+    with pytest.raises(dt.SceneError, match=r"unknown parameter \$radius; the scene's parameters: \$r$"):
+        dt.load_scene(path, r="0.5", radius="1")
+
+
 # ----------------------------------------------------------------------------------------
 # render() arguments
 

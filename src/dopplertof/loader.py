@@ -257,7 +257,7 @@ def _substitute(root, values: dict, path: str, found: dict) -> dict:
         return val
 
     for d in root.findall("default"):
-        found["defaults"].add(d.attrib.get("name"))
+        found["defaults"].update([d.attrib["name"]] if "name" in d.attrib else [])
         if "name" in d.attrib and d.attrib["name"] not in values:  # the first definition wins
             values[d.attrib["name"]] = replace(d, "value") if "value" in d.attrib else ""
         root.remove(d)
