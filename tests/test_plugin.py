@@ -293,6 +293,7 @@ def _grey_room(res, integrator=None, spp=64):
     return mi.load_dict(scene)
 
 
+@pytest.mark.filterwarnings("ignore:Camera. modulation_frequency=1 Hz")  # f_g -> 0 on purpose: the DESIGN §3.7 limit
 def test_mi_render_through_the_plugin_matches_stock_path():
     """h = 0, ψ = 0 and f_g → 0 (1 Hz): the measurement is (g1/2)× the intensity, path by
     path (DESIGN §3.7), and its mean is (g1/2)× stock `path`'s within noise."""
