@@ -175,3 +175,45 @@ def test_api(scenario):
         assert np.abs(np.nan_to_num(result.velocity)).max() > MOVING_M_S
     if scenario.check_sign:
         _check_sign(scenario.name, velocity.velocity, result.velocity, result.intensity.mean(-1), velocity.valid)
+
+
+# ------------------------------------------------------------------------------ a sensor's shutter (issue 16.1)
+
+
+@pytest.fixture(scope="module")
+def one_ms_shutter(tmp_path_factory):
+    """The README scene with its shutter open for 1 ms (not the cameras' default T)."""
+    text = (DATA / "readme_scene.xml").read_text()
+    shutter = '<float name="shutter_close" value="0.0015"/>'
+    assert text.count(shutter) == 1
+    path = tmp_path_factory.mktemp("shutter") / "one_ms.xml"
+    path.write_text(text.replace(shutter, '<float name="shutter_close" value="0.001"/>'))
+    return path
+
+
+@pytest.mark.parametrize(
+    "command, exposure_s",
+    [
+        (["render", "--camera", "h=1,psi=0,T=0.0015"], 1.5e-3),  # the caller's T wins over the shutter's
+        (["render", "--camera", "h=1,psi=0"], 1.5e-3),
+        (["render"], 1e-3),  # no camera: the shutter's T
+        (["animate", "--frames", "1"], 1e-3),  # the default cameras take the shutter's T
+        (["experiment", "time-sampling", "--quick"], 1e-3),
+        (["experiment", "shifts", "--quick"], 1e-3),
+        (["experiment", "velocity", "--quick"], 1e-3),
+    ],
+    ids=lambda v: " ".join(v) if isinstance(v, list) else None,
+)
+def test_commands_take_a_scene_with_a_shutter(one_ms_shutter, tmp_path, command, exposure_s):
+    out = tmp_path / "out"
+    name, *options = command
+    head = [name, options.pop(0)] if name == "experiment" else [name]
+    extra = ["--cache", str(tmp_path / "cache")] if name == "experiment" else ["--spp", "4", "--quiet"]
+    run = _cli(*head, str(one_ms_shutter), *options, *extra, "-o", str(out))
+    assert run.returncode == 0, run.stderr
+    metadata = json.loads((out / ("frame_0000" if name == "animate" else ".") / "metadata.json").read_text())
+    if name == "render" and "--camera" not in options:
+        assert metadata["cameras"] == [] and metadata["settings"]["exposure"] == exposure_s
+    else:
+        cameras = metadata["cameras"] if "cameras" in metadata else [metadata["base_camera"]]  # the sweeps record their grid's base
+        assert cameras and {c["exposure"] for c in cameras} == {exposure_s}
