@@ -17,7 +17,6 @@ import os
 import re
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 import pytest
@@ -66,7 +65,7 @@ SKIP_COMMANDS = (
 SKIP_BLOCKS = (("#SBATCH", "a Slurm batch script: needs a Slurm cluster"),)
 
 # Languages of blocks that do not run, and why; a block in any other language fails the test.
-NOT_RUN = {"xml": "fragments of scene files; a whole file written from them is tests/data/readme_scene.xml, rendered above"}
+NOT_RUN = {"xml": "fragments of scene files; a whole file written from them, tests/data/readme_scene.xml, is the session's my_scene.xml"}
 
 
 def _steps(page: str) -> tuple[list[tuple[str, int, str]], set, set]:
@@ -165,6 +164,7 @@ def test_a_failing_block_names_its_line(tmp_path):
 
 def test_one_version():
     """pyproject takes its version from the package (no second copy); the CLI shows it."""
+    tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert "version" not in project["project"] and "version" in project["project"]["dynamic"]
     assert project["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "dopplertof.__version__"}

@@ -24,7 +24,7 @@ import json
 import math
 import subprocess
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import mitsuba as mi
@@ -57,7 +57,6 @@ class Scenario:
     cli_options: tuple = ()
     exposure_start: float = 0.0  # s: the API's (the command line's is in cli_options)
     check_sign: bool = False
-    load_options: dict = field(default_factory=dict)
 
     def load(self):
         if self.scene in scenes.SCENES:
