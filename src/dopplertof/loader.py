@@ -589,7 +589,7 @@ def _referenced(entries: dict, scene_dict: dict) -> dict:
         value = pending.pop()
         if isinstance(value, dict):
             ident = value.get("id") if value.get("type") == "ref" else None
-            if ident in by_id and by_id[ident][0] not in found and by_id[ident][0] not in entries:
+            if isinstance(ident, str) and ident in by_id and by_id[ident][0] not in found and by_id[ident][0] not in entries:
                 key, target = by_id[ident]
                 found[key] = target
                 pending.append(target)
