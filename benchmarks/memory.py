@@ -15,7 +15,6 @@ memory is bounded and only the film's buffers grow with the film. Then
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import subprocess
 import sys
@@ -36,8 +35,9 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, seconds, result
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--csv", default=os.path.join(os.path.dirname(__file__), "results", "memory.csv"))
+    parser.add_argument("--csv", default=None, help="CSV output (default benchmarks/results/memory.csv; quick: memory_quick.csv)")
     args = parser.parse_args(argv)
+    _common.default_output_paths(args, "memory")
     sizes = (1024, 2048) if args.quick else (4096, 8192)
     print(_common.machine_line("llvm_ad_rgb", "2 spp", "Cornell box"))
     rows = []

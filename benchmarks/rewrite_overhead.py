@@ -49,8 +49,9 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--reps", type=int, default=None)
     parser.add_argument("--scenes", nargs="+", choices=("static", "2-moving", "8-moving"), default=["static", "2-moving", "8-moving"])
-    parser.add_argument("--csv", default=os.path.join(os.path.dirname(__file__), "results", "rewrite_overhead.csv"))
+    parser.add_argument("--csv", default=None, help="CSV output (default benchmarks/results/rewrite_overhead.csv; quick: rewrite_overhead_quick.csv)")
     args = parser.parse_args(argv)
+    _common.default_output_paths(args, "rewrite_overhead")
     resolution, spp, reps = (64, 8, 3) if args.quick else (256, 32, 5)
     reps = args.reps or reps
     dopplertof.set_variant("llvm_ad_rgb")

@@ -157,6 +157,23 @@ def test_the_sensor_shutter_is_the_exposure_window():
         scene_layer(contradicting)
 
 
+def test_shutter_times_read_as_written_and_callers_cameras_win():
+    """Issue 16.1: Mitsuba keeps a shutter of 0.0015 s as float32 (0.001500000013); the
+    scene's T is read as written, and a caller's cameras (any T) override the shutter's T
+    as any caller setting overrides the scene's."""
+    scene_dict = _room()
+    scene_dict["sensor"] = {**scene_dict["sensor"], "shutter_open": 0.0, "shutter_close": 0.0015}
+    scene = dt.load_scene(scene_dict)
+    assert scene_layer(scene) == {"exposure": 0.0015, "exposure_start": 0.0}
+    for exposure in (1.5e-3, 1e-3):
+        camera = dt.Camera(heterodyne=1.0, exposure=exposure)
+        s = RenderSettings.build(scene_layer(scene), {"cameras": [camera]})
+        assert s.cameras == (camera,) and s.exposure is None and s.exposure_start == 0.0
+    # Within one layer a contradiction is still the caller's mistake.
+    with pytest.raises(ValueError, match="exposure=0.002 s differs from the cameras' exposure"):
+        RenderSettings.build(scene_layer(scene), {"cameras": [dt.Camera()], "exposure": 2e-3})
+
+
 # ------------------------------------------------------------------------------ optical length through glass
 
 GLASS_F_HZ = 10e6  # ambiguity c/f = 30 m: one wrap covers the scenes below

@@ -355,6 +355,22 @@ def test_dict_shapes_sharing_a_motion_form_one_body():
     assert [len(b.scene.shapes()) for b in scene.bodies] == [2, 1, 3, 1]
 
 
+def test_dict_moving_shapes_and_lights_keep_their_references():
+    """A moving shape (or light) refers to a top-level object by ``"ref"``, as
+    ``mi.cornell_box()``'s boxes refer to its ``"white"`` BSDF; a reference may refer on."""
+    move = {"type": "parametric", "linear_velocity": [0, 0, 1]}
+    scene = dt.load_scene(
+        dict_scene(
+            grey={"type": "srgb", "color": [0.3, 0.4, 0.5]},
+            white={"type": "diffuse", "reflectance": {"type": "ref", "id": "grey"}},
+            box={"type": "cube", "bsdf": {"type": "ref", "id": "white"}, "motion": dict(move)},
+            lamp={"type": "spot", "intensity": {"type": "ref", "id": "grey"}, "motion": dict(move)},
+        )
+    )
+    (body,) = scene.bodies
+    assert body.scene.shapes()[0].bsdf().id() == "white" and len(scene.lights) == 1
+
+
 def test_rotating_scene_is_one_body():
     """The merry-go-round's platform and riders share one spin: one body."""
     scene = dt.scenes.rotating(resolution=8)

@@ -233,7 +233,8 @@ def test_dominoes_topple_one_after_another_about_their_bottom_edges():
 def test_street_moves_the_camera_with_its_light_through_traffic():
     speed = 15.0
     scene = scenes.street(resolution=24, speed=speed)
-    assert len(scene.bodies) >= 20 and len(scene.lights) == 1 and scene.camera_motion is not None
+    assert len(scene.bodies) == scenes.STREET_MOVING_BODIES and len(scene.lights) == 1 and scene.camera_motion is not None
+    assert f"{len(scene.bodies)} moving bodies" in scenes.SCENES["street"][1]  # what `dopplertof scenes` says
     res = dt.render(scene, spp=GT_SPP, max_depth=1)
     body, _, d = _pixel_hits(scene, 0.5 * EXPOSURE_S)
     static = _interior(body, 0) & (res.coverage == 1)  # the whole footprint on static geometry

@@ -310,7 +310,7 @@ def animate_command(scene, frames, fps, resolution, defines, output, camera_spec
     from . import scenes
     from .backend import BackendError
     from .scene import SceneError
-    from .settings import RenderSettings, scene_layer
+    from .settings import RenderSettings, scene_camera, scene_layer
 
     output = output or os.path.join("out", f"{os.path.splitext(os.path.basename(scene))[0]}-animation")
     stop = StopOnSignal()
@@ -320,9 +320,8 @@ def animate_command(scene, frames, fps, resolution, defines, output, camera_spec
         base = scene_layer(dyn, scene)
         base.pop("exposure_start", None)  # each frame sets its own
         cameras = cameras_layer(camera_specs, options.get("exposure"), base)
-        if not cameras:  # the scene's camera gives f_g, T and the waveform of the default set
-            scene_cameras = base.get("cameras") or ()
-            cameras = {"cameras": default_cameras(scene_cameras[0] if scene_cameras else None)}
+        if not cameras:  # the scene's camera (or shutter) gives f_g, T and the waveform of the default set
+            cameras = {"cameras": default_cameras(scene_camera(base))}
         settings = RenderSettings.build(base, given_settings(options), cameras, where=scene)
         if frames is None:
             duration = scenes.clip_duration(scene) if scene in scenes.SCENES else motion_duration(dyn)

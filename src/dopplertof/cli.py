@@ -13,6 +13,7 @@ import sys
 
 import click
 
+from . import __version__
 from .clitools import StopOnSignal, cameras_layer, fail, given_settings, settings_options, show_warning
 
 def scene_description(scene_arg: str, resolution, defines) -> dict:
@@ -77,6 +78,7 @@ class _Group(click.Group):
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, "--version", prog_name="dopplertof", message="%(prog)s %(version)s")
 @click.option("--variant", default=None, help="Mitsuba variant: llvm_ad_rgb, llvm_ad_mono, cuda_ad_rgb, cuda_ad_mono (default: cuda if a GPU works, else llvm; env DOPPLERTOF_VARIANT).")
 def main(variant):
     """dopplertof: render Doppler time-of-flight measurements of dynamic scenes."""

@@ -613,6 +613,28 @@ def _shared_placement_as_base(motion: Motion, members):
     return motion, [(key, shape if p is None else {**shape, "to_world": mi.ScalarTransform4d(p)}) for key, shape, p in members]
 
 
+def _referenced(entries: dict, scene_dict: dict) -> dict:
+    """The top-level entries of ``scene_dict`` that ``entries`` refer to by
+    ``{"type": "ref", "id": ...}``, directly or through each other.
+
+    A moving shape or light is loaded into a scene of its own, which must hold the objects
+    it refers to (``mi.cornell_box()``'s boxes refer to its top-level ``"white"`` BSDF), as
+    the XML loader copies the file's definitions into each body's scene."""
+    by_id = {(v.get("id", k) if isinstance(v, dict) else k): (k, v) for k, v in scene_dict.items() if k != "type"}
+    found: dict = {}
+    pending = list(entries.values())
+    while pending:
+        value = pending.pop()
+        if isinstance(value, dict):
+            ident = value.get("id") if value.get("type") == "ref" else None
+            if isinstance(ident, str) and ident in by_id and by_id[ident][0] not in found and by_id[ident][0] not in entries:
+                key, target = by_id[ident]
+                found[key] = target
+                pending.append(target)
+            pending.extend(value.values())
+    return {k: v for k, v in scene_dict.items() if k in found}  # the scene's order: a definition before its users
+
+
 def _load_dict(scene_dict: dict) -> DynamicScene:
     import mitsuba as mi
 
@@ -667,7 +689,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
         keys = [key for key, _ in shapes]
         where = f"<dict>: entr{'y' if len(keys) == 1 else 'ies'} {', '.join(repr(k) for k in keys)}"
         try:
-            body_scene = mi.load_dict({"type": "scene", **dict(shapes)})
+            body_scene = mi.load_dict({"type": "scene", **_referenced(dict(shapes), scene_dict), **dict(shapes)})
         except Exception as exc:  # noqa: BLE001
             raise _mitsuba_error(where, exc) from None
         bodies.append(_make_body(", ".join(keys), body_scene, motion))
@@ -680,7 +702,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
 
     def light_scene(emitter, where):
         try:
-            return mi.load_dict({"type": "scene", "light": emitter})
+            return mi.load_dict({"type": "scene", **_referenced({"light": emitter}, scene_dict), "light": emitter})
         except Exception as exc:  # noqa: BLE001
             raise _mitsuba_error(where, exc) from None
 

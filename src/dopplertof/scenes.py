@@ -14,7 +14,7 @@ name                   what moves
 ``dominoes``           a chain of dominoes toppling one after another
 ``glossy``             rough/smooth conductors, a rolling glass sphere, diffuse walls
 ``street``             the camera itself, on a car in traffic: cars, pedestrians, a
-                       cyclist (23 bodies); automotive modulation (150 MHz, 1 ms)
+                       cyclist (``STREET_MOVING_BODIES``); automotive modulation (150 MHz, 1 ms)
 =====================  ==============================================================
 
 Every builder returns a :class:`~dopplertof.scene.DynamicScene` and takes ``resolution``
@@ -552,6 +552,15 @@ def _person(x, z, clothes, height=1.75):
     return {"body": body, "head": head}
 
 
+# The street's traffic, one moving body per entry; the scene's description counts them.
+_ONCOMING_Z_M = (-22.0, -41.0, -67.0, -88.0, -115.0, -140.0)  # cars in the other lane
+_AHEAD_Z_M = (-30.0, -75.0, -125.0)  # cars in the camera's lane, the same way
+_CROSSING_X_M = ((-14.0, 1), (19.0, -1), (30.0, -1))  # cars at the intersection: (x, direction)
+_WALKERS = 8  # pedestrians along the sidewalks
+_CROSSWALK_X_M = (-4.0, 1.0, 5.0)  # pedestrians on the crosswalk
+STREET_MOVING_BODIES = len(_ONCOMING_Z_M) + len(_AHEAD_Z_M) + len(_CROSSING_X_M) + _WALKERS + len(_CROSSWALK_X_M) + 1  # + the cyclist
+
+
 def street(resolution=256, speed=15.0, seed=0):
     """A D-ToF camera on a car driving down a street at ``speed`` m/s.
 
@@ -559,9 +568,9 @@ def street(resolution=256, speed=15.0, seed=0):
     source 8 cm beside the lens and moving with it) passes static buildings and parked
     cars; ahead are cars in both lanes (oncoming at 11–16 m/s, the same way at 9–12 m/s),
     cars crossing at an intersection 50 m ahead, pedestrians walking along and across the
-    street and a cyclist: 23 moving bodies. Cameras default to automotive modulation,
-    150 MHz, over a 1 ms exposure (``<integrator>`` of the scene); ``seed`` varies the
-    buildings, the parked cars and the colours.
+    street and a cyclist (:data:`STREET_MOVING_BODIES` moving bodies). Cameras default to
+    automotive modulation, 150 MHz, over a 1 ms exposure (``<integrator>`` of the scene);
+    ``seed`` varies the buildings, the parked cars and the colours.
     """
     from .backend import ensure_variant
 
@@ -600,16 +609,16 @@ def street(resolution=256, speed=15.0, seed=0):
         for part, shape in shapes.items():
             scene[f"{name}_{part}"] = {**shape, "motion": {"type": "parametric", "linear_velocity": [float(v) for v in velocity]}}
 
-    for k, z in enumerate((-22.0, -41.0, -67.0, -88.0, -115.0, -140.0)):  # oncoming
+    for k, z in enumerate(_ONCOMING_Z_M):
         moving(f"oncoming{k}", _vehicle(-lane, z, 180.0, PAINTS[k % len(PAINTS)]), (0, 0, float(rng.uniform(11, 16))))
-    for k, z in enumerate((-30.0, -75.0, -125.0)):  # ahead, the same way, slower than the camera
+    for k, z in enumerate(_AHEAD_Z_M):  # slower than the camera
         moving(f"ahead{k}", _vehicle(lane, z, 0.0, PAINTS[(k + 3) % len(PAINTS)]), (0, 0, -float(rng.uniform(9, 12))))
-    for k, (x, direction) in enumerate(((-14.0, 1), (19.0, -1), (30.0, -1))):  # crossing at the intersection
+    for k, (x, direction) in enumerate(_CROSSING_X_M):
         moving(f"crossing{k}", _vehicle(x, -50.0 + 2.5 * direction, 90.0, PAINTS[(k + 1) % len(PAINTS)]), (direction * float(rng.uniform(7, 10)), 0, 0))
-    for k in range(8):  # along the sidewalks
+    for k in range(_WALKERS):
         side, z = (-1, 1)[k % 2], -8.0 - 13.0 * k
         moving(f"walker{k}", _person(side * (road_half + 1.0 + rng.uniform(0, 1.5)), z, CLOTHES[k % len(CLOTHES)]), (0, 0, float(rng.choice([-1, 1]) * rng.uniform(1.1, 1.7))))
-    for k, x in enumerate((-4.0, 1.0, 5.0)):  # on the crosswalk
+    for k, x in enumerate(_CROSSWALK_X_M):
         moving(f"crossing_walker{k}", _person(x, -37.5 - 1.2 * k, CLOTHES[(k + 2) % len(CLOTHES)]), ((1 if k % 2 else -1) * float(rng.uniform(1.1, 1.6)), 0, 0))
     cyclist = {
         "frame": _box((2 * lane + 0.8, 0.7, -18.0), (0.15, 0.9, 1.7), _diffuse([0.1, 0.1, 0.1])),
@@ -633,7 +642,7 @@ SCENES = {
     "falling-box": (falling_box, "a tumbling box dropped 1.5 m under gravity (5.4 m/s at impact)"),
     "dominoes": (dominoes, "ten dominoes toppling one after another, each about its bottom edge"),
     "glossy": (glossy, "mirror and rough gold conductors, a rolling glass sphere (2 m/s), diffuse walls"),
-    "street": (street, "a camera with its light on a car at 15 m/s in traffic: 23 moving bodies, 150 MHz"),
+    "street": (street, f"a camera with its light on a car at 15 m/s in traffic: {STREET_MOVING_BODIES} moving bodies, 150 MHz"),
 }
 
 # Length of each scene's motion (s) from the builder's keyword arguments (defaults filled in).

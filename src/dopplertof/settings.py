@@ -11,9 +11,10 @@ winning (:meth:`RenderSettings.build`):
 
 A layer that sets a setting discards what earlier layers said about the settings that
 depend on it (``correlation_depth`` and ``reconnection_threshold`` follow
-``correlation``; ``antithetic_shift`` and ``n_times`` follow ``time_sampling``), so
-``--correlation reconnection`` on a file that asks for replay to depth 3 is reconnection,
-not an error.
+``correlation``; ``antithetic_shift`` and ``n_times`` follow ``time_sampling``;
+``exposure`` follows ``cameras``), so ``--correlation reconnection`` on a file that asks
+for replay to depth 3 is reconnection, not an error, and a caller's cameras set T over a
+scene whose sensor has a shutter interval.
 
 Each field of :class:`RenderSettings` declares its kind, unit, default, meaning and range
 in its metadata; :meth:`RenderSettings.table` lists them (the README's table and the
@@ -52,7 +53,9 @@ class RenderSettings:
     spp: int = _setting(64, "int", "paths/pixel", "paths per pixel (a group of n_times correlated times uses n_times)", minimum=1)
     seed: int = _setting(0, "int", "", "random seed: same seed, same image, whatever the pass split", minimum=0)
     cameras: tuple = _setting((), "cameras", "", "D-ToF camera configurations (dopplertof.Camera); none: intensity only")
-    exposure: float | None = _setting(None, "float", "s", f"exposure T when no camera is given (default {DEFAULT_EXPOSURE_S})", optional=True)
+    exposure: float | None = _setting(
+        None, "float", "s", f"exposure T when no camera is given (default {DEFAULT_EXPOSURE_S})", follows="cameras", optional=True,
+    )  # fmt: skip
     exposure_start: float = _setting(0.0, "float", "s", "scene time at which the exposure opens (of the cameras that give no exposure_start of their own)")
     max_depth: int = _setting(5, "int", "", "longest path, Mitsuba semantics (1 emitters only, 2 direct light, -1 unbounded)")
     rr_depth: int = _setting(5, "int", "", "depth at which Russian roulette starts", minimum=1)
@@ -361,6 +364,26 @@ def integrator_layer(params: dict, where: str = "integrator") -> dict:
     return layer
 
 
+def float32_decimal(value) -> float:
+    """The shortest decimal that rounds to the float32 ``value``, as a float.
+
+    Mitsuba keeps shutter times in float32; read back as they are, a file's 0.0015 s
+    would be 0.001500000013 s.
+    """
+    return float(str(np.float32(value)))
+
+
+def scene_camera(layer: dict) -> Camera:
+    """The camera a scene's settings layer (:func:`scene_layer`) implies: its first
+    camera, else the default camera with the layer's exposure (the sensor's shutter).
+
+    The base of the camera sets that ``animate`` and the experiments make when the caller
+    gives none."""
+    if layer.get("cameras"):
+        return layer["cameras"][0]
+    return Camera() if layer.get("exposure") is None else Camera(exposure=layer["exposure"])
+
+
 def scene_layer(scene, where: str | None = None) -> dict:
     """The settings a :class:`~dopplertof.scene.DynamicScene` asks for: its integrator's,
     its sampler's ``sample_count`` (spp) and its sensor's shutter interval.
@@ -374,7 +397,7 @@ def scene_layer(scene, where: str | None = None) -> dict:
     if scene.spp_hint is not None:
         layer["spp"] = scene.spp_hint
     sensor = scene.sensor
-    open_s, length_s = float(sensor.shutter_open()), float(sensor.shutter_open_time())
+    open_s, length_s = float32_decimal(sensor.shutter_open()), float32_decimal(sensor.shutter_open_time())
     if length_s > 0:
         cameras = layer.get("cameras", ())
         given_t = [k for k in ("time", "exposure") if k in scene.integrator_params]

@@ -61,7 +61,8 @@ class ExperimentScene:
     scene : the :class:`~dopplertof.scene.DynamicScene`
     identity : JSON-able description hashed into the cache key
     base_camera : camera whose modulation settings every experiment camera inherits (from
-        the scene's ``<integrator type="dopplertofpath">``, else :class:`Camera` defaults)
+        the scene's ``<integrator type="dopplertofpath">``, else :class:`Camera` defaults
+        with the exposure of the sensor's shutter: :func:`~dopplertof.settings.scene_camera`)
     max_depth : path depth from the scene's integrator, else :data:`DEFAULT_MAX_DEPTH`
     render_settings : ``rr_depth``, ``hide_emitters``, ``exposure_start`` (s) where the
         scene's integrator gives them; passed to every render
@@ -82,7 +83,7 @@ def open_scene(scene_arg: str, resolution: int | None) -> ExperimentScene:
     ``<integrator>`` parameters; ``resolution`` replaces a file's film size too.
     """
     from .. import scenes
-    from ..settings import scene_layer
+    from ..settings import scene_camera, scene_layer
 
     dyn = scenes.open_scene(scene_arg, resolution)
     width, height = dyn.resolution
@@ -94,7 +95,7 @@ def open_scene(scene_arg: str, resolution: int | None) -> ExperimentScene:
         label = Path(scene_arg).stem
     identity["film"] = [width, height]
     settings = scene_layer(dyn, scene_arg)
-    base = settings["cameras"][0] if settings.get("cameras") else Camera()
+    base = scene_camera(settings)
     max_depth = settings.get("max_depth", DEFAULT_MAX_DEPTH)
     kept = {k: settings[k] for k in _SCENE_RENDER_SETTINGS if k in settings}
     return ExperimentScene(label, dyn, identity, base, max_depth, kept)
