@@ -16,6 +16,7 @@ import click
 from . import __version__
 from .clitools import StopOnSignal, cameras_layer, fail, given_settings, settings_options, show_warning
 
+
 def scene_description(scene_arg: str, resolution, defines) -> dict:
     """What metadata.json records of the scene: built-in name and arguments, or file and hash."""
     import hashlib
