@@ -75,6 +75,7 @@ class RenderResult:
     spp: int  # paths per pixel done (less than asked where interrupted)
     interrupted: bool = False
     info: dict = field(default_factory=dict)  # render time (s), passes, executor, exposure windows [[start, T], ...] (s)
+    sensor: object = None  # the dopplertof.Sensor rendered (render(..., sensor=)); its frames' electrons are maps["raw"]
 
     def __getattr__(self, name):
         maps = self.__dict__.get("maps", {})
@@ -199,7 +200,7 @@ def _traced_locally(scene, settings, passes):
 
 def render(
     scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None, stop=None,
-    executor="local", address=None, workers=None, **overrides,
+    executor="local", address=None, workers=None, sensor=None, **overrides,
 ) -> RenderResult:  # fmt: skip
     """Render the intensity, ground truth and D-ToF measurements of a dynamic scene.
 
@@ -229,6 +230,10 @@ def render(
         the running Ray, else a new local one.
     workers : int, optional. With ``"ray"``: workers, each with the cluster's CPUs / workers
         Dr.Jit threads (default one per CPU; with a ``cuda_*`` variant, one per GPU).
+    sensor : :class:`dopplertof.Sensor`, optional. Render its raw frames (instead of
+        ``cameras``): the measurements are those of ``sensor.cameras()`` and the result's
+        ``raw`` (frames, taps, H, W) the noiseless electrons of every frame and tap
+        (:mod:`dopplertof.sensors.frames`); ``sensor.read_out(result, seed=)`` adds the noise.
 
     Returns
     -------
@@ -246,6 +251,14 @@ def render(
         raise ValueError(f"executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
     if executor != "ray" and (address is not None or workers is not None):
         raise ValueError("address and workers apply to executor='ray'")
+    if sensor is not None:
+        from .sensors import Sensor
+
+        if not isinstance(sensor, Sensor):
+            raise ValueError(f"sensor must be a dopplertof.Sensor, got {sensor!r}")
+        if cameras is not None or "cameras" in overrides:
+            raise ValueError("give cameras or sensor, not both (a sensor's raw frames are its cameras)")
+        cameras = sensor.cameras()
     if cameras is not None:
         overrides["cameras"] = cameras
     base = scene_layer(scene) if settings is None else {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
@@ -315,5 +328,7 @@ def render(
             "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows]}  # fmt: skip
     finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
     maps = _merge_windows(finished, windows, len(settings.cameras), (height, width))
-    return RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info)
+    if sensor is not None:
+        maps["raw"] = sensor.raw(maps["measurements"])
+    return RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info, sensor=sensor)
 

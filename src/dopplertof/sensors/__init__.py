@@ -1,0 +1,14 @@
+"""Sensors: raw frames of coded taps, the noise chain of real silicon, presets.
+
+* :class:`Sensor`, :class:`RawFrame` (:mod:`~dopplertof.sensors.frames`): a sensor is an
+  ordered list of raw frames read through a pixel of 1, 2 or 4 taps;
+  ``dopplertof.render(scene, sensor=S)`` renders every frame at once and gives ``raw``
+  electrons, :meth:`Sensor.read_out` the digital numbers after the noise chain;
+* :class:`Silicon` (:mod:`~dopplertof.sensors.noise`): quantum efficiency, demodulation
+  contrast, ambient light, dark current, shot and read noise, full well, ADC, tap mismatch.
+"""
+
+from .frames import READOUT_MODES, TAP_LAYOUTS, RawFrame, Sensor
+from .noise import Silicon
+
+__all__ = ["RawFrame", "Sensor", "Silicon", "READOUT_MODES", "TAP_LAYOUTS"]
