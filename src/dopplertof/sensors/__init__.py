@@ -5,10 +5,13 @@
   ``dopplertof.render(scene, sensor=S)`` renders every frame at once and gives ``raw``
   electrons, :meth:`Sensor.read_out` the digital numbers after the noise chain;
 * :class:`Silicon` (:mod:`~dopplertof.sensors.noise`): quantum efficiency, demodulation
-  contrast, ambient light, dark current, shot and read noise, full well, ADC, tap mismatch.
+  contrast, ambient light, dark current, shot and read noise, full well, ADC, tap mismatch;
+* :func:`preset` (:mod:`~dopplertof.sensors.presets`): real chips with sourced numbers,
+  refusing schedules their hardware cannot capture.
 """
 
 from .frames import READOUT_MODES, TAP_LAYOUTS, RawFrame, Sensor
 from .noise import Silicon
+from .presets import PRESETS, Limits, preset
 
-__all__ = ["RawFrame", "Sensor", "Silicon", "READOUT_MODES", "TAP_LAYOUTS"]
+__all__ = ["RawFrame", "Sensor", "Silicon", "Limits", "PRESETS", "preset", "READOUT_MODES", "TAP_LAYOUTS"]

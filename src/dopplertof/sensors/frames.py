@@ -112,18 +112,22 @@ class Sensor:
     noise : :class:`~dopplertof.sensors.noise.Silicon`. The pixel's physics; default an
         ideal pixel (``Silicon()``).
     name : str. What it is (a preset's name), for metadata. Default ``"custom"``.
+    limits : :class:`~dopplertof.sensors.presets.Limits` or None. What the chip's timing
+        can capture (a preset's); None: anything.
 
     Raises
     ------
     ValueError
-        Naming the frame, for a demodulation outside [−1, 1], a 4-tap layout whose shares
-        do not sum to 1, or a frequency outside the silicon's contrast table.
+        Naming the frame, for what ``limits`` refuse, a demodulation outside [−1, 1], a
+        4-tap layout whose shares do not sum to 1, or a frequency outside the silicon's
+        contrast table.
     """
 
     frames: tuple
     taps: int = 2
     noise: Silicon = dataclasses.field(default_factory=Silicon)
     name: str = "custom"
+    limits: object = None
 
     def __post_init__(self):
         from ..validation import checked
@@ -139,6 +143,8 @@ class Sensor:
         if not isinstance(self.noise, Silicon):
             raise ValueError(f"Sensor: 'noise' must be a dopplertof.sensors.Silicon, got {self.noise!r}")
         object.__setattr__(self, "name", checked("name", self.name, "str", "Sensor"))
+        if self.limits is not None:
+            self.limits.check(frames)
         for index, frame in enumerate(frames):
             low, high = _sensor_range(frame)
             if low < -1.0 - 1e-12 or high > 1.0 + 1e-12:
