@@ -7,9 +7,13 @@
 * :class:`Silicon` (:mod:`~dopplertof.sensors.noise`): quantum efficiency, demodulation
   contrast, ambient light, dark current, shot and read noise, full well, ADC, tap mismatch;
 * :func:`preset` (:mod:`~dopplertof.sensors.presets`): real chips with sourced numbers,
-  refusing schedules their hardware cannot capture.
+  refusing schedules their hardware cannot capture;
+* :mod:`~dopplertof.sensors.estimators`: measurements from a read-out, two-offset
+  differential-heterodyne velocity, multi-frequency depth, each with its error (the
+  ratio and the fit are :func:`dopplertof.reconstruct.velocity`).
 """
 
+from . import estimators
 from .frames import READOUT_MODES, TAP_LAYOUTS, RawFrame, Sensor
 from .noise import Silicon
 from .presets import PRESETS, Limits, preset

@@ -38,7 +38,10 @@ name                         unit                 default     meaning
 ``dark_current_e_per_s``     e⁻/s per tap         0.0         dark current
 ``read_noise_e``             e⁻ rms               0.0         read noise per tap
 ``full_well_e``              e⁻                   1e5         tap capacity
-``gain_e_per_dn``            e⁻/DN                1.0         inverse conversion gain
+``gain_e_per_dn``            e⁻/DN                None        inverse conversion gain; None: the
+                                                             ADC spans the full well
+                                                             (full_well_e / (2^bits − 1), set
+                                                             at construction)
 ``adc_bits``                 bits                 16          ADC resolution
 ``black_level_dn``           DN                   0.0         ADC offset
 ``tap_gain_mismatch``        – rms                0.0         per-tap, per-pixel gain spread
@@ -143,7 +146,7 @@ class Silicon:
     dark_current_e_per_s: float = 0.0
     read_noise_e: float = 0.0
     full_well_e: float = 1e5
-    gain_e_per_dn: float = 1.0
+    gain_e_per_dn: float | None = None
     adc_bits: int = 16
     black_level_dn: float = 0.0
     tap_gain_mismatch: float = 0.0
@@ -164,7 +167,6 @@ class Silicon:
             "dark_current_e_per_s": (lambda x: x >= 0, ">= 0"),
             "read_noise_e": (lambda x: x >= 0, ">= 0"),
             "full_well_e": (lambda x: x > 0, "> 0"),
-            "gain_e_per_dn": (lambda x: x > 0, "> 0"),
             "tap_gain_mismatch": (lambda x: 0 <= x < 0.5, "in [0, 0.5)"),
             "tap_offset_mismatch_e": (lambda x: x >= 0, ">= 0"),
         }
@@ -177,6 +179,12 @@ class Silicon:
         if not 1 <= bits <= MAX_ADC_BITS:
             raise ValueError(f"Silicon: 'adc_bits' must be in [1, {MAX_ADC_BITS}], got {self.adc_bits!r}")
         object.__setattr__(self, "adc_bits", bits)
+        if self.gain_e_per_dn is None:
+            object.__setattr__(self, "gain_e_per_dn", self.full_well_e / self.max_dn)
+        gain = checked("gain_e_per_dn", self.gain_e_per_dn, "float", "Silicon")
+        if not gain > 0:
+            raise ValueError(f"Silicon: 'gain_e_per_dn' must be > 0, got {gain!r}")
+        object.__setattr__(self, "gain_e_per_dn", gain)
         black = checked("black_level_dn", self.black_level_dn, "float", "Silicon")
         if not 0 <= black < self.max_dn:
             raise ValueError(f"Silicon: 'black_level_dn' must be in [0, {self.max_dn}), got {black!r}")
@@ -223,8 +231,8 @@ class Silicon:
     def tap_variance_e2(self, mean_e) -> np.ndarray:
         """Variance of a tap (e⁻²) with mean charge ``mean_e`` below the full well: shot +
         read² + quantisation gain²/12 (the fixed pattern is not noise: it repeats)."""
-        shot = np.asarray(mean_e, dtype=np.float64) if self.shot_noise else 0.0
-        return shot + self.read_noise_e**2 + self.gain_e_per_dn**2 / 12.0
+        mean_e = np.asarray(mean_e, dtype=np.float64)
+        return (mean_e if self.shot_noise else np.zeros_like(mean_e)) + self.read_noise_e**2 + self.gain_e_per_dn**2 / 12.0
 
     def digitize(self, expected_e, rng, offset_e=0.0) -> np.ndarray:
         """:func:`digitize` with this silicon's well, read noise and ADC."""

@@ -13,7 +13,7 @@ Sources: the sensor-design reference (``shared/reference/sensor-design.md`` §2.
 the documents it cites, named in each preset's docstring. Numbers no public source gave us
 are marked **[unverified]** and left at the ideal defaults of
 :class:`~dopplertof.sensors.noise.Silicon` (no read noise, no dark current, a deep well),
-so that a preset never invents a noise figure; **[inference]** marks a value derived from a
+so that a preset never invents a noise figure (an unsourced ADC gain spans the full well); **[inference]** marks a value derived from a
 sourced one.
 
 The presets do not check the film size against the pixel array, nor the MLX75027's frame
@@ -116,7 +116,7 @@ def mlx75027(frames=None, **silicon) -> Sensor:
     Default schedule: 4 phases (0°, 90°, 180°, 270°) at 100 MHz, 300 µs each (the
     datasheet's 120 fps example); square-wave modulation. Black level **[unverified]**: 0.
     """
-    base = Silicon(
+    base = dict(
         pixel_pitch_m=10e-6, quantum_efficiency=((850e-9, 0.51), (940e-9, 0.28)),
         demodulation_contrast=((4e6, 0.85), (40e6, 0.85), (100e6, 0.78)), full_well_e=160e3,
         gain_e_per_dn=1 / 0.0106, read_noise_e=83.0, dark_current_e_per_s=51e3, adc_bits=12,
@@ -145,7 +145,7 @@ def opt8241(frames=None, **silicon) -> Sensor:
     **[unverified]**: ideal. Default schedule: 4 phases (quad) at 50 MHz, 1 ms each
     **[unverified]** integration.
     """
-    base = Silicon(pixel_pitch_m=15e-6, quantum_efficiency=0.51, demodulation_contrast=0.45, adc_bits=12)
+    base = dict(pixel_pitch_m=15e-6, quantum_efficiency=0.51, demodulation_contrast=0.45, adc_bits=12)
     limits = Limits("OPT8241", (10e6, 100e6), heterodyne=False, waveforms=("rectangular", "sinusoidal"),
                     hint="for D-ToF offsets use the 'dtof-prototype' preset (OPT8241 with a DDS source)")  # fmt: skip
     return _sensor("opt8241", frames or _phases(4, math.pi / 2, modulation_frequency=50e6, exposure=1e-3, waveform="rectangular"), 2, base, silicon, limits)
@@ -164,7 +164,7 @@ def imx556(frames=None, **silicon) -> Sensor:
     **[unverified]**.
     """
     limits = Limits("IMX556", (4e6, 100e6), heterodyne=False, hint="for D-ToF offsets use the 'dtof-prototype' preset")
-    return _sensor("imx556", frames or _phases(4, math.pi / 2, modulation_frequency=100e6, exposure=500e-6, waveform="rectangular"), 2, Silicon(pixel_pitch_m=10e-6), silicon, limits)
+    return _sensor("imx556", frames or _phases(4, math.pi / 2, modulation_frequency=100e6, exposure=500e-6, waveform="rectangular"), 2, dict(pixel_pitch_m=10e-6), silicon, limits)
 
 
 # FLAT's Kinect v2 model (NVlabs/FLAT): modulation periods 2e4, 1e5 and 1.33e4 ps.
@@ -189,7 +189,7 @@ def kinect_v2(frames=None, **silicon) -> Sensor:
         RawFrame(modulation_frequency=f, phase=p * 2 * math.pi / 3, exposure=exposure, exposure_start=(3 * i + p) * exposure, waveform="sinusoidal")
         for i, f in enumerate(KINECT_V2_FREQUENCIES_HZ) for p in range(3)
     ]  # fmt: skip
-    return _sensor("kinect-v2", frames or default, 2, Silicon(adc_bits=11), silicon, limits)
+    return _sensor("kinect-v2", frames or default, 2, dict(adc_bits=11), silicon, limits)
 
 
 def dtof_prototype(frames=None, **silicon) -> Sensor:
@@ -205,7 +205,7 @@ def dtof_prototype(frames=None, **silicon) -> Sensor:
     The DDS's 0.12 Hz / 0.02° steps are below what a render resolves, so frequencies, offsets
     and phases are not restricted to them.
     """
-    base = Silicon(pixel_pitch_m=15e-6, quantum_efficiency=0.51, demodulation_contrast=0.45, adc_bits=12)
+    base = dict(pixel_pitch_m=15e-6, quantum_efficiency=0.51, demodulation_contrast=0.45, adc_bits=12)
     limits = Limits("D-ToF prototype (OPT8241 + AD9959)", (10e6, 100e6), heterodyne=True, waveforms=("code",))
     default = [
         RawFrame(modulation_frequency=30e6, exposure=1.5e-3, heterodyne=h, phase=p, waveform="sinusoidal")
@@ -240,8 +240,9 @@ def preset(name: str, frames=None, **silicon) -> Sensor:
     return PRESETS[name](frames, **silicon)
 
 
-def _sensor(name, frames, taps, base: Silicon, changes: dict, limits: Limits) -> Sensor:
+def _sensor(name, frames, taps, base: dict, changes: dict, limits: Limits) -> Sensor:
     unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(Silicon)})
     if unknown:
         raise ValueError(f"sensor preset {name!r}: unknown silicon parameter(s) {', '.join(map(repr, unknown))}")
-    return Sensor(frames=list(frames), taps=taps, noise=dataclasses.replace(base, **changes), name=name, limits=limits)
+    # built anew, not replaced: a gain left unsourced (None) then spans the changed well
+    return Sensor(frames=list(frames), taps=taps, noise=Silicon(**{**base, **changes}), name=name, limits=limits)
