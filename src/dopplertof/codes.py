@@ -85,6 +85,13 @@ class Code:
                 raise ValueError("Code: 'fourier' coefficients must be finite")
             object.__setattr__(self, "fourier", tuple(complex(v) for v in values))
 
+    def as_dict(self) -> dict:
+        """JSON-friendly: ``{"samples": [...]}`` or ``{"fourier": [[re, im], ...]}``
+        (:func:`as_code` reads it back)."""
+        if self.samples is not None:
+            return {"samples": list(self.samples)}
+        return {"fourier": [[c.real, c.imag] for c in self.fourier]}
+
     @property
     def band_limited(self) -> bool:
         return self.fourier is not None
@@ -156,7 +163,8 @@ def fourier(coefficients) -> Code:
 
 
 def as_code(value, name: str) -> Code:
-    """``value`` as a :class:`Code`: a Code, or a 1-D array of real samples (one period).
+    """``value`` as a :class:`Code`: a Code, a 1-D array of real samples (one period), or
+    :meth:`Code.as_dict`'s dict.
 
     Raises
     ------
@@ -166,6 +174,18 @@ def as_code(value, name: str) -> Code:
     """
     if isinstance(value, Code):
         return value
+    if isinstance(value, dict):  # Code.as_dict's form (metadata.json)
+        if set(value) == {"samples"}:
+            return as_code(value["samples"], name)
+        if set(value) == {"fourier"}:
+            pairs = np.asarray(value["fourier"], dtype=np.float64)
+            if pairs.ndim != 2 or pairs.shape[1] != 2:
+                raise ValueError(f"{name!r}: 'fourier' must list [re, im] pairs, got {value['fourier']!r}")
+            try:
+                return Code(fourier=tuple(pairs[:, 0] + 1j * pairs[:, 1]))
+            except ValueError as exc:
+                raise ValueError(f"{name!r}: {exc}") from None
+        raise ValueError(f"{name!r}: a code written as a dict has one key, 'samples' or 'fourier', got {sorted(value)}")
     try:
         array = np.asarray(value)
     except Exception:  # noqa: BLE001 (any object numpy cannot read is refused by name)

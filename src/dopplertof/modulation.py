@@ -132,6 +132,17 @@ class Camera:
             object.__setattr__(self, name, _codes.as_code(getattr(self, name), name))
         object.__setattr__(self, "waveform", CODE_WAVEFORM)
 
+    def as_dict(self) -> dict:
+        """The parameters of a :class:`Camera` (a :class:`~dopplertof.RawFrame`'s too),
+        JSON-friendly; ``Camera(**camera.as_dict())`` is the same camera."""
+        from dataclasses import fields
+
+        out = {f.name: getattr(self, f.name) for f in fields(Camera)}
+        for name in ("light_code", "sensor_code"):
+            if out[name] is not None:
+                out[name] = out[name].as_dict()
+        return out
+
     @property
     def coded(self) -> bool:
         """Whether the modulation is given as codes (``light_code``, ``sensor_code``)."""
