@@ -148,6 +148,14 @@ class Camera:
         """Whether the modulation is given as codes (``light_code``, ``sensor_code``)."""
         return self.light_code is not None
 
+    @property
+    def light_mean(self) -> float:
+        """ḡ, the light waveform's mean over a period (the trapezoid's pulse: 1; the
+        other named waveforms: 0)."""
+        if self.coded:
+            return self.light.mean
+        return 1.0 if self.waveform == "trapezoidal" else 0.0
+
     @cached_property
     def light(self) -> _codes.Code:
         """The light code as it leaves the source (``light_bandwidth`` applied)."""

@@ -63,10 +63,12 @@ from typing import Sequence
 
 import numpy as np
 
+from .sensors.noise import MAX_ADC_BITS as _MAX_ADC_BITS
+from .sensors.noise import digitize
+
 LUMINANCE_WEIGHTS_REC709 = (0.2126, 0.7152, 0.0722)
 """Rec. 709 / sRGB weights of R, G, B in the luminance, as used by the original scripts."""
 
-_MAX_ADC_BITS = 32
 
 
 def luminance(rgb) -> np.ndarray:
@@ -200,8 +202,6 @@ class SensorModel:
         return np.maximum(tap_a, 0.0), np.maximum(tap_b, 0.0)
 
     def _tap_to_dn(self, expected_e: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        from .sensors.noise import digitize
-
         return digitize(
             expected_e, rng, full_well_e=self.full_well_e, read_noise_e=self.read_noise_e, gain_e_per_dn=self.gain_e_per_dn,
             black_level_dn=self.black_level_dn, max_dn=self.max_dn, shot_noise=self.shot_noise,

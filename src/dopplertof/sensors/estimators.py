@@ -42,6 +42,7 @@ frequencies. Its error: σ = (Σ_f 1/σ_f²)^{−1/2}, valid where the unwrappin
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -119,8 +120,6 @@ def measurements_from_readout(sensor, dn) -> Measurements:
 
 
 def _advanced(frame):
-    import dataclasses
-
     return dataclasses.replace(frame, phase=frame.phase + math.pi / 2)
 
 
@@ -385,6 +384,4 @@ def multifrequency_depth(measurements, cameras, *, measurement_stderr=None, max_
 def _single_window(cams):
     """Homodyne phases do not depend on when a still target is captured: drop the window
     offsets (the estimator takes the target as still)."""
-    import dataclasses
-
     return dataclasses.replace(cams, window_offset=np.zeros_like(cams.window_offset))

@@ -50,7 +50,6 @@ from .noise import Silicon
 
 TAP_LAYOUTS = (1, 2, 4)
 READOUT_MODES = ("raw", "A-B", "A+B", "A", "B")
-_LIGHT_MEAN = {"sinusoidal": 0.0, "rectangular": 0.0, "triangular": 0.0, "trapezoidal": 1.0}
 _CONSTANT = fourier([1.0, 0.0])
 
 
@@ -91,10 +90,6 @@ class RawFrame(Camera):
 
     def label(self) -> str:
         return f"f={self.modulation_frequency:g},{super().label()}"
-
-
-def _light_mean(frame: Camera) -> float:
-    return frame.light.mean if frame.coded else _LIGHT_MEAN[frame.waveform]
 
 
 def _sensor_range(frame: Camera) -> tuple[float, float]:
@@ -184,7 +179,7 @@ class Sensor:
         for index, frame in enumerate(self.frames):
             kappa_t = self.noise.electrons_per_unit_s * frame.exposure
             contrast = self.noise.contrast(frame.modulation_frequency)
-            light = (frame.g1 * _light_mean(frame) + frame.g0) * mean_luminance[windows.index((frame.exposure_start, frame.exposure))]
+            light = (frame.g1 * frame.light_mean + frame.g0) * mean_luminance[windows.index((frame.exposure_start, frame.exposure))]
             if self.taps == 4:
                 for j in range(4):
                     raw[index, j] = 0.25 * kappa_t * (light + contrast * m[index + j * n_frames])
