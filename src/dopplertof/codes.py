@@ -93,10 +93,6 @@ class Code:
         return {"fourier": [[c.real, c.imag] for c in self.fourier]}
 
     @property
-    def band_limited(self) -> bool:
-        return self.fourier is not None
-
-    @property
     def order(self) -> int | None:
         """Highest harmonic M of a band-limited code; None for chips (unbounded)."""
         return len(self.fourier) - 1 if self.fourier is not None else None

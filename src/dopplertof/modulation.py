@@ -12,8 +12,7 @@ Codes as data (:mod:`dopplertof.codes`): a camera given ``light_code`` and ``sen
 ``W = g1 · C(Δ) + g0 · s̄`` with C the exact cross-correlation of the two codes, Δ the phase
 above and s̄ the sensor code's mean (zero for the named waveforms, whose C is Λ/2), and its
 full weight is the product above with s and g the codes. ``light_bandwidth`` (Hz) removes
-the light code's harmonics above it (an ideal low-pass source; a 10–90 % rise time of
-≈ 0.35 / bandwidth).
+the light code's harmonics above it (an ideal low-pass source: a finite rise time).
 
 Every phase is computed in Float64 and wrapped with a floor-based modulo, so negative
 phases (negative ``h`` or ``ψ``, early times in full-waveform mode) are right.
@@ -63,7 +62,8 @@ class Camera:
     heterodyne : float. h, beat cycles per exposure (0 homodyne, 1 "perfect" heterodyne).
     phase : float, rad. Sensor phase offset ψ.
     waveform : str. One of ``sinusoidal``, ``rectangular``, ``triangular``, ``trapezoidal``.
-    g1, g0 : float. Light modulation amplitude and DC offset (g0 enters full-waveform only).
+    g1, g0 : float. Light modulation amplitude and DC offset (g0 enters full-waveform only,
+        and, for codes, the low-pass weight as g0 s̄).
     low_pass : bool. Low-pass (correlation) model if True, else the full waveform product.
     light_code, sensor_code : array_like or :class:`dopplertof.codes.Code`, optional.
         One period of the light modulation g and of the sensor demodulation s as sampled

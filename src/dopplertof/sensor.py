@@ -70,7 +70,6 @@ LUMINANCE_WEIGHTS_REC709 = (0.2126, 0.7152, 0.0722)
 """Rec. 709 / sRGB weights of R, G, B in the luminance, as used by the original scripts."""
 
 
-
 def luminance(rgb) -> np.ndarray:
     """Luminance Y = 0.2126 R + 0.7152 G + 0.0722 B of a linear RGB image.
 

@@ -46,6 +46,7 @@ import numpy as np
 
 from ..codes import fourier
 from ..modulation import Camera
+from ..validation import checked
 from .noise import Silicon
 
 TAP_LAYOUTS = (1, 2, 4)
@@ -73,8 +74,6 @@ class RawFrame(Camera):
     heterodyne_hz: float | None = None
 
     def __post_init__(self):
-        from ..validation import checked
-
         if self.heterodyne_hz is not None:
             hz = checked("heterodyne_hz", self.heterodyne_hz, "float", "RawFrame")
             exposure = checked("exposure", self.exposure, "float", "RawFrame")
@@ -125,8 +124,6 @@ class Sensor:
     limits: object = None
 
     def __post_init__(self):
-        from ..validation import checked
-
         frames = tuple(self.frames) if isinstance(self.frames, (list, tuple)) else None
         if not frames or not all(isinstance(f, Camera) for f in frames):
             raise ValueError(f"Sensor: 'frames' must be a non-empty list of dopplertof.RawFrame, got {self.frames!r}")

@@ -62,6 +62,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..validation import checked
+
 PLANCK_J_S = 6.626_070_15e-34
 SPEED_OF_LIGHT_M_S = 299_792_458.0
 MAX_ADC_BITS = 32
@@ -155,8 +157,6 @@ class Silicon:
     shot_noise: bool = True
 
     def __post_init__(self):
-        from ..validation import checked
-
         ranges = {
             "pixel_pitch_m": (lambda x: x > 0, "> 0"),
             "fill_factor": (lambda x: 0 < x <= 1, "in (0, 1]"),
