@@ -1029,16 +1029,3 @@ def ambiguity_range_m(modulation_frequency_hz: float) -> float:
             f"modulation_frequency_hz must be > 0, got {modulation_frequency_hz!r}"
         )
     return SPEED_OF_LIGHT_M_S / (2.0 * modulation_frequency_hz)
-
-
-_RAW_FRAME_ESTIMATORS = ("two_offset_velocity", "multifrequency_depth", "measurements_from_readout")
-
-
-def __getattr__(name):
-    """The raw-frame estimators of :mod:`dopplertof.sensors.estimators` (two-offset velocity,
-    multi-frequency depth, measurements from a sensor read-out), reachable from here too."""
-    if name in _RAW_FRAME_ESTIMATORS:
-        from .sensors import estimators
-
-        return getattr(estimators, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
