@@ -200,3 +200,26 @@ def test_a_fourier_demodulation_in_four_taps():
     """Four taps of a sinusoid given as Fourier coefficients: accepted (no 4th harmonic)."""
     frame = RawFrame(light_code=codes.fourier([0, 1]), sensor_code=codes.fourier([0, 1]))
     assert len(Sensor(frames=[frame], taps=4).cameras()) == 5
+
+
+def test_an_interrupted_schedule_keeps_its_electrons_and_reads_out_nothing_half_done(cornell, tmp_path):
+    """Stopped before the second window: its frames are NaN; the read-out refuses them by
+    name, and the folder keeps the electrons (no raw_dn.npy) rather than losing the render."""
+    import json
+
+    from dopplertof import folder
+
+    frames = [RawFrame(exposure=T, exposure_start=k * T) for k in range(2)]
+    sensor = Sensor(frames=frames, noise=SILICON)
+    calls = iter(range(100))
+    result = dt.render(cornell, sensor=sensor, spp=4, max_depth=2, lanes_per_pass=1024, stop=lambda: next(calls) >= 1)
+    assert result.interrupted
+    assert np.isfinite(result.raw[0]).all() and np.isnan(result.raw[1]).all()
+    with pytest.raises(ValueError, match=r"raw frames \[1\] hold no charge estimate"):
+        sensor.read_out(result, seed=0)
+    written = folder.write_result(result, str(tmp_path))
+    names = {p.split("/")[-1] for p in written}
+    assert "raw_electrons.npy" in names and "raw_dn.npy" not in names
+    assert json.loads((tmp_path / "metadata.json").read_text())["sensor"]["readout_seed"] is None
+    with pytest.raises(ValueError, match="must be finite"):
+        SILICON.digitize(np.array([np.nan]), np.random.default_rng(0))

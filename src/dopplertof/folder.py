@@ -12,9 +12,10 @@ file                   content
 ``covariance.npy``
 ``checkpoint.npz``     the Float64 sums of an interrupted render (``--resume`` continues)
 ``raw_electrons.npy``  with a sensor (``--sensor``): its raw frames' taps (frames, taps, H,
-                       W), e⁻ before noise; ``raw_dn.npy`` the same read out (DN, seeded
-                       with the render's seed); ``metadata.json`` keeps the sensor and
-                       the schedule of its frames (``"sensor"``)
+                       W), e⁻ before noise (NaN in windows an interrupted render has not
+                       traced); ``raw_dn.npy`` the same read out (DN, seeded with the
+                       render's seed), once every frame has samples; ``metadata.json``
+                       keeps the sensor and the schedule of its frames (``"sensor"``)
 ``metadata.json``      written last: scene, film, settings, cameras, spp done and asked,
                        versions, variant, device, render time, command line, the files
 =====================  ==================================================================
@@ -153,8 +154,10 @@ def write_result(result, folder: str, metadata: dict | None = None) -> list[str]
         from .sensors.files import sensor_record
 
         io.write_npy(path(RAW_ELECTRONS), result.raw)
-        io.write_npy(path(RAW_DN), sensor.read_out(result, seed=result.seed))
-        metadata = {**(metadata or {}), "sensor": {**sensor_record(sensor, result.cameras[: len(sensor.frames)]), "readout_seed": result.seed}}
+        complete = bool(np.isfinite(result.raw).all())  # an interrupted schedule: later windows empty
+        if complete:
+            io.write_npy(path(RAW_DN), sensor.read_out(result, seed=result.seed))
+        metadata = {**(metadata or {}), "sensor": {**sensor_record(sensor, result.cameras[: len(sensor.frames)]), "readout_seed": result.seed if complete else None}}
     meta = {
         **(metadata or {}),
         "spp": result.spp,

@@ -212,6 +212,12 @@ class Sensor:
         Returns
         -------
         ndarray of int64 (DN).
+
+        Raises
+        ------
+        ValueError
+            For an unknown mode, a mode the tap layout lacks, ``raw`` of another shape, or
+            frames without a finite charge (an interrupted render's untraced windows).
         """
         if mode not in READOUT_MODES:
             raise ValueError(f"Sensor.read_out: unknown mode {mode!r}; choose one of {', '.join(READOUT_MODES)}")
@@ -221,6 +227,9 @@ class Sensor:
         raw = np.asarray(raw, dtype=np.float64)
         if raw.ndim < 2 or raw.shape[:2] != (len(self.frames), self.taps):
             raise ValueError(f"Sensor.read_out: raw must have shape ({len(self.frames)}, {self.taps}, ...), got {raw.shape}")
+        empty = [i for i in range(len(raw)) if not np.all(np.isfinite(raw[i]))]
+        if empty:
+            raise ValueError(f"Sensor.read_out: raw frames {empty} hold no charge estimate (NaN: a render stopped before their window was traced); finish the render first")
         _, offset = self.noise.pattern(raw.shape[1:])
         rng = np.random.default_rng(seed)
         dn = self.noise.digitize(self.expected_electrons(raw), rng, offset_e=offset)

@@ -84,8 +84,15 @@ def digitize(expected_e, rng: np.random.Generator, *, full_well_e, read_noise_e,
     Returns
     -------
     ndarray of int64, the shape of ``expected_e``: DN in [0, max_dn].
+
+    Raises
+    ------
+    ValueError
+        If ``expected_e`` is not finite.
     """
     expected_e = np.asarray(expected_e, dtype=np.float64)
+    if not np.all(np.isfinite(expected_e)):
+        raise ValueError("the expected tap charge must be finite electrons (NaN: a frame without samples)")
     if shot_noise:
         # Above a few full wells the draw saturates anyway; the cap keeps Poisson finite.
         cap = 4.0 * full_well_e + 1e3
