@@ -16,6 +16,19 @@ T = 1.5e-3
 HU_FRAMES = [RawFrame(modulation_frequency=30e6, exposure=T, heterodyne=h, phase=p) for h, p in ((0.5, 1.5 * math.pi), (0.5, 0.0), (-0.5, math.pi / 2), (-0.5, math.pi))]
 
 
+def _cos_axis(n):
+    """cos of the angle between each pixel centre's ray and the optical axis (n × n film)."""
+    tau = math.tan(math.radians(oracles.PLANE_FOV_DEG) / 2)
+    centres = (np.arange(n) + 0.5) / n
+    fx, fy = np.meshgrid(centres, centres, indexing="ij")
+    return 1 / np.sqrt(((2 * fx - 1) * tau) ** 2 + ((2 * fy - 1) * tau) ** 2 + 1)
+
+
+def _radial(n, speed):
+    """The plane's velocity along each pixel centre's ray: it recedes at v / cos there."""
+    return speed / _cos_axis(n)
+
+
 @pytest.mark.parametrize("offsets", [(0.5, -0.5), (1.0, 0.0), (1.5, -0.5), (1.0, -1.0)])
 def test_two_offset_velocity_inverts_the_model_exactly(offsets):
     frames = [RawFrame(modulation_frequency=30e6, exposure=T, heterodyne=h, phase=p) for h in offsets for p in (0.0, math.pi / 2, math.pi, 1.5 * math.pi)]
@@ -32,16 +45,12 @@ def test_two_offset_velocity_recovers_the_moving_plane_within_its_stated_error()
     1/s² brightening, a relative bias ≈ 2|Δs|/(π k s²) (estimators module docstring), plus
     the spread of rates within a pixel."""
     n = 16
-    tau = math.tan(math.radians(oracles.PLANE_FOV_DEG) / 2)
-    centres = (np.arange(n) + 0.5) / n
-    fx, fy = np.meshgrid(centres, centres, indexing="ij")
-    cos_axis = 1 / np.sqrt(((2 * fx - 1) * tau) ** 2 + ((2 * fy - 1) * tau) ** 2 + 1)
     k = HU_FRAMES[0].wavenumber
     for speed in (10.0, -40.0):
         m = np.array([oracles.moving_plane_measurement_pixels(f, speed, n) for f in HU_FRAMES])
         result = est.two_offset_velocity(m, HU_FRAMES)
-        radial = speed / cos_axis  # along each ray the plane recedes at v / cos
-        distance = oracles.PLANE_DISTANCE_M / cos_axis
+        radial = _radial(n, speed)
+        distance = oracles.PLANE_DISTANCE_M / _cos_axis(n)
         stated = 2 * np.abs(radial) * T / (math.pi * k * distance**2)
         assert np.all(np.abs(result.velocity / radial - 1) <= 1.5 * stated)
 
@@ -151,6 +160,20 @@ def test_measurements_from_four_taps_and_saturation():
         est.measurements_from_readout(Sensor(frames=frames, taps=1), np.zeros((1, 1, 1, 1)))
 
 
+def test_reconstruct_velocity_takes_raw_frames_of_a_read_out():
+    """The per-pixel fit of dopplertof.reconstruct over the D-ToF prototype's default
+    frames, read out with noise: z-scores of unit spread against the plane's velocity."""
+    n, speed = 16, 20.0
+    sensor = dt.sensors.preset("dtof-prototype")
+    result = dt.render(oracles.moving_plane_scene(speed, resolution=n), sensor=sensor, spp=64, max_depth=2, seed=3)
+    read = est.measurements_from_readout(sensor, sensor.read_out(result, seed=1))
+    stderr = np.sqrt(read.stderr**2 + result.measurement_stderr[: len(sensor.frames)].astype(np.float64) ** 2)
+    estimate = rc.velocity(read.measurements, read.cameras, measurement_stderr=stderr)
+    assert estimate.method == "fit" and estimate.valid.mean() > 0.95
+    z = ((estimate.velocity - _radial(n, speed)) / estimate.velocity_stderr)[estimate.valid]
+    assert np.all(np.abs(z) < 4) and abs(z.mean()) < 0.3 and 0.7 < z.std() < 1.3
+
+
 def test_two_offset_velocity_end_to_end_through_a_noisy_sensor():
     """Render the moving plane with the D-ToF prototype on Hu's schedule, read it out with
     noise, estimate: each pixel within 4 of its stated standard errors (sensor noise and
@@ -161,11 +184,7 @@ def test_two_offset_velocity_end_to_end_through_a_noisy_sensor():
     read = est.measurements_from_readout(sensor, sensor.read_out(result, seed=1))
     stderr = np.sqrt(read.stderr**2 + result.measurement_stderr[: len(HU_FRAMES)].astype(np.float64) ** 2)
     estimate = est.two_offset_velocity(read.measurements, read.cameras, measurement_stderr=stderr)
-    tau = math.tan(math.radians(oracles.PLANE_FOV_DEG) / 2)
-    centres = (np.arange(n) + 0.5) / n
-    fx, fy = np.meshgrid(centres, centres, indexing="ij")
-    radial = speed * np.sqrt(((2 * fx - 1) * tau) ** 2 + ((2 * fy - 1) * tau) ** 2 + 1)
     assert estimate.valid.mean() > 0.95
-    z = ((estimate.velocity - radial) / estimate.velocity_stderr)[estimate.valid]
+    z = ((estimate.velocity - _radial(n, speed)) / estimate.velocity_stderr)[estimate.valid]
     assert np.all(np.abs(z) < 4)
     assert abs(z.mean()) < 0.5
