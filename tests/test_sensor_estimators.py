@@ -188,3 +188,10 @@ def test_two_offset_velocity_end_to_end_through_a_noisy_sensor():
     z = ((estimate.velocity - _radial(n, speed)) / estimate.velocity_stderr)[estimate.valid]
     assert np.all(np.abs(z) < 4)
     assert abs(z.mean()) < 0.5
+
+
+def test_four_tap_measurements_need_an_antiperiodic_demodulation():
+    skewed = np.r_[np.ones(4), -np.ones(4), np.ones(4), -np.ones(4)]  # no mean, but s(θ + π) = s(θ)
+    sensor = Sensor(frames=[RawFrame(light_code=np.ones(16), sensor_code=skewed)], taps=4)
+    with pytest.raises(ValueError, match=r"frames \[0\] demodulate with a code that is not antiperiodic"):
+        est.measurements_from_readout(sensor, np.zeros((1, 4, 1, 1), np.int64))

@@ -223,3 +223,14 @@ def test_an_interrupted_schedule_keeps_its_electrons_and_reads_out_nothing_half_
     assert json.loads((tmp_path / "metadata.json").read_text())["sensor"]["readout_seed"] is None
     with pytest.raises(ValueError, match="must be finite"):
         SILICON.digitize(np.array([np.nan]), np.random.default_rng(0))
+
+
+def test_ambient_light_splits_as_the_taps_mean_shares():
+    """A 0/1 gate has s̄ = ½: tap A takes (1 + c/2)/2 of unmodulated light, B the rest."""
+    gate = np.r_[np.ones(8), np.zeros(8)]
+    frame = RawFrame(exposure=T, light_code=gate, sensor_code=gate)
+    sensor = Sensor(frames=[frame], noise=Silicon(ambient_e_per_s=1e6, demodulation_contrast=0.8))
+    ambient = sensor.expected_electrons(np.zeros((1, 2, 1, 1)))[0, :, 0, 0]
+    np.testing.assert_allclose(ambient, [1e6 * T * (1 + 0.4) / 2, 1e6 * T * (1 - 0.4) / 2])
+    named = Sensor(frames=[RawFrame(exposure=T)], taps=4, noise=Silicon(ambient_e_per_s=1e6))
+    np.testing.assert_allclose(named.expected_electrons(np.zeros((1, 4, 1, 1)))[0, :, 0, 0], 1e6 * T / 4)

@@ -156,6 +156,11 @@ class Camera:
             return self.light.mean
         return 1.0 if self.waveform == "trapezoidal" else 0.0
 
+    @property
+    def sensor_mean(self) -> float:
+        """s̄, the demodulation's mean over a period (every named waveform: 0)."""
+        return self.sensor_code.mean if self.coded else 0.0
+
     @cached_property
     def light(self) -> _codes.Code:
         """The light code as it leaves the source (``light_bandwidth`` applied)."""
@@ -368,7 +373,7 @@ def lowpass_weight(camera: Camera, phase):
     """The low-pass weight at slow phase Δ = 2π h u + ψ + k L (rad): (g1/2)Λ(Δ), or
     g1 C(Δ) + g0 s̄ for a coded camera (numpy or Dr.Jit Float64)."""
     if camera.coded:
-        return camera.g1 * camera.correlation(phase) + camera.g0 * camera.sensor_code.mean
+        return camera.g1 * camera.correlation(phase) + camera.g0 * camera.sensor_mean
     return (0.5 * camera.g1) * lowpass_waveform(phase, camera.waveform)
 
 
@@ -448,7 +453,7 @@ class CameraBank:
             amplitude = 0.5 * cam.g1
             if camera.coded:
                 corr = camera.correlation
-                offset = cam.g0 * camera.sensor_code.mean
+                offset = cam.g0 * camera.sensor_mean
                 if corr.harmonics is not None:  # e^{iΔ} = e^{i(2πhu + ψ)} e^{ikL}: the second shared
                     sin_a, cos_a = dr.sincos(time_phase)
                     self._terms.append(("code_harmonics", k_key, cam, corr, corr.opaque(), cos_a, sin_a, offset))

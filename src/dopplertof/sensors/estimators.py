@@ -95,13 +95,18 @@ def measurements_from_readout(sensor, dn) -> Measurements:
     ------
     ValueError
         For a 1-tap sensor (a single tap does not separate the signal from the light's
-        mean) or a read-out of another shape.
+        mean), a 4-tap sensor with a demodulation that is not antiperiodic, or a read-out of
+        another shape.
     """
     if sensor.taps == 1:
         raise ValueError("measurements_from_readout: a 1-tap pixel does not separate the modulated signal from the mean light; use a 2- or 4-tap sensor")
     dn = np.asarray(dn)
     if dn.ndim < 2 or dn.shape[:2] != (len(sensor.frames), sensor.taps):
         raise ValueError(f"measurements_from_readout: dn must have shape ({len(sensor.frames)}, {sensor.taps}, ...), got {dn.shape}")
+    if sensor.taps == 4:
+        skewed = [i for i, f in enumerate(sensor.frames) if f.coded and f.sensor_code.shifted_sum(2) > 1e-9]
+        if skewed:
+            raise ValueError(f"measurements_from_readout: frames {skewed} demodulate with a code that is not antiperiodic (s(θ + π) = −s(θ)); taps 0 − 2 of a 4-tap pixel then do not give its measurement")
     silicon = sensor.noise
     electrons = (dn.astype(np.float64) - silicon.black_level_dn) * silicon.gain_e_per_dn
     variance = silicon.tap_variance_e2(np.clip(electrons, 0.0, None))

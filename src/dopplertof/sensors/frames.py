@@ -193,9 +193,19 @@ class Sensor:
         gain mismatch, plus its share of the ambient light and the dark current."""
         raw = np.asarray(raw, dtype=np.float64)
         gain, _ = self.noise.pattern(raw.shape[1:])
-        exposure = np.array([f.exposure for f in self.frames]).reshape(-1, *([1] * (raw.ndim - 1)))
-        ambient = self.noise.ambient_e_per_s * exposure / max(self.taps, 2)  # unmodulated: equal shares
+        column = (-1, *([1] * (raw.ndim - 1)))
+        exposure = np.array([f.exposure for f in self.frames]).reshape(column)
+        # Unmodulated light splits as the taps' mean shares: (1 ± c s̄)/2, (1 + c s̄)/4.
+        mean_share = np.array([[self._share(f, tap) for tap in range(self.taps)] for f in self.frames]).reshape(*column[:1], self.taps, *column[2:])
+        ambient = self.noise.ambient_e_per_s * exposure * mean_share
         return gain * (raw + ambient) + self.noise.dark_current_e_per_s * exposure
+
+    def _share(self, frame, tap: int) -> float:
+        """The mean share of a pixel's charge that ``tap`` collects in ``frame``."""
+        modulated = self.noise.contrast(frame.modulation_frequency) * frame.sensor_mean
+        if self.taps == 4:
+            return 0.25 * (1.0 + modulated)
+        return 0.5 * (1.0 + modulated if tap == 0 else 1.0 - modulated)
 
     def read_out(self, result, seed=None, mode: str = "raw") -> np.ndarray:
         """Digital numbers of a render's frames after the noise chain (module docstring).

@@ -10,8 +10,9 @@ through (also :class:`dopplertof.sensor.SensorModel`'s):
    modulation frequency (:mod:`dopplertof.sensors.frames`);
 2. fixed pattern: each tap of each pixel has a gain (1 + δg) and an offset δo, drawn once
    per sensor from ``pattern_seed`` (``tap_gain_mismatch``, ``tap_offset_mismatch_e`` rms);
-3. ambient light (photo-electrons per second on the pixel, unmodulated: an equal share per
-   tap of a 2- or 4-tap pixel, half for a single tap) and dark current (electrons per second
+3. ambient light (photo-electrons per second on the pixel, unmodulated: each tap takes
+   its mean share, (1 ± c s̄)/2 of a 2-tap pixel, (1 + c s̄)/4 of a 4-tap one, s̄ the
+   demodulation's mean, 0 for the named waveforms) and dark current (electrons per second
    and tap) add to the mean;
 4. Poisson shot noise on the tap's total (``shot_noise=False``: the mean);
 5. full-well saturation: the charge is clipped at ``full_well_e``;
