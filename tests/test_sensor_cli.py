@@ -87,3 +87,13 @@ def test_bad_sensors_are_one_error_line(tmp_path, toml, args, message):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(message), proc.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_reconstruct_reads_a_sensor_render(tmp_path):
+    """`dopplertof reconstruct` of a --sensor folder uses the frames, not the mean-light cameras."""
+    out = tmp_path / "proto"
+    assert _run("render", "cornell-box", "--resolution", "8", "--spp", "4", "--max-depth", "2", "--quiet", "--sensor", "dtof-prototype", "-o", str(out)).returncode == 0
+    proc = _run("reconstruct", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith(f"reconstructed velocity (fit) of {out}")
+    assert (out / "velocity_reconstructed.exr").exists()

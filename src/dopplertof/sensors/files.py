@@ -138,5 +138,6 @@ def sensor_record(sensor: Sensor, scheduled=None) -> dict:
         "limits": None if sensor.limits is None else sensor.limits.name,
         "frames": frames,
         "cameras": "the render's cameras are the frames, then (4 taps) each frame advanced by 90, 180 and 270 deg, then one camera per exposure window measuring its mean luminance (weight 1)",
+        "frame_cameras": sensor.frame_cameras,
         "raw_shape": "(frames, taps, H, W)",
     }

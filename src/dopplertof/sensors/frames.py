@@ -159,6 +159,12 @@ class Sensor:
             out.append(Camera(exposure=exposure, exposure_start=start, heterodyne=0.0, g1=0.0, g0=1.0, light_code=_CONSTANT, sensor_code=_CONSTANT))
         return out
 
+    @property
+    def frame_cameras(self) -> int:
+        """How many of :meth:`cameras` are frames (and 4-tap phase copies): the rest
+        measure the windows' mean luminance."""
+        return len(self.frames) * (4 if self.taps == 4 else 1)
+
     def _windows(self) -> list[tuple]:
         """Distinct (exposure_start, exposure) of the frames, in order (None: the render's start)."""
         return list(dict.fromkeys((f.exposure_start, f.exposure) for f in self.frames))
@@ -168,10 +174,10 @@ class Sensor:
         :meth:`cameras` (a render's ``measurements``, in that order; module docstring)."""
         m = np.asarray(measurements, dtype=np.float64)
         n_frames, windows = len(self.frames), self._windows()
-        expected = n_frames * (4 if self.taps == 4 else 1) + len(windows)
+        expected = self.frame_cameras + len(windows)
         if m.ndim < 1 or m.shape[0] != expected:
             raise ValueError(f"Sensor.raw: expected the {expected} measurements of Sensor.cameras(), got shape {m.shape}")
-        mean_luminance = m[n_frames * (4 if self.taps == 4 else 1):]
+        mean_luminance = m[self.frame_cameras:]
         raw = np.empty((n_frames, self.taps, *m.shape[1:]))
         for index, frame in enumerate(self.frames):
             kappa_t = self.noise.electrons_per_unit_s * frame.exposure
