@@ -133,19 +133,31 @@ class Code:
     def mean(self) -> float:
         return float(self.coefficients(0)[0].real)
 
+    def _grid(self, parts: int) -> np.ndarray:
+        """x at θ_j = 2π(j + ½)/n on a grid fine enough to see every chip or harmonic,
+        n a multiple of ``parts``; a Fourier code by one inverse FFT."""
+        if self.samples is not None:
+            n = 4 * parts * len(self.samples)
+            return self((np.arange(n) + 0.5) * (TWO_PI / n))
+        n = 64 * parts * (self.order + 1)
+        c = np.zeros(n, np.complex128)
+        c[: self.order + 1] = self.fourier
+        # e^{imθ_j} = e^{iπm/n} e^{2πimj/n}: the half-step shift, then the inverse DFT
+        return (np.fft.ifft(c * np.exp(1j * np.pi * np.arange(n) / n)) * n).real
+
     def extremes(self) -> tuple[float, float]:
         """(min, max) of x(θ): exact for chips, on a fine grid for a Fourier code."""
         if self.samples is not None:
             return min(self.samples), max(self.samples)
-        values = self(np.arange(64 * (self.order + 1)) * (TWO_PI / (64 * (self.order + 1))))
+        values = self._grid(1)
         return float(values.min()), float(values.max())
 
     def shifted_sum(self, parts: int) -> float:
         """max_θ |Σ_j x(θ + 2πj/parts)|: zero where the code has no harmonic (nor mean)
         at multiples of ``parts`` (a tap layout that splits the charge ``parts`` ways)."""
-        n = len(self.samples) * parts * 4 if self.samples is not None else 64 * (self.order + 1)
-        theta = (np.arange(n) + 0.5) * (TWO_PI / n)
-        return float(np.abs(sum(self(theta + TWO_PI * j / parts) for j in range(parts))).max())
+        values = self._grid(parts)
+        step = values.size // parts
+        return float(np.abs(sum(np.roll(values, -j * step) for j in range(parts))).max())
 
 
 def sampled(samples) -> Code:
