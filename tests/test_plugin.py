@@ -117,6 +117,7 @@ def test_defaults_are_the_originals():
     assert vars(s.cameras[0]) == dict(
         modulation_frequency=30e6, exposure=0.0015, heterodyne=0.0, phase=0.0,
         waveform="sinusoidal", g1=0.5, g0=0.5, low_pass=True, exposure_start=None,
+        light_code=None, sensor_code=None, light_bandwidth=None,
     )
     resolved = dict(
         time_sampling=s.time_sampling, n_times=s.group_size, antithetic_shift=s.shift, stratify_intervals=s.stratify_intervals,

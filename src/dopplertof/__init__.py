@@ -23,13 +23,15 @@ _register_plugin()
 
 _ATTRIBUTES = {
     "Camera": "modulation",
+    "RawFrame": "sensors",
+    "Sensor": "sensors",
     "DynamicScene": "scene",
     "SceneError": "scene",
     "RenderSettings": "settings",
     "load_scene": "loader",
     "set_variant": "backend",
 }
-_MODULES = ("scenes", "reconstruct", "sensor", "io", "viz", "experiments", "animate", "outputs", "settings", "oracles", "folder", "tracing", "dataset")
+_MODULES = ("scenes", "reconstruct", "sensor", "io", "viz", "experiments", "animate", "outputs", "settings", "oracles", "folder", "tracing", "dataset", "sensors", "codes")
 
 
 def __getattr__(name):
@@ -45,4 +47,4 @@ def __dir__():
     return sorted([*globals(), *_ATTRIBUTES, *_MODULES])
 
 
-__all__ = ["Camera", "DynamicScene", "RenderResult", "RenderSettings", "SceneError", "load_scene", "render", "scenes", "set_variant", "reconstruct", "sensor"]
+__all__ = ["Camera", "DynamicScene", "RenderResult", "RenderSettings", "SceneError", "load_scene", "render", "scenes", "set_variant", "reconstruct", "sensor", "sensors", "codes", "Sensor", "RawFrame"]

@@ -11,6 +11,11 @@ file                   content
 ``measurement_``       the covariance of the cameras' means (n, n, H, W), 2 to 8 cameras
 ``covariance.npy``
 ``checkpoint.npz``     the Float64 sums of an interrupted render (``--resume`` continues)
+``raw_electrons.npy``  with a sensor (``--sensor``): its raw frames' taps (frames, taps, H,
+                       W), e⁻ before noise (NaN in windows an interrupted render has not
+                       traced); ``raw_dn.npy`` the same read out (DN, seeded with the
+                       render's seed), once every frame has samples; ``metadata.json``
+                       keeps the sensor and the schedule of its frames (``"sensor"``)
 ``metadata.json``      written last: scene, film, settings, cameras, spp done and asked,
                        versions, variant, device, render time, command line, the files
 =====================  ==================================================================
@@ -35,6 +40,8 @@ import numpy as np
 from .outputs import OUTPUTS
 
 METADATA = "metadata.json"
+RAW_ELECTRONS = "raw_electrons.npy"  # a sensor's frames: (frames, taps, H, W) e⁻ before noise
+RAW_DN = "raw_dn.npy"  # the same read out (noise chain, seed = the render's), DN
 CHECKPOINT = "checkpoint.npz"
 _PREVIEWS = {"intensity": "save_intensity_png", "signed": "save_signed_png", "velocity": "save_velocity_png"}
 
@@ -142,6 +149,15 @@ def write_result(result, folder: str, metadata: dict | None = None) -> list[str]
             io.write_exr(path(f"{o.stderr_name}.exr"), getattr(result, o.stderr_name))
         if o.preview in _PREVIEWS:
             getattr(viz, _PREVIEWS[o.preview])(path(f"{o.name}.png"), image)
+    sensor = getattr(result, "sensor", None)
+    if sensor is not None:  # dopplertof.sensors: the raw frames' electrons and digital numbers
+        from .sensors.files import sensor_record
+
+        io.write_npy(path(RAW_ELECTRONS), result.raw)
+        complete = bool(np.isfinite(result.raw).all())  # an interrupted schedule: later windows empty
+        if complete:
+            io.write_npy(path(RAW_DN), sensor.read_out(result, seed=result.seed))
+        metadata = {**(metadata or {}), "sensor": {**sensor_record(sensor, result.cameras[: len(sensor.frames)]), "readout_seed": result.seed if complete else None}}
     meta = {
         **(metadata or {}),
         "spp": result.spp,
@@ -149,7 +165,7 @@ def write_result(result, folder: str, metadata: dict | None = None) -> list[str]
         "seed": result.seed,
         "interrupted": result.interrupted,
         "settings": result.settings.as_dict(),
-        "cameras": [vars(c) for c in result.cameras],
+        "cameras": [c.as_dict() for c in result.cameras],
         "render": result.info,
         "versions": versions(),
         "files": written + ([CHECKPOINT] if result.interrupted and os.path.isfile(os.path.join(folder, CHECKPOINT)) else []),

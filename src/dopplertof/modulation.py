@@ -7,6 +7,13 @@ weighted by the product of the sensor and light modulations (DESIGN §3.7). With
 * low-pass (default): ``W = (g1/2) · Λ(2π h u + ψ + k L)``
 * full waveform:     ``W = s(ω_s t + ψ) · [g1 · g(ω_g t − k L) + g0]``, ω_s = ω_g + 2π h/T
 
+Codes as data (:mod:`dopplertof.codes`): a camera given ``light_code`` and ``sensor_code``
+(sampled chips or Fourier coefficients) has ``waveform="code"``; its low-pass weight is
+``W = g1 · C(Δ) + g0 · s̄`` with C the exact cross-correlation of the two codes, Δ the phase
+above and s̄ the sensor code's mean (zero for the named waveforms, whose C is Λ/2), and its
+full weight is the product above with s and g the codes. ``light_bandwidth`` (Hz) removes
+the light code's harmonics above it (an ideal low-pass source: a finite rise time).
+
 Every phase is computed in Float64 and wrapped with a floor-based modulo, so negative
 phases (negative ``h`` or ``ψ``, early times in full-waveform mode) are right.
 
@@ -28,7 +35,9 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 
+from . import codes as _codes
 from .validation import parse_bool
 
 import numpy as np
@@ -36,6 +45,7 @@ import numpy as np
 SPEED_OF_LIGHT_M_S = 299_792_458.0
 TWO_PI = 2.0 * math.pi
 WAVEFORMS = ("sinusoidal", "rectangular", "triangular", "trapezoidal")
+CODE_WAVEFORM = "code"  # the waveform of a camera given light_code and sensor_code
 # Beyond these the Float64 phase arithmetic loses the path length (k·L at 1 THz and 1 km is
 # 2e7 rad, still resolving 1e-8 rad); no D-ToF sensor comes near them.
 MAX_MODULATION_FREQUENCY_HZ = 1e12
@@ -74,8 +84,15 @@ class Camera:
     phase : float, rad. Sensor phase offset ψ.
     waveform : str. One of ``sinusoidal``, ``rectangular``, ``triangular``, ``trapezoidal``.
     g1, g0 : float. Light modulation amplitude (> 0) and DC offset (>= 0; g0 enters
-        full-waveform only).
+        full-waveform only, and, for codes, the low-pass weight as g0 s̄).
     low_pass : bool. Low-pass (correlation) model if True, else the full waveform product.
+    light_code, sensor_code : array_like or :class:`dopplertof.codes.Code`, optional.
+        One period of the light modulation g and of the sensor demodulation s as sampled
+        chips (1-D, N >= 8 samples, binary or not) or Fourier coefficients
+        (:func:`dopplertof.codes.fourier`); both or neither. With them ``waveform`` is
+        ``"code"`` (module docstring).
+    light_bandwidth : float or None, Hz. Only with codes: the source's modulation bandwidth,
+        harmonics of the light code above it removed. None: unlimited.
     exposure_start : float or None, s of scene time. When this configuration's exposure
         opens; None: the render's ``exposure_start``. Its window is
         [exposure_start, exposure_start + exposure]: configurations with the same window
@@ -92,10 +109,14 @@ class Camera:
     g0: float = 0.5
     low_pass: bool = True
     exposure_start: float | None = None
+    light_code: _codes.Code | None = None
+    sensor_code: _codes.Code | None = None
+    light_bandwidth: float | None = None
 
     def __post_init__(self):
         from .validation import checked
 
+        self._check_codes()
         for name in ("modulation_frequency", "exposure", "heterodyne", "phase", "g1", "g0"):
             object.__setattr__(self, name, checked(name, getattr(self, name), "float", "Camera"))
         if self.exposure_start is not None:
@@ -116,8 +137,70 @@ class Camera:
             raise ValueError(f"Camera: 'g1' (light modulation amplitude) must be > 0, got {self.g1!r}")
         if self.g0 < 0:
             raise ValueError(f"Camera: 'g0' (light DC offset) must be >= 0, got {self.g0!r}")
-        if self.waveform not in WAVEFORMS:
-            raise ValueError(f"Camera: unknown waveform {self.waveform!r}; choose one of {', '.join(WAVEFORMS)}")
+        if self.waveform not in WAVEFORMS and not (self.waveform == CODE_WAVEFORM and self.coded):
+            hint = " (give light_code and sensor_code)" if self.waveform == CODE_WAVEFORM else ""
+            raise ValueError(f"Camera: unknown waveform {self.waveform!r}; choose one of {', '.join(WAVEFORMS)}{hint}")
+        if self.light_bandwidth is not None:
+            object.__setattr__(self, "light_bandwidth", checked("light_bandwidth", self.light_bandwidth, "float", "Camera"))
+            if not self.coded:
+                raise ValueError("Camera: light_bandwidth applies to cameras with light_code and sensor_code")
+            if self.light_bandwidth < self.modulation_frequency:
+                raise ValueError(f"Camera: light_bandwidth={self.light_bandwidth!r} Hz is below the modulation frequency {self.modulation_frequency!r} Hz: no modulation reaches the scene")
+            if self.light_bandwidth // self.modulation_frequency > _codes.MAX_HARMONICS:
+                raise ValueError(f"Camera: light_bandwidth={self.light_bandwidth!r} Hz passes more than {_codes.MAX_HARMONICS} harmonics; leave it None (unlimited)")
+
+    def _check_codes(self):
+        given = [n for n in ("light_code", "sensor_code") if getattr(self, n) is not None]
+        if not given:
+            return
+        if len(given) == 1:
+            raise ValueError(f"Camera: give both light_code and sensor_code, or neither (got only {given[0]})")
+        if self.waveform not in ("sinusoidal", CODE_WAVEFORM):  # "sinusoidal" is the default
+            raise ValueError(f"Camera: waveform={self.waveform!r} and light_code/sensor_code exclude each other")
+        for name in given:
+            object.__setattr__(self, name, _codes.as_code(getattr(self, name), name))
+        object.__setattr__(self, "waveform", CODE_WAVEFORM)
+
+    def as_dict(self) -> dict:
+        """The parameters of a :class:`Camera` (a :class:`~dopplertof.RawFrame`'s too),
+        JSON-friendly; ``Camera(**camera.as_dict())`` is the same camera."""
+        from dataclasses import fields
+
+        out = {f.name: getattr(self, f.name) for f in fields(Camera)}
+        for name in ("light_code", "sensor_code"):
+            if out[name] is not None:
+                out[name] = out[name].as_dict()
+        return out
+
+    @property
+    def coded(self) -> bool:
+        """Whether the modulation is given as codes (``light_code``, ``sensor_code``)."""
+        return self.light_code is not None
+
+    @property
+    def light_mean(self) -> float:
+        """ḡ, the light waveform's mean over a period (the trapezoid's pulse: 1; the
+        other named waveforms: 0)."""
+        if self.coded:
+            return self.light.mean
+        return 1.0 if self.waveform == "trapezoidal" else 0.0
+
+    @property
+    def sensor_mean(self) -> float:
+        """s̄, the demodulation's mean over a period (every named waveform: 0)."""
+        return self.sensor_code.mean if self.coded else 0.0
+
+    @cached_property
+    def light(self) -> _codes.Code:
+        """The light code as it leaves the source (``light_bandwidth`` applied)."""
+        if self.light_bandwidth is None:
+            return self.light_code
+        return _codes.band_limited(self.light_code, int(self.light_bandwidth // self.modulation_frequency))
+
+    @cached_property
+    def correlation(self) -> _codes.PeriodicFunction:
+        """C(Δ) of a coded camera's sensor and (band-limited) light codes."""
+        return _codes.correlation(self.sensor_code, self.light)
 
     @property
     def wavenumber(self) -> float:
@@ -320,8 +403,16 @@ def weight(camera: Camera, u, path_length_m):
     same type. See :func:`full_weight` for ``low_pass=False``.
     """
     if camera.low_pass:
-        return (0.5 * camera.g1) * lowpass_waveform(lowpass_phase(camera, u, path_length_m), camera.waveform)
+        return lowpass_weight(camera, lowpass_phase(camera, u, path_length_m))
     return full_weight(camera, u, path_length_m)
+
+
+def lowpass_weight(camera: Camera, phase):
+    """The low-pass weight at slow phase Δ = 2π h u + ψ + k L (rad): (g1/2)Λ(Δ), or
+    g1 C(Δ) + g0 s̄ for a coded camera (numpy or Dr.Jit Float64)."""
+    if camera.coded:
+        return camera.g1 * camera.correlation(phase) + camera.g0 * camera.sensor_mean
+    return (0.5 * camera.g1) * lowpass_waveform(phase, camera.waveform)
 
 
 def full_weight(camera: Camera, u, path_length_m):
@@ -333,6 +424,10 @@ def full_weight(camera: Camera, u, path_length_m):
     cycles = camera.modulation_frequency * camera.exposure * u
     floor = _ops(cycles)[0]
     carrier = TWO_PI * (cycles - floor(cycles))  # ω_g t mod 2π
+    if getattr(camera, "coded", False):
+        sensor = camera.sensor_code(carrier + TWO_PI * camera.heterodyne * u + camera.phase)
+        light = camera.light(carrier - camera.wavenumber * path_length_m)
+        return sensor * (camera.g1 * light + camera.g0)
     sensor = sensor_waveform(carrier + TWO_PI * camera.heterodyne * u + camera.phase, camera.waveform)
     light = light_waveform(carrier - camera.wavenumber * path_length_m, camera.waveform)
     return sensor * (camera.g1 * light + camera.g0)
@@ -381,12 +476,28 @@ class CameraBank:
             cam = OpaqueCamera(camera)
             k_key = camera.wavenumber
             cam.wavenumber = wavenumbers.setdefault(k_key, cam.wavenumber)
+            if camera.coded and not camera.low_pass:
+                cycles = cam.modulation_frequency * cam.exposure * u
+                carrier = TWO_PI * (cycles - dr.floor(cycles))  # ω_g t mod 2π, as full_weight
+                sensor = camera.sensor_code.periodic()
+                light = camera.light.periodic()
+                sensor_w = sensor.drjit(carrier + TWO_PI * cam.heterodyne * u + cam.phase, sensor.opaque())
+                self._terms.append(("code_full", cam, carrier, sensor_w, light, light.opaque()))
+                continue
             if not camera.low_pass:
                 self._terms.append(("full", cam, u))
                 continue
             time_phase = wrap_phase(TWO_PI * cam.heterodyne * u + cam.phase)
             amplitude = 0.5 * cam.g1
-            if camera.waveform == "sinusoidal":
+            if camera.coded:
+                corr = camera.correlation
+                offset = cam.g0 * camera.sensor_mean
+                if corr.harmonics is not None:  # e^{iΔ} = e^{i(2πhu + ψ)} e^{ikL}: the second shared
+                    sin_a, cos_a = dr.sincos(time_phase)
+                    self._terms.append(("code_harmonics", k_key, cam, corr, corr.opaque(), cos_a, sin_a, offset))
+                else:
+                    self._terms.append(("code_table", cam, corr, corr.opaque(), time_phase, offset))
+            elif camera.waveform == "sinusoidal":
                 sin_a, cos_a = dr.sincos(time_phase)
                 self._terms.append(("sin", k_key, cam.wavenumber, amplitude * cos_a, amplitude * sin_a))
             else:
@@ -398,15 +509,30 @@ class CameraBank:
         import mitsuba as mi
 
         trig = {}
+
+        def sincos_kl(k_key, k):
+            if k_key not in trig:
+                trig[k_key] = dr.sincos(k * path_length_m)
+            return trig[k_key]
+
         out = []
         for term in self._terms:
             kind = term[0]
             if kind == "sin":
                 _, k_key, k, c, s = term
-                if k_key not in trig:
-                    trig[k_key] = dr.sincos(k * path_length_m)
-                sin_kl, cos_kl = trig[k_key]
+                sin_kl, cos_kl = sincos_kl(k_key, k)
                 w = c * cos_kl - s * sin_kl
+            elif kind == "code_harmonics":
+                _, k_key, cam, corr, constants, cos_a, sin_a, offset = term
+                sin_kl, cos_kl = sincos_kl(k_key, cam.wavenumber)
+                z = (cos_a * cos_kl - sin_a * sin_kl, sin_a * cos_kl + cos_a * sin_kl)
+                w = cam.g1 * corr.drjit(None, constants, z) + offset
+            elif kind == "code_table":
+                _, cam, corr, constants, time_phase, offset = term
+                w = cam.g1 * corr.drjit(time_phase + cam.wavenumber * path_length_m, constants) + offset
+            elif kind == "code_full":
+                _, cam, carrier, sensor_w, light, constants = term
+                w = sensor_w * (cam.g1 * light.drjit(carrier - cam.wavenumber * path_length_m, constants) + cam.g0)
             elif kind == "lowpass":
                 _, cam, time_phase, amplitude = term
                 w = amplitude * lowpass_waveform(time_phase + cam.wavenumber * path_length_m, cam.waveform)

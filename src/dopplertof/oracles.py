@@ -115,7 +115,7 @@ def moving_plane_measurement_pixels(camera, speed_m_s, resolution, nodes_per_pix
     """Exact per-pixel values (resolution × resolution) of the moving plane's direct-light
     measurement with a box filter: Gauss-Legendre over each pixel and the exposure (see
     :func:`moving_plane_measurement_mean` for the parameters)."""
-    from .modulation import lowpass_waveform
+    from .modulation import lowpass_weight
 
     tau = math.tan(math.radians(PLANE_FOV_DEG) / 2)
     f, w = _gauss_legendre_01(resolution, nodes_per_pixel)  # nodes_per_pixel in each pixel
@@ -129,7 +129,7 @@ def moving_plane_measurement_pixels(camera, speed_m_s, resolution, nodes_per_pix
         s = (PLANE_DISTANCE_M + speed_m_s * (start_s + camera.exposure * uc)) / cos_axis[None]
         radiance = PLANE_REFLECTANCE / math.pi * PLANE_LIGHT_INTENSITY * cos_axis[None] / s**2
         phase = 2 * math.pi * camera.heterodyne * uc + camera.phase + camera.wavenumber * 2 * s
-        integrand = 0.5 * camera.g1 * lowpass_waveform(phase, camera.waveform) * radiance
+        integrand = lowpass_weight(camera, phase) * radiance
         field += w_t[chunk:chunk + 256] @ integrand
     n = nodes_per_pixel
     weights = (w * resolution).reshape(resolution, n)  # each pixel's nodes average to 1

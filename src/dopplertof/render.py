@@ -77,6 +77,7 @@ class RenderResult:
     spp: int  # paths per pixel done (less than asked where interrupted)
     interrupted: bool = False
     info: dict = field(default_factory=dict)  # render time (s), passes, executor, exposure windows [[start, T], ...] (s)
+    sensor: object = None  # the dopplertof.Sensor rendered (render(..., sensor=)); its frames' electrons are maps["raw"]
 
     def __getattr__(self, name):
         maps = self.__dict__.get("maps", {})
@@ -219,7 +220,7 @@ def _traced_locally(scene, settings, passes):
 
 def render(
     scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None, stop=None,
-    executor="local", address=None, workers=None, **overrides,
+    executor="local", address=None, workers=None, sensor=None, **overrides,
 ) -> RenderResult:  # fmt: skip
     """Render the intensity, ground truth and D-ToF measurements of a dynamic scene.
 
@@ -255,6 +256,10 @@ def render(
         the running Ray, else a new local one.
     workers : int, optional. With ``"ray"``: workers, each with the cluster's CPUs / workers
         Dr.Jit threads (default one per CPU; with a ``cuda_*`` variant, one per GPU).
+    sensor : :class:`dopplertof.Sensor`, optional. Render its raw frames (instead of
+        ``cameras``): the measurements are those of ``sensor.cameras()`` and the result's
+        ``raw`` (frames, taps, H, W) the noiseless electrons of every frame and tap
+        (:mod:`dopplertof.sensors.frames`); ``sensor.read_out(result, seed=)`` adds the noise.
 
     Returns
     -------
@@ -281,6 +286,14 @@ def render(
     progress = checked("progress", progress, "bool")
     if stop is not None and not callable(stop):
         raise TypeError(f"stop must be a callable returning True to stop, got {stop!r}")
+    if sensor is not None:
+        from .sensors import Sensor
+
+        if not isinstance(sensor, Sensor):
+            raise ValueError(f"sensor must be a dopplertof.Sensor, got {sensor!r}")
+        if cameras is not None or "cameras" in overrides:
+            raise ValueError("give cameras or sensor, not both (a sensor's raw frames are its cameras)")
+        cameras = sensor.cameras()
     if cameras is not None:
         overrides["cameras"] = cameras
     if isinstance(settings, RenderSettings):
@@ -356,5 +369,7 @@ def render(
             "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows]}  # fmt: skip
     finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
     maps = _merge_windows(finished, windows, len(settings.cameras), (height, width))
-    return RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info)
+    if sensor is not None:
+        maps["raw"] = sensor.raw(maps["measurements"])
+    return RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info, sensor=sensor)
 

@@ -218,6 +218,8 @@ def read_render_folder(folder: str):
         raise ValueError(f"{metadata_path}: cannot read its cameras ({exc})") from None
     except ValueError as exc:
         raise ValueError(f"{metadata_path}: {exc}") from None
+    if isinstance(metadata.get("sensor"), dict) and "frame_cameras" in metadata["sensor"]:
+        cameras = cameras[: metadata["sensor"]["frame_cameras"]]  # the rest measure a sensor's mean light
     if not cameras:
         raise ValueError(f"{folder}: the render has no D-ToF camera; render with e.g. --camera h=0,psi=0 --camera h=1,psi=0")
     images = [io.read_exr(_measurement_file(folder, i)) for i in range(len(cameras))]
@@ -231,7 +233,7 @@ def read_render_folder(folder: str):
     stderr_paths = [_measurement_file(folder, i)[: -len(".exr")] + "_stderr.exr" for i in range(len(cameras))]
     stderr = np.stack([io.read_exr(p) for p in stderr_paths]) if all(os.path.isfile(p) for p in stderr_paths) else None
     covariance_path = os.path.join(folder, "measurement_covariance.npy")
-    covariance = io.read_npy(covariance_path) if os.path.isfile(covariance_path) else None
+    covariance = io.read_npy(covariance_path)[: len(cameras), : len(cameras)] if os.path.isfile(covariance_path) else None
     return cameras, np.stack(images), truth, stderr, covariance
 
 

@@ -1,5 +1,9 @@
 """Physically based noise for D-ToF measurements, applied to the raw taps (pure numpy).
 
+The post-process model of a rendered measurement with a fixed 2-tap layout; a sensor with
+its own raw frames, taps and silicon is :mod:`dopplertof.sensors`, whose noise chain
+(:func:`dopplertof.sensors.noise.digitize`) this model's taps go through too.
+
 A differential 2-tap pixel steers the photo-electrons generated during the exposure into
 tap A with weight (1 + s(t))/2 and into tap B with weight (1 − s(t))/2, s being the
 sensor modulation. With κ = ``electrons_per_unit × quantum_efficiency`` photo-electrons per
@@ -59,10 +63,11 @@ from typing import Sequence
 
 import numpy as np
 
+from .sensors.noise import MAX_ADC_BITS as _MAX_ADC_BITS
+from .sensors.noise import digitize
+
 LUMINANCE_WEIGHTS_REC709 = (0.2126, 0.7152, 0.0722)
 """Rec. 709 / sRGB weights of R, G, B in the luminance, as used by the original scripts."""
-
-_MAX_ADC_BITS = 32
 
 
 def luminance(rgb) -> np.ndarray:
@@ -196,17 +201,10 @@ class SensorModel:
         return np.maximum(tap_a, 0.0), np.maximum(tap_b, 0.0)
 
     def _tap_to_dn(self, expected_e: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        if self.shot_noise:
-            # Above a few full wells the draw saturates anyway; the cap keeps Poisson finite.
-            cap = 4.0 * self.full_well_e + 1e3
-            electrons = rng.poisson(np.minimum(expected_e, cap)).astype(np.float64)
-        else:
-            electrons = expected_e.copy()
-        electrons = np.minimum(electrons, self.full_well_e)
-        if self.read_noise_e > 0:
-            electrons = electrons + rng.normal(0.0, self.read_noise_e, size=electrons.shape)
-        dn = np.rint(electrons / self.gain_e_per_dn + self.black_level_dn)
-        return np.clip(dn, 0, self.max_dn).astype(np.int64)
+        return digitize(
+            expected_e, rng, full_well_e=self.full_well_e, read_noise_e=self.read_noise_e, gain_e_per_dn=self.gain_e_per_dn,
+            black_level_dn=self.black_level_dn, max_dn=self.max_dn, shot_noise=self.shot_noise,
+        )  # fmt: skip
 
     def sample_taps(self, intensity, measurement, camera, rng=None):
         """Noisy, saturated, quantised tap values.

@@ -118,7 +118,7 @@ class RenderSettings:
     def as_dict(self) -> dict:
         """JSON-friendly values (cameras as dicts)."""
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-        out["cameras"] = [dataclasses.asdict(c) for c in self.cameras]
+        out["cameras"] = [c.as_dict() for c in self.cameras]
         return out
 
     # ------------------------------------------------------------------------------ derived

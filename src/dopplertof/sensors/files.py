@@ -1,0 +1,143 @@
+"""Sensors from the command line and files: a preset name or a TOML description, and the
+record of a sensor that ``metadata.json`` keeps.
+
+A sensor file (TOML)::
+
+    preset = "mlx75027"        # optional: the chip's silicon, taps and limits
+    taps = 2                   # without a preset: 1, 2 or 4 (default 2)
+
+    [silicon]                  # Silicon parameters (changes to the preset's)
+    radiance_unit = 1e-3
+    wavelength_m = 940e-9
+
+    [[frames]]                 # RawFrame parameters, SI units, phase in radians
+    modulation_frequency = 100e6
+    phase = 1.5707963267948966
+    exposure = 300e-6
+    waveform = "rectangular"
+
+    [[frames]]
+    modulation_frequency = 30e6
+    heterodyne_hz = 666.67
+    exposure = 1.5e-3
+    light_code = [1, 1, 1, 1, 0, 0, 0, 0]                 # one period of samples, or
+    sensor_code = { table = "codes.npz", row = 3 }       # a row of a code table (.npy/.npz,
+                                                         # relative to this file)
+
+Without ``[[frames]]`` a preset keeps its default schedule. Unknown keys are an error
+naming them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import os
+
+from ..codes import load_codes
+from .frames import TAP_LAYOUTS, RawFrame, Sensor
+from .noise import Silicon
+from .presets import PRESETS, preset
+
+_FILE_KEYS = ("preset", "taps", "silicon", "frames")
+_FRAME_KEYS = tuple(f.name for f in dataclasses.fields(RawFrame))
+_SILICON_KEYS = tuple(f.name for f in dataclasses.fields(Silicon))
+
+
+def load_sensor(spec: str) -> Sensor:
+    """A sensor from a preset name (:data:`~dopplertof.sensors.PRESETS`) or a ``.toml`` file.
+
+    Raises
+    ------
+    ValueError
+        Naming the file and key, for anything the file or name does not describe.
+    FileNotFoundError
+        If the file does not exist.
+    """
+    if spec in PRESETS:
+        return preset(spec)
+    if not spec.endswith(".toml"):
+        raise ValueError(f"--sensor {spec!r}: neither a preset ({', '.join(PRESETS)}) nor a .toml file")
+    import tomllib
+
+    with open(spec, "rb") as f:
+        try:
+            data = tomllib.load(f)
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"{spec}: not valid TOML ({exc})") from None
+    try:
+        return _from_dict(data, os.path.dirname(os.path.abspath(spec)))
+    except ValueError as exc:
+        raise ValueError(f"{spec}: {exc}") from None
+
+
+def _unknown(keys, known, where):
+    for key in keys:
+        if key not in known:
+            close = difflib.get_close_matches(key, known, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else f"; known: {', '.join(known)}"
+            raise ValueError(f"{where}unknown key {key!r}{hint}")
+
+
+def _from_dict(data: dict, folder: str) -> Sensor:
+    _unknown(data, _FILE_KEYS, "")
+    silicon = data.get("silicon", {})
+    if not isinstance(silicon, dict):
+        raise ValueError(f"[silicon] must be a table of Silicon parameters, got {silicon!r}")
+    _unknown(silicon, _SILICON_KEYS, "[silicon]: ")
+    frames_data = data.get("frames")
+    if frames_data is not None and (not isinstance(frames_data, list) or not all(isinstance(f, dict) for f in frames_data)):
+        raise ValueError("frames must be [[frames]] tables")
+    frames = None if frames_data is None else [_frame(f, k, folder) for k, f in enumerate(frames_data)]
+    if "preset" in data:
+        if "taps" in data:
+            raise ValueError(f"'taps' is the preset's ({data['preset']!r}); remove it")
+        if not isinstance(data["preset"], str) or data["preset"] not in PRESETS:
+            raise ValueError(f"unknown sensor preset {data['preset']!r}; choose one of {', '.join(PRESETS)}")
+        return preset(data["preset"], frames, **silicon)
+    if frames is None:
+        raise ValueError("a sensor without a preset needs [[frames]]")
+    taps = data.get("taps", 2)
+    if taps not in TAP_LAYOUTS or isinstance(taps, bool):
+        raise ValueError(f"'taps' must be one of {', '.join(map(str, TAP_LAYOUTS))}, got {taps!r}")
+    return Sensor(frames=frames, taps=taps, noise=Silicon(**silicon))
+
+
+def _frame(data: dict, index: int, folder: str) -> RawFrame:
+    where = f"frame {index}: "
+    _unknown(data, _FRAME_KEYS, where)
+    kwargs = dict(data)
+    for name in ("light_code", "sensor_code"):
+        value = kwargs.get(name)
+        if isinstance(value, dict) and set(value) == {"table", "row"}:
+            table = load_codes(os.path.join(folder, str(value["table"])))
+            row = value["row"]
+            if isinstance(row, bool) or not isinstance(row, int) or not 0 <= row < len(table):
+                raise ValueError(f"{where}{name}: row {row!r} not in the {len(table)} rows of {value['table']!r}")
+            kwargs[name] = table[row]
+    try:
+        return RawFrame(**kwargs)
+    except ValueError as exc:
+        raise ValueError(f"{where}{exc}") from None
+
+
+def sensor_record(sensor: Sensor, scheduled=None) -> dict:
+    """What ``metadata.json`` keeps of a sensor: its name, taps, silicon, limits and the
+    schedule of its raw frames (each frame's parameters, heterodyne offset in Hz).
+
+    ``scheduled``: the frames as rendered (a result's first ``len(sensor.frames)``
+    cameras, whose ``exposure_start`` is filled in); default the sensor's own.
+    """
+    silicon = dataclasses.asdict(sensor.noise)
+    frames = [{**f.as_dict(), "heterodyne_hz": f.heterodyne / f.exposure} for f in (scheduled or sensor.frames)]
+    return {
+        "name": sensor.name,
+        "taps": sensor.taps,
+        "silicon": silicon,
+        "electrons_per_unit_s": sensor.noise.electrons_per_unit_s,
+        "limits": None if sensor.limits is None else sensor.limits.name,
+        "frames": frames,
+        "cameras": "the render's cameras are the frames, then (4 taps) each frame advanced by 90, 180 and 270 deg, then one camera per exposure window measuring its mean luminance (weight 1)",
+        "frame_cameras": sensor.frame_cameras,
+        "raw_shape": "(frames, taps, H, W)",
+    }
