@@ -83,7 +83,7 @@ class Camera:
     heterodyne : float. h, beat cycles per exposure (0 homodyne, 1 "perfect" heterodyne).
     phase : float, rad. Sensor phase offset ψ.
     waveform : str. One of ``sinusoidal``, ``rectangular``, ``triangular``, ``trapezoidal``.
-    g1, g0 : float. Light modulation amplitude (> 0) and DC offset (>= 0; g0 enters
+    g1, g0 : float. Light modulation amplitude (> 0; >= 0 with codes) and DC offset (>= 0; g0 enters
         full-waveform only, and, for codes, the low-pass weight as g0 s̄).
     low_pass : bool. Low-pass (correlation) model if True, else the full waveform product.
     light_code, sensor_code : array_like or :class:`dopplertof.codes.Code`, optional.
@@ -133,8 +133,11 @@ class Camera:
                 "the unit is Hz (30 MHz is 30e6)", stacklevel=3,
             )  # fmt: skip
         checked_exposure("exposure", self.exposure, "Camera")
-        if self.g1 <= 0:
-            raise ValueError(f"Camera: 'g1' (light modulation amplitude) must be > 0, got {self.g1!r}")
+        # A coded camera's light may be pure DC (g1 = 0, the code's mean through g0): the
+        # sensor model's mean-light frames are such cameras.
+        if self.g1 < 0 or (self.g1 == 0 and not self.coded):
+            bound = ">= 0 with codes" if self.coded else "> 0"
+            raise ValueError(f"Camera: 'g1' (light modulation amplitude) must be {bound}, got {self.g1!r}")
         if self.g0 < 0:
             raise ValueError(f"Camera: 'g0' (light DC offset) must be >= 0, got {self.g0!r}")
         if self.waveform not in WAVEFORMS and not (self.waveform == CODE_WAVEFORM and self.coded):
