@@ -85,25 +85,21 @@ def test_heterodyne_over_homodyne_is_exact(f):
 
 
 @pytest.mark.parametrize("f", FREQUENCIES)
-@pytest.mark.parametrize("phases", [[0.0], [0.0, 0.5 * np.pi]])
+@pytest.mark.parametrize("phases", [[0.0, 0.5 * np.pi], [0.0, 0.5 * np.pi, np.pi, 1.5 * np.pi]])
 def test_ratio_recovers_velocity(f, phases):
     amp, dist = scene(VELOCITIES.size, seed=1)
     cams = ratio_set(f, phases)
     m = rc.model_measurements(amp, dist, VELOCITIES, cams)
-    # single phase: keep away from cos θ ≈ 0, which is masked (tested below)
     res = rc.velocity(m, cams)
     assert res.method == "ratio"
     assert res.valid.all()
     np.testing.assert_allclose(res.velocity, VELOCITIES, rtol=1e-6)
-    # the original code's formula, v = c r / (2 f_g T (1 − r)), on the fused ratio
+    # the original code's formula, v = c r / (2 f_g T (1 − r)), on each pair's ratio
     r = m[1] / m[0]
     np.testing.assert_allclose(res.velocity, C * r / (2 * f * T * (1 - r)), rtol=1e-6)
     np.testing.assert_allclose(res.doppler_hz, 2 * f * VELOCITIES / C, rtol=1e-6)
-    if len(phases) == 2:
-        assert np.all(depth_error(res.depth, dist, f) < 1e-9)
-        np.testing.assert_allclose(res.amplitude, amp, rtol=1e-6)
-    else:
-        assert np.isnan(res.depth).all()
+    assert np.all(depth_error(res.depth, dist, f) < 1e-9)
+    np.testing.assert_allclose(res.amplitude, amp, rtol=1e-6)
 
 
 def test_ratio_per_phase_maps():
@@ -191,7 +187,7 @@ def test_ratio_fusion_ignores_a_linear_brightness_change():
     assert np.median(np.abs(v_old / VELOCITIES - 1)) > 0.1
 
 
-def test_ratio_masks_ill_conditioned_pixels():
+def test_ratio_per_phase_masks_ill_conditioned_pixels():
     f = 30e6
     k = 2 * np.pi * f / C
     cams = ratio_set(f, [0.0])
@@ -202,11 +198,11 @@ def test_ratio_masks_ill_conditioned_pixels():
     dist = np.array([1.0, 1.0, d_quadrature, 1.0])
     m = rc.model_measurements(amp, dist, v, cams)
     m[:, 3] = [1.0, 1.5]  # r = 1.5 ≥ 1: no physical solution
-    res = rc.velocity(m, cams)
-    assert res.valid.tolist() == [True, False, False, False]
-    assert np.isnan(res.velocity[1:]).all()
-    assert np.isnan(res.doppler_hz[1:]).all()
-    assert res.velocity[0] == pytest.approx(5.0, rel=1e-6)
+    res = rc.ratio_velocity_per_phase(m, cams)
+    assert res.valid[0].tolist() == [True, False, False, False]
+    assert np.isnan(res.velocity[0, 1:]).all()
+    assert np.isnan(res.doppler_hz[0, 1:]).all()
+    assert res.velocity[0, 0] == pytest.approx(5.0, rel=1e-6)
     # without the mask the quadrature pixel's "velocity" is far from the truth
     assert abs(C * (m[1, 2] / m[0, 2]) / (2 * f * T * (1 - m[1, 2] / m[0, 2])) - 5.0) > 1.0
 
@@ -248,19 +244,19 @@ def test_non_finite_input_is_masked():
 
 
 def test_explicit_min_amplitude():
-    cams = ratio_set(30e6, [0.0])
+    cams = ratio_set(30e6, [0.0, 0.5 * np.pi])
     m = rc.model_measurements(np.array([1.0, 0.1]), 1.0, 2.0, cams)
     assert rc.velocity(m, cams).valid.all()
-    only_bright = rc.velocity(m, cams, min_amplitude=0.5 * abs(m[0]).max())
+    only_bright = rc.velocity(m, cams, min_amplitude=0.5 * abs(m[[0, 2]]).max())
     assert only_bright.valid.tolist() == [True, False]
 
 
 def test_ratio_accepts_other_waveforms():
     """Documented as approximate; it must run and follow the sign of the motion."""
-    cams = ratio_set(30e6, [0.0])
+    cams = ratio_set(30e6, [0.0, 0.5 * np.pi])
     for c in cams:
         c.waveform = "rectangular"
-    m = np.array([[1.0, 1.0], [0.01, -0.01]])
+    m = np.array([[1.0, 1.0], [0.01, -0.01], [0.5, 0.5], [0.005, -0.005]])
     res = rc.velocity(m, cams)
     assert res.valid.all() and res.velocity[0] > 0 > res.velocity[1]
 
@@ -283,9 +279,8 @@ def test_fit_recovers_velocity_and_depth(f, kind):
     np.testing.assert_allclose(res.amplitude, amp, rtol=1e-6)
 
 
-def test_fit_on_a_single_pair_matches_ratio():
-    """Two measurements at one ψ: the linear part is rank 1, the fit still finds a."""
-    cams = ratio_set(150e6, [0.3])
+def test_fit_matches_ratio_on_quadrature_pairs():
+    cams = ratio_set(150e6, [0.3, 0.3 + 0.5 * np.pi])
     amp, dist = scene(VELOCITIES.size, seed=7)
     m = rc.model_measurements(amp, dist, VELOCITIES, cams)
     fit = rc.velocity(m, cams, method="fit")
@@ -293,14 +288,17 @@ def test_fit_on_a_single_pair_matches_ratio():
     assert fit.valid.all()
     np.testing.assert_allclose(fit.velocity, ratio.velocity, rtol=1e-6)
     np.testing.assert_allclose(fit.velocity, VELOCITIES, rtol=1e-6)
-    assert np.isnan(fit.depth).all()
 
 
 def test_fit_auto_selects_fit_for_hu_set():
     cams = hu_set(30e6)
     m = rc.model_measurements(np.ones(2), np.array([1.0, 2.0]), np.array([1.0, -1.0]), cams)
     assert rc.velocity(m, cams).method == "fit"
-    assert rc.velocity(m, ratio_set(30e6, [0.0, 1.0])[:4]).method == "ratio"
+    assert rc.velocity(m, ratio_set(30e6, [0.0, 0.5 * np.pi])).method == "ratio"
+    # pairs whose phases do not balance (Σ e^{2iψ} ≠ 0) cannot cancel a brightness change
+    assert rc.velocity(m, ratio_set(30e6, [0.0, 1.0])).method == "fit"
+    with pytest.raises(ValueError, match="must balance"):
+        rc.velocity(m, ratio_set(30e6, [0.0, 1.0]), method="ratio")
 
 
 def test_fit_large_doppler_and_arbitrary_set():
@@ -426,17 +424,18 @@ def test_fit_rejects_non_sinusoid():
 
 
 def test_ratio_rejects_unpaired_cameras():
-    cams = ratio_set(30e6, [0.0]) + [Cam(heterodyne=0.0, phase=1.0)]
+    cams = ratio_set(30e6, [0.0, 0.5 * np.pi]) + [Cam(heterodyne=0.0, phase=1.0)]
     with pytest.raises(ValueError, match="pair"):
-        rc.velocity(np.ones((3, 2)), cams, method="ratio")
-    mismatched = [Cam(heterodyne=0.0, phase=0.0), Cam(heterodyne=1.0, phase=0.5)]
+        rc.velocity(np.ones((5, 2)), cams, method="ratio")
+    mismatched = ratio_set(30e6, [0.0, 0.5 * np.pi])
+    mismatched[1].phase = 0.5
     with pytest.raises(ValueError, match="pair"):
-        rc.velocity(np.ones((2, 2)), mismatched, method="ratio")
+        rc.velocity(np.ones((4, 2)), mismatched, method="ratio")
 
 
 def test_underdetermined_fit_raises():
     cams = cams_from(30e6, [(0.0, 0.0), (1.0, 0.5 * np.pi)])
-    with pytest.raises(ValueError, match="at least 3 measurements"):
+    with pytest.raises(ValueError, match="cannot determine velocity"):
         rc.velocity(np.ones((2, 2)), cams)
 
 
@@ -457,3 +456,65 @@ def test_bad_arguments_raise():
         rc.depth(np.ones((2, 2)), cams)  # one homodyne/heterodyne pair: a single phase
     with pytest.raises(ValueError, match="sinusoid"):
         rc.model_measurements(1.0, 1.0, 1.0, [Cam(waveform="rectangular")])
+
+
+# ------------------------------------------------------------------ brightness change
+
+
+def test_three_camera_set_is_refused_with_what_to_add():
+    """h=0 at one phase and h=1 at two: three measurements for four unknowns (amplitude,
+    depth phase, Doppler shift, brightness change), so a brightening surface reads as a
+    Doppler shift. The refusal names the camera that completes the set."""
+    cams = cams_from(30e6, [(0.0, 0.0), (1.0, 0.0), (1.0, 0.5 * np.pi)])
+    m = rc.model_measurements(np.ones(2), 1.0, -10.0, cams)
+    for method in ("auto", "fit"):
+        with pytest.raises(ValueError, match=r"cannot determine velocity.*brightness.*add h=0,psi=90deg$"):
+            rc.velocity(m, cams, method=method)
+    single_pair = cams_from(30e6, [(0.0, 0.0), (1.0, 0.0)])
+    for method in ("auto", "ratio", "fit"):
+        with pytest.raises(ValueError, match=r"add h=0,psi=90deg and h=1,psi=90deg$"):
+            rc.velocity(m[:2], single_pair, method=method)
+    completed = cams + cams_from(30e6, [(0.0, 0.5 * np.pi)])
+    assert rc.velocity(rc.model_measurements(np.ones(2), 1.0, -10.0, completed), completed).valid.all()
+
+
+def test_three_cameras_cannot_tell_brightening_from_doppler():
+    """Why the set above is refused: two different velocities give the same three
+    measurements once the brightness may change (here found by the four-parameter model
+    itself: the fourth camera, h=0 at 90°, is what tells them apart)."""
+    f = 30e6
+    cams = cams_from(f, [(0.0, 0.0), (1.0, 0.0), (1.0, 0.5 * np.pi), (0.0, 0.5 * np.pi)])
+    truth = rc.model_measurements(1.0, 1.1, -10.0, cams, brightness=0.0)
+    # Another scene: receding at +10 m/s. Its amplitude, depth and brightness slope are chosen
+    # so that the first three measurements agree (three equations, three unknowns).
+    def mismatch(p):
+        return rc.model_measurements(p[0], p[1], 10.0, cams, brightness=p[2])[:3] - truth[:3]
+
+    p = np.array([1.0, 1.1, 0.0])
+    for _ in range(20):  # Newton's method, Jacobian by central differences
+        jac = np.stack([(mismatch(p + e) - mismatch(p - e)) / 2e-7 for e in 1e-7 * np.eye(3)], axis=1)
+        p = p - np.linalg.solve(jac, mismatch(p))
+    assert np.max(np.abs(mismatch(p))) < 1e-13  # the three cameras cannot tell them apart
+    assert abs(p[2]) < 0.5  # with a plausible brightening
+    fourth = rc.model_measurements(p[0], p[1], 10.0, cams, brightness=p[2])[3]
+    assert abs(fourth - truth[3]) > 1e-3 * abs(truth[0])  # h=0 at 90° can
+
+
+@pytest.mark.parametrize("kind", ["pairs 0/60deg", "hu", "five"])
+def test_fit_separates_brightness_change_from_doppler(kind):
+    """A diffuse surface lit from the camera brightens as 1/d²: β = −2 v T/d. Sets whose
+    phases do not balance (so the ratio would be biased) are fitted with β as an unknown and
+    recover the velocity and depth exactly."""
+    f = 30e6
+    cams = {
+        "pairs 0/60deg": ratio_set(f, [0.0, np.pi / 3]),
+        "hu": hu_set(f),
+        "five": cams_from(f, [(0.0, 0.0), (0.0, 2.0), (1.0, 0.3), (1.0, 2.0), (0.5, 1.0)]),
+    }[kind]
+    amp, dist = scene(VELOCITIES.size, seed=11, max_depth=4.9)
+    beta = -2.0 * VELOCITIES * T / dist
+    m = rc.model_measurements(amp, dist, VELOCITIES, cams, brightness=beta)
+    res = rc.velocity(m, cams)
+    assert res.method == "fit" and res.valid.all()
+    np.testing.assert_allclose(res.velocity, VELOCITIES, rtol=1e-6)
+    assert np.all(depth_error(res.depth, dist, f) < 1e-8)

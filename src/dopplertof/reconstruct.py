@@ -101,6 +101,8 @@ range, velocity not identifiable at that pixel) have ``valid == False`` and NaN 
 
 from __future__ import annotations
 
+import dataclasses
+import itertools
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -119,6 +121,9 @@ _MAX_GAUSS_NEWTON_ITERATIONS = 60
 _MAX_STEP_HALVINGS = 30
 _RANK_RTOL = 1e-10  # det(G) / trace(G)^2 below this: the 2x2 normal equations are rank 1
 _MIN_SENSITIVITY = 1e-7  # |∂m/∂a ⊥| / (|Z| |g1/2|) below this: a is not identifiable
+_PROBE_DOPPLER_PHASE = 0.123  # rad: a generic a at which a camera set's ranks are judged
+_MAX_BRIGHTNESS_STEP = 0.5  # largest change of β in one Gauss-Newton step
+_BALANCE_TOLERANCE = 1e-6  # |Σ e^{2iψ}| / n_pairs below this: the ratio's pairs are balanced
 
 
 @dataclass
@@ -234,75 +239,103 @@ def _beat_kernel_derivative(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.where(small, real_series, real_direct), np.where(small, imag_series, imag_direct)
 
 
-def _design_columns(
-    doppler_phase: np.ndarray, cams: _CameraSet, derivative: bool = False
-) -> tuple[np.ndarray, np.ndarray]:
-    """Columns of the linear model m = c1 Re Z + c2 Im Z for given Doppler phases a.
+def _ramp_kernel(x: np.ndarray) -> np.ndarray:
+    """G(x) = ∫_0^1 (s − ½) e^{ixs} ds: the response to a radiance ramp (complex).
+
+    G = (e^{ix} − F(x))/(ix) − F(x)/2, with its Taylor series near 0, where that cancels
+    (G(x) = Σ_n (ix)^n/n! · n/(2(n+1)(n+2))).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    small = np.abs(x) < 1e-2
+    xs = np.where(small, 1.0, x)  # placeholder avoids 0/0 in the branch not taken
+    f_re, f_im = _beat_kernel(xs)
+    f = f_re + 1j * f_im
+    direct = (np.exp(1j * xs) - f) / (1j * xs) - 0.5 * f
+    ix = 1j * x
+    series = ix / 12.0 + ix**2 / 24.0 + ix**3 / 80.0 + ix**4 / 360.0 + ix**5 / 2016.0
+    return np.where(small, series, direct)
+
+
+def _kernel(doppler_phase: np.ndarray, cams: _CameraSet, brightness=0.0, wrt: str | None = None) -> np.ndarray:
+    """K_i = e^{i(ψ_i + a δ_i)} [(1 + β δ_i) F(x_i) + β G(x_i)], x_i = 2π h_i + a, shape
+    (n_cameras, N): camera i measures (g1_i/2) Re{Z K_i} (module docstring, brightness).
 
     Parameters
     ----------
     doppler_phase : ndarray, shape (N,)
         a = k u T (rad) per pixel.
-    derivative : bool
-        Return ∂c1/∂a and ∂c2/∂a instead.
-
-    Returns
-    -------
-    c1, c2 : ndarray, shape (n_cameras, N)
+    brightness : float or ndarray, shape (N,)
+        β, the relative change of radiance over one exposure (dimensionless).
+    wrt : {None, "a", "beta"}
+        Return ∂K/∂a or ∂K/∂β instead.
     """
-    x = 2.0 * np.pi * cams.heterodyne[:, None] + doppler_phase[None, :]
+    a = np.asarray(doppler_phase, dtype=np.float64)[None, :]
+    beta = np.broadcast_to(np.asarray(brightness, dtype=np.float64), a.shape[1:])[None, :]
+    x = 2.0 * np.pi * cams.heterodyne[:, None] + a
     delta = cams.window_offset[:, None]
     f_re, f_im = _beat_kernel(x)
-    if derivative:  # d/da [e^{i a δ} F(x)] = e^{i a δ} (F'(x) + i δ F(x))
-        d_re, d_im = _beat_kernel_derivative(x)
-        f_re, f_im = d_re - delta * f_im, d_im + delta * f_re
-    phi = cams.phase_rad[:, None] + delta * doppler_phase[None, :]  # ψ + a δ (module docstring)
-    cos_psi, sin_psi = np.cos(phi), np.sin(phi)
-    # Re{(X + iY) e^{iφ} (f_re + i f_im)} = X p − Y q
-    p = cos_psi * f_re - sin_psi * f_im
-    q = sin_psi * f_re + cos_psi * f_im
+    f = f_re + 1j * f_im
+    g = _ramp_kernel(x)
+    rotation = np.exp(1j * (cams.phase_rad[:, None] + delta * a))
+    if wrt == "beta":
+        return rotation * (delta * f + g)
+    inner = (1.0 + beta * delta) * f + beta * g
+    if wrt is None:
+        return rotation * inner
+    d_re, d_im = _beat_kernel_derivative(x)
+    step = 1e-5  # G' by central differences: ample for Gauss-Newton steps, which only need a descent direction
+    g_prime = (_ramp_kernel(x + step) - _ramp_kernel(x - step)) / (2.0 * step)
+    return rotation * ((1.0 + beta * delta) * (d_re + 1j * d_im) + beta * g_prime + 1j * delta * inner)
+
+
+def _design_columns(doppler_phase: np.ndarray, cams: _CameraSet, brightness=0.0, wrt: str | None = None):
+    """Columns of the linear model m = c1 Re Z + c2 Im Z for given a and β (or their
+    derivatives, ``wrt``), each of shape (n_cameras, N)."""
+    k = _kernel(doppler_phase, cams, brightness, wrt)
     s = cams.half_g1[:, None]
-    return s * p, -s * q
+    return s * k.real, -s * k.imag
 
 
-def _exposure_average(amplitude, depth_m, velocity_m_s, cams: _CameraSet) -> np.ndarray:
+def _exposure_average(amplitude, depth_m, velocity_m_s, brightness, cams: _CameraSet) -> np.ndarray:
     """Closed-form measurements (n_cameras, *shape) for the co-located sinusoid model."""
-    k = cams.wavenumber
-    path_rate = 2.0 * velocity_m_s
-    doppler_phase = k * path_rate * cams.exposure_s
+    shape = amplitude.shape
+    path_rate = 2.0 * velocity_m_s.ravel()
+    doppler_phase = cams.wavenumber * path_rate * cams.exposure_s
     # depth is at mid-exposure; the model is parametrised at t = 0
-    path_start_m = 2.0 * depth_m - 0.5 * path_rate * cams.exposure_s
-    expand = (slice(None),) + (None,) * np.ndim(amplitude)
-    x = 2.0 * np.pi * cams.heterodyne[expand] + doppler_phase
-    theta = cams.phase_rad[expand] + k * path_start_m + doppler_phase * cams.window_offset[expand]
-    f_re, f_im = _beat_kernel(x)
-    return cams.half_g1[expand] * amplitude * (np.cos(theta) * f_re - np.sin(theta) * f_im)
+    path_start_m = 2.0 * depth_m.ravel() - 0.5 * path_rate * cams.exposure_s
+    z = amplitude.ravel() * np.exp(1j * cams.wavenumber * path_start_m)
+    kernel = _kernel(doppler_phase, cams, brightness.ravel())
+    return (cams.half_g1[:, None] * (z[None, :] * kernel).real).reshape((len(cams),) + shape)
 
 
-def model_measurements(amplitude, depth_m, velocity_m_s, cameras: Sequence) -> np.ndarray:
+def model_measurements(amplitude, depth_m, velocity_m_s, cameras: Sequence, brightness=0.0) -> np.ndarray:
     """Forward model: exposure-averaged low-pass sinusoid of one path per pixel.
 
     The light is co-located with the camera (optical path L = 2 × distance, dL/dt =
-    2 × radial velocity), the radiance is constant and the velocity is constant during the
-    exposure (over every camera's window: module docstring, capture schedules). The
-    inverse of :func:`velocity` and :func:`depth`.
+    2 × radial velocity), the velocity is constant and the radiance changes linearly
+    over the exposure (over every camera's window: module docstring). The inverse of
+    :func:`velocity` and :func:`depth`.
 
     Parameters
     ----------
     amplitude : array_like, shape (...)
-        Radiance A of the path (units of the standard intensity image).
+        Radiance A of the path at mid-exposure (units of the standard intensity image).
     depth_m : array_like, broadcastable to ``amplitude``
         Distance (m) at mid-exposure, t = T/2 (of the first camera's window).
     velocity_m_s : array_like, broadcastable to ``amplitude``
         Radial velocity (m/s), positive when the distance grows.
     cameras : sequence of camera configurations
         Sinusoidal waveform only; see the module docstring for the attributes.
+    brightness : array_like, broadcastable to ``amplitude``, default 0
+        β: the radiance is A (1 + β (t/T − ½)), t from the first window's opening
+        (dimensionless; −2 v T/d for a diffuse surface lit from the camera).
 
     Returns
     -------
     ndarray, shape (n_cameras, ...)
-        m_i = (g1_i A/2) [sin(θ_i + 2π h_i + a) − sin θ_i]/(2π h_i + a), with
-        θ_i = ψ_i + k L(0) + a δ_i, a = 2 k v T, δ_i the camera's window offset.
+        m_i = (g1_i/2) Re{A e^{i k L(0)} K_i}, K_i = e^{i(ψ_i + a δ_i)} [(1 + β δ_i) F(x_i)
+        + β G(x_i)], x_i = 2π h_i + a, a = 2 k v T, δ_i the camera's window offset; at
+        β = 0: (g1_i A/2) [sin(θ_i + 2π h_i + a) − sin θ_i]/(2π h_i + a), θ_i = ψ_i + k L(0) + a δ_i.
 
     Raises
     ------
@@ -311,12 +344,8 @@ def model_measurements(amplitude, depth_m, velocity_m_s, cameras: Sequence) -> n
     """
     cams = _camera_set(cameras)
     _require_sinusoid(cams, "model_measurements uses the closed form of the sinusoid")
-    amplitude, depth_m, velocity_m_s = np.broadcast_arrays(
-        np.asarray(amplitude, dtype=np.float64),
-        np.asarray(depth_m, dtype=np.float64),
-        np.asarray(velocity_m_s, dtype=np.float64),
-    )
-    return _exposure_average(amplitude, depth_m, velocity_m_s, cams)
+    arrays = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (amplitude, depth_m, velocity_m_s, brightness)))
+    return _exposure_average(*arrays, cams)
 
 
 # ---------------------------------------------------------------- input checking
@@ -458,24 +487,85 @@ def _ratio_pairs(cams: _CameraSet) -> list[tuple[int, int]] | None:
     return pairs
 
 
+def _probe_jacobian(cams: _CameraSet) -> np.ndarray:
+    """∂m/∂(Re Z, Im Z, β, a), shape (n_cameras, 4), at a generic point (a = 0.123 rad,
+    β = 0, arg Z = 0.7 rad), each column scaled to unit norm: its ranks decide what a
+    camera set can determine whatever the data."""
+    a, z = np.array([_PROBE_DOPPLER_PHASE]), np.exp(0.7j)
+    c1, c2 = _design_columns(a, cams)
+    columns = [c1[:, 0], c2[:, 0]]
+    for wrt in ("beta", "a"):
+        columns.append(cams.half_g1 * (z * _kernel(a, cams, 0.0, wrt)[:, 0]).real)
+    jac = np.stack(columns, axis=1)
+    norms = np.linalg.norm(jac, axis=0)
+    return jac / np.where(norms > 0, norms, 1.0)
+
+
+def _rank(matrix: np.ndarray) -> int:
+    return 0 if matrix.size == 0 else int(np.linalg.matrix_rank(matrix, tol=1e-8))
+
+
+def _determines_doppler(cams: _CameraSet) -> bool:
+    """Whether ∂m/∂a is independent of the amplitude, depth-phase and brightness columns."""
+    jac = _probe_jacobian(cams)
+    return _rank(jac) > _rank(jac[:, :3])
+
+
+def _with_cameras(cams: _CameraSet, added) -> _CameraSet:
+    """``cams`` plus cameras (h, ψ) in the first camera's window, with the mean g1."""
+    h, psi = (np.array([c[i] for c in added], dtype=np.float64) for i in (0, 1))
+    return dataclasses.replace(
+        cams,
+        heterodyne=np.concatenate([cams.heterodyne, h]),
+        phase_rad=np.concatenate([cams.phase_rad, psi]),
+        half_g1=np.concatenate([cams.half_g1, np.full(len(added), np.mean(cams.half_g1))]),
+        waveforms=cams.waveforms + ("sinusoidal",) * len(added),
+        window_offset=np.concatenate([cams.window_offset, np.zeros(len(added))]),
+    )
+
+
+def _camera_spec(h: float, psi_rad: float) -> str:
+    """A camera as ``--camera`` takes it."""
+    degrees = float(np.degrees(psi_rad))
+    return f"h={h:g},psi={'0' if degrees == 0 else f'{degrees:g}deg'}"
+
+
+def _what_to_add(cams: _CameraSet) -> str:
+    """The first one or two cameras (homodyne first, ψ in quadrature steps) after which the
+    set determines the Doppler shift, as ``--camera`` specs."""
+    heterodynes = [0.0, 1.0] + sorted(set(cams.heterodyne.tolist()) - {0.0, 1.0})
+    phases = cams.phase_rad[0] + 0.5 * np.pi * np.arange(4)  # quadrature steps from the first camera's ψ
+    singles = [(h, psi) for h in heterodynes for psi in np.mod(phases, 2.0 * np.pi)]
+    for count in (1, 2):
+        for added in itertools.combinations(singles, count):
+            if _determines_doppler(_with_cameras(cams, added)):
+                return " and ".join(_camera_spec(h, psi) for h, psi in added)
+    return "homodyne and heterodyne cameras at ψ = 0 and 90deg"
+
+
 def _velocity_identifiable(cams: _CameraSet) -> str | None:
-    """Why the set cannot determine the Doppler phase, or None if it can (generically)."""
+    """Why the set cannot determine the Doppler phase, or None if it can (generically).
+
+    The unknowns per pixel are four: amplitude and depth phase (Z), the Doppler phase a and
+    the brightness slope β (module docstring, brightness). Velocity is determined when the
+    measurements respond to a in a way that Z and β cannot imitate.
+    """
     if len(np.unique(np.round(cams.heterodyne, 12))) < 2:
         return (
             f"all cameras have the same heterodyne ratio h = {cams.heterodyne.tolist()}; the "
             "Doppler shift only changes their common scale, so velocity is not determined: add "
             "cameras with a different h (e.g. h = 1 next to h = 0)"
         )
-    # A generic a: the linear part's rank must leave at least one residual degree of freedom.
-    c1, c2 = _design_columns(np.array([0.123]), cams)
-    if len(cams) <= _column_rank(c1, c2):
-        return (
-            f"{len(cams)} measurements with h = {cams.heterodyne.tolist()} and "
-            f"ψ = {cams.phase_rad.tolist()} rad cannot determine amplitude, phase and Doppler "
-            "shift together; use at least 3 measurements (or a homodyne/heterodyne pair at the "
-            "same ψ with method='ratio')"
-        )
-    return None
+    if _determines_doppler(cams):
+        return None
+    cameras = ", ".join(_camera_spec(h, psi) for h, psi in zip(cams.heterodyne, cams.phase_rad))
+    return (
+        f"the cameras {cameras} cannot determine velocity: a moving surface changes its "
+        "brightness during the exposure (1/d²: by −2vT/d, as large as the Doppler phase "
+        "itself), and these measurements cannot tell that change from a Doppler shift (amplitude, "
+        "depth phase, Doppler shift and brightness change are four unknowns per pixel); "
+        f"add {_what_to_add(cams)}"
+    )
 
 
 # ------------------------------------------------------------- linear sub-problem
@@ -506,15 +596,15 @@ def _solve_normal(g11, g12, g22, full_rank, b1, b2):
     return np.where(full_rank, x_full, x_rank1), np.where(full_rank, y_full, y_rank1)
 
 
-def _linear_fit(m: np.ndarray, doppler_phase: np.ndarray, cams: _CameraSet):
-    """Best Z for given a per pixel.
+def _linear_fit(m: np.ndarray, doppler_phase: np.ndarray, cams: _CameraSet, brightness=0.0):
+    """Best Z for given a and β per pixel.
 
     Returns
     -------
     dict with x, y (Re Z, Im Z), residual (n, N), rss (N,), full_rank (N,), and the
     columns and normal matrix needed by the Gauss-Newton step.
     """
-    c1, c2 = _design_columns(doppler_phase, cams)
+    c1, c2 = _design_columns(doppler_phase, cams, brightness)
     g11 = np.sum(c1 * c1, axis=0)
     g12 = np.sum(c1 * c2, axis=0)
     g22 = np.sum(c2 * c2, axis=0)
@@ -533,9 +623,10 @@ def _linear_fit(m: np.ndarray, doppler_phase: np.ndarray, cams: _CameraSet):
     }
 
 
-def _projected_sensitivity(fit: dict, doppler_phase: np.ndarray, cams: _CameraSet):
-    """∂m/∂a at fixed Z, minus its projection on the columns (variable projection)."""
-    d1, d2 = _design_columns(doppler_phase, cams, derivative=True)
+def _projected_sensitivity(fit: dict, doppler_phase: np.ndarray, cams: _CameraSet, brightness=0.0, wrt="a"):
+    """∂m/∂a (or ∂m/∂β) at fixed Z, and the same minus its projection on the columns
+    (variable projection)."""
+    d1, d2 = _design_columns(doppler_phase, cams, brightness, wrt)
     jac = d1 * fit["x"] + d2 * fit["y"]
     c1, c2 = fit["c1"], fit["c2"]
     g11, g12, g22 = fit["g"]
@@ -593,46 +684,58 @@ def _parabola(grid: np.ndarray, rss: np.ndarray, best: np.ndarray) -> np.ndarray
     return start + np.where(ok, np.clip(shift, -spacing, spacing), 0.0)
 
 
-def _gauss_newton(m, start, cams: _CameraSet, max_step: float, max_phase: float) -> np.ndarray:
-    """Refine the Doppler phase per pixel by safeguarded variable-projection Gauss-Newton.
+def _gauss_newton(m, start, cams: _CameraSet, max_step: float, max_phase: float, fit_doppler: bool = True,
+                  fit_brightness: bool = True):
+    """Refine the Doppler phase a and the brightness slope β per pixel by safeguarded
+    variable-projection Gauss-Newton, from (``start``, 0); returns (a, β).
 
-    Steps are limited to ``max_step`` and a stays in [−max_phase, max_phase]: outside the
-    search range the model has degenerate points (e.g. F(2π) = 0 for homodyne cameras at
-    a = 2π) where the fitted amplitude diverges.
+    Steps of a are limited to ``max_step`` and a stays in [−max_phase, max_phase]: outside
+    the search range the model has degenerate points (e.g. F(2π) = 0 for homodyne cameras
+    at a = 2π) where the fitted amplitude diverges. β stays in [−2, 2] (a radiance that
+    stays ≥ 0 over the exposure). ``fit_doppler=False`` keeps a at ``start`` and fits β;
+    ``fit_brightness=False`` keeps β at 0.
     """
     a = np.clip(start, -max_phase, max_phase)
-    rss = _linear_fit(m, a, cams)["rss"]
+    beta = np.zeros_like(a)
     active = np.arange(a.size)
     for _ in range(_MAX_GAUSS_NEWTON_ITERATIONS):
         if active.size == 0:
             break
-        ma, aa = m[:, active], a[active]
-        fit = _linear_fit(ma, aa, cams)
-        jac, jac_perp = _projected_sensitivity(fit, aa, cams)
-        curvature = np.sum(jac_perp * jac_perp, axis=0)
+        ma, aa, bb = m[:, active], a[active], beta[active]
+        fit = _linear_fit(ma, aa, cams, bb)
+        _, pa = _projected_sensitivity(fit, aa, cams, bb, "a")
+        _, pb = _projected_sensitivity(fit, aa, cams, bb, "beta")
+        r = fit["residual"]  # orthogonal to the columns: J·r = J⊥·r
+        ga, gb = np.sum(pa * r, axis=0), np.sum(pb * r, axis=0)
+        haa, hab, hbb = np.sum(pa * pa, axis=0), np.sum(pa * pb, axis=0), np.sum(pb * pb, axis=0)
         with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.sum(jac * fit["residual"], axis=0) / curvature
-        step = np.where(np.isfinite(step), np.clip(step, -max_step, max_step), 0.0)
-        step = np.clip(aa + step, -max_phase, max_phase) - aa
+            det = haa * hbb - hab * hab
+            joint = fit_doppler & fit_brightness & (det > _RANK_RTOL * haa * hbb)
+            step_a = np.where(joint, (hbb * ga - hab * gb) / det, ga / haa) if fit_doppler else np.zeros_like(aa)
+            step_b = np.where(joint, (haa * gb - hab * ga) / det, 0.0 if fit_doppler else gb / hbb)
+        step_a = np.where(np.isfinite(step_a), np.clip(step_a, -max_step, max_step), 0.0)
+        step_b = np.where(np.isfinite(step_b) & fit_brightness, np.clip(step_b, -_MAX_BRIGHTNESS_STEP, _MAX_BRIGHTNESS_STEP), 0.0)
+        step_a = np.clip(aa + step_a, -max_phase, max_phase) - aa
+        step_b = np.clip(bb + step_b, -2.0, 2.0) - bb
         accepted = np.zeros(active.size, dtype=bool)
-        pending = np.flatnonzero(step != 0.0)
+        pending = np.flatnonzero((step_a != 0.0) | (step_b != 0.0))
         for _ in range(_MAX_STEP_HALVINGS):
             if pending.size == 0:
                 break
-            trial = aa[pending] + step[pending]
-            trial_rss = _linear_fit(ma[:, pending], trial, cams)["rss"]
+            trial_a, trial_b = aa[pending] + step_a[pending], bb[pending] + step_b[pending]
+            trial_rss = _linear_fit(ma[:, pending], trial_a, cams, trial_b)["rss"]
             better = trial_rss < fit["rss"][pending]
             won = pending[better]
-            aa[won] = trial[better]
+            aa[won], bb[won] = trial_a[better], trial_b[better]
             fit["rss"][won] = trial_rss[better]
             accepted[won] = True
             pending = pending[~better]
-            step[pending] *= 0.5
-        a[active] = aa
-        rss[active] = fit["rss"]
-        tiny = np.abs(step) <= 1e-15 + 1e-13 * np.abs(aa)
+            step_a[pending] *= 0.5
+            step_b[pending] *= 0.5
+        a[active], beta[active] = aa, bb
+        tiny = (np.abs(step_a) <= 1e-15 + 1e-13 * np.abs(aa)) & (np.abs(step_b) <= 1e-15 + 1e-13 * np.abs(bb))
         active = active[accepted & ~tiny]
-    return a
+    return a, beta
 
 
 # ---------------------------------------------------------------------- estimators
@@ -646,9 +749,9 @@ def _flatten(m: np.ndarray) -> tuple[np.ndarray, tuple[int, ...], np.ndarray]:
     return np.where(finite, flat, 0.0), shape, finite
 
 
-def _depth_and_amplitude(m, doppler_phase, cams: _CameraSet):
-    """Mid-exposure depth (m), amplitude A and (g1/2)|Z| from the linear fit at known a."""
-    fit = _linear_fit(m, doppler_phase, cams)
+def _depth_and_amplitude(m, doppler_phase, cams: _CameraSet, brightness=0.0):
+    """Mid-exposure depth (m), amplitude A and (g1/2)|Z| from the linear fit at known a, β."""
+    fit = _linear_fit(m, doppler_phase, cams, brightness)
     z = fit["x"] + 1j * fit["y"]
     amplitude = np.abs(z)
     mid_phase = np.mod(np.angle(z) + 0.5 * doppler_phase, 2.0 * np.pi)
@@ -728,6 +831,13 @@ def ratio_velocity_per_phase(measurements, cameras: Sequence, *, min_amplitude=N
     )
 
 
+def _balanced(cams: _CameraSet, pairs) -> bool:
+    """Σ e^{2iψ} = 0 over the pairs: the ratio's fusion is then blind to a brightness change
+    (module docstring)."""
+    psi = np.array([cams.phase_rad[i] for i, _ in pairs])
+    return abs(np.sum(np.exp(2j * psi))) <= _BALANCE_TOLERANCE * len(pairs)
+
+
 def _require_pairs(cams: _CameraSet):
     pairs = _ratio_pairs(cams)
     if pairs is None:
@@ -741,6 +851,13 @@ def _require_pairs(cams: _CameraSet):
 
 def _velocity_ratio(flat, cams, min_amplitude):
     pairs = _require_pairs(cams)
+    if not _balanced(cams, pairs):
+        phases = [_camera_spec(0.0, cams.phase_rad[i]).split(",")[1] for i, _ in pairs]
+        raise ValueError(
+            f"method='ratio' with pairs at {', '.join(phases)} would read the brightness change "
+            "of a moving surface as velocity: the pairs' phases must balance (Σ e^{2iψ} = 0, e.g. "
+            "psi=0 and 90deg, or four phases 90deg apart); use method='fit'"
+        )
     per_pair = _ratio_per_phase(flat, cams, pairs, min_amplitude)
     # The least-squares slope of E against H over all pairs, blind to a linear brightness
     # change (module docstring); a pair with H ≈ 0 adds ≈ 0 to both sums.
@@ -756,30 +873,34 @@ def _velocity_ratio(flat, cams, min_amplitude):
 
 def _velocity_fit(flat, cams, min_amplitude, max_doppler_hz):
     _require_sinusoid(cams, "method='fit' assumes the low-pass sinusoid model")
-    reason = _velocity_identifiable(cams)
-    if reason is not None:
-        raise ValueError(reason)
     max_phase = 2.0 * np.pi * max_doppler_hz * cams.exposure_s
     spacing = 2.0 * max_phase / (_grid_points(cams) - 1)
     # Windows at different times give the residual several deep minima, whose depths on
     # the grid can mislead: refine the deepest few and keep the best.
-    candidates = 1 if not np.any(cams.window_offset) else _SCHEDULE_CANDIDATES
-    doppler_phase, best_rss = None, None
+    schedule = bool(np.any(cams.window_offset))
+    candidates = _SCHEDULE_CANDIDATES if schedule else 1
+    # Across windows β would make several of those minima exact (four unknowns, and four
+    # cameras in the usual schedule): the radiance is taken as constant there (module docstring).
+    fit_brightness = not schedule
+    best = None
     for start in _grid_search(flat, cams, max_phase, candidates):
-        a = _gauss_newton(flat, start, cams, max_step=spacing, max_phase=max_phase)
-        if doppler_phase is None:
-            doppler_phase, best_rss = a, _linear_fit(flat, a, cams)["rss"]
+        a, beta = _gauss_newton(flat, start, cams, max_step=spacing, max_phase=max_phase, fit_brightness=fit_brightness)
+        rss = _linear_fit(flat, a, cams, beta)["rss"]
+        if best is None:
+            best = [a, beta, rss]
             continue
-        rss = _linear_fit(flat, a, cams)["rss"]
-        better = rss < best_rss
-        doppler_phase, best_rss = np.where(better, a, doppler_phase), np.where(better, rss, best_rss)
-    # Per-pixel identifiability: the data must respond to a beyond what Z can absorb.
-    fit = _linear_fit(flat, doppler_phase, cams)
-    _, jac_perp = _projected_sensitivity(fit, doppler_phase, cams)
-    z_abs = np.hypot(fit["x"], fit["y"])
-    scale = z_abs * np.sqrt(np.sum(cams.half_g1**2))
+        better = rss < best[2]
+        best = [np.where(better, new, old) for new, old in zip((a, beta, rss), best)]
+    doppler_phase, brightness = best[0], best[1]
+    # Per-pixel identifiability: the data must respond to a beyond what Z and β can absorb.
+    fit = _linear_fit(flat, doppler_phase, cams, brightness)
+    _, pa = _projected_sensitivity(fit, doppler_phase, cams, brightness, "a")
+    _, pb = _projected_sensitivity(fit, doppler_phase, cams, brightness, "beta")
     with np.errstate(divide="ignore", invalid="ignore"):
-        sensitivity = np.sqrt(np.sum(jac_perp * jac_perp, axis=0)) / scale
+        if fit_brightness:
+            pa = pa - pb * np.nan_to_num(np.sum(pa * pb, axis=0) / np.sum(pb * pb, axis=0))
+        z_abs = np.hypot(fit["x"], fit["y"])
+        sensitivity = np.sqrt(np.sum(pa * pa, axis=0)) / (z_abs * np.sqrt(np.sum(cams.half_g1**2)))
     signal = np.mean(cams.half_g1) * z_abs
     threshold = _default_threshold(_data_amplitude(flat), min_amplitude)
     ok = (
@@ -788,7 +909,7 @@ def _velocity_fit(flat, cams, min_amplitude, max_doppler_hz):
         & (np.abs(doppler_phase) < max_phase)  # at the bound: outside the search range
         & np.isfinite(doppler_phase)
     )
-    return doppler_phase, ok, threshold
+    return doppler_phase, brightness, ok, threshold
 
 
 def velocity(
@@ -870,23 +991,30 @@ def velocity(
         max_doppler_hz = 0.5 / cams.exposure_s
     if not (np.isfinite(max_doppler_hz) and max_doppler_hz > 0):
         raise ValueError(f"max_doppler_hz must be a finite number > 0, got {max_doppler_hz!r}")
+    reason = _velocity_identifiable(cams)
+    if reason is not None:
+        raise ValueError(reason)
     if method == "auto":
-        method = "ratio" if _ratio_pairs(cams) is not None else "fit"
+        pairs = _ratio_pairs(cams)
+        method = "ratio" if pairs is not None and _balanced(cams, pairs) else "fit"
 
     flat, shape, finite = _flatten(m)
     if method == "ratio":
         doppler_phase, ok = _velocity_ratio(flat, cams, min_amplitude)
         depth_threshold = None
+        a_known = np.where(ok, doppler_phase, 0.0)
+        if all(w == "sinusoidal" for w in cams.waveforms) and not np.any(cams.window_offset):  # β, for an unbiased Z (depth)
+            _, brightness = _gauss_newton(flat, a_known, cams, max_step=0.0, max_phase=np.inf, fit_doppler=False)
+        else:
+            brightness = np.zeros_like(a_known)
     else:
-        doppler_phase, ok, depth_threshold = _velocity_fit(
-            flat, cams, min_amplitude, max_doppler_hz
-        )
+        doppler_phase, brightness, ok, depth_threshold = _velocity_fit(flat, cams, min_amplitude, max_doppler_hz)
     ok &= finite
     vel, dopp = _doppler_to_velocity(doppler_phase, cams)
 
-    # Depth and amplitude: the linear part at the recovered Doppler phase.
+    # Depth and amplitude: the linear part at the recovered Doppler phase and brightness slope.
     a_for_depth = np.where(ok, doppler_phase, 0.0)
-    depth_m, amplitude, signal, fit = _depth_and_amplitude(flat, a_for_depth, cams)
+    depth_m, amplitude, signal, fit = _depth_and_amplitude(flat, a_for_depth, cams, np.where(ok, brightness, 0.0))
     if depth_threshold is None:
         depth_threshold = _default_threshold(_data_amplitude(flat), min_amplitude)
     depth_ok = ok & fit["full_rank"] & (signal > depth_threshold)
@@ -1004,16 +1132,16 @@ def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None
     m = _measurement_array(measurements, cams)
     _check_min_amplitude(min_amplitude)
     sinusoid = all(w == "sinusoidal" for w in cams.waveforms)
-    determines_velocity = _ratio_pairs(cams) is not None or _velocity_identifiable(cams) is None
+    determines_velocity = sinusoid and _velocity_identifiable(cams) is None
     # generic Doppler phase when it is fitted, a = 0 when it is not
-    probe = np.array([0.123 if sinusoid and determines_velocity else 0.0])
+    probe = np.array([_PROBE_DOPPLER_PHASE if determines_velocity else 0.0])
     if _column_rank(*_design_columns(probe, cams)) < 2:
         raise ValueError(
             "depth needs at least two independent phase measurements (e.g. homodyne at "
             f"ψ = 0 and π/2); got h = {cams.heterodyne.tolist()}, "
             f"ψ = {cams.phase_rad.tolist()} rad"
         )
-    if sinusoid and determines_velocity:
+    if determines_velocity:
         return velocity(m, cameras, min_amplitude=min_amplitude).depth
     flat, shape, finite = _flatten(m)
     depth_m, _, signal, fit = _depth_and_amplitude(flat, np.zeros(flat.shape[1]), cams)
