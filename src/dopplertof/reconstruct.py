@@ -109,9 +109,14 @@ from typing import Sequence
 import numpy as np
 
 from .modulation import SPEED_OF_LIGHT_M_S
+from .validation import checked
 
 DEFAULT_RELATIVE_MIN_AMPLITUDE = 1e-3
 """Default ``min_amplitude`` as a fraction of the 99th-percentile amplitude of the image."""
+
+DEFAULT_RELATIVE_MAX_VELOCITY_STDERR = 0.1
+"""Default ``max_velocity_stderr`` as a fraction of the scene's speed scale
+(:func:`default_max_velocity_stderr`)."""
 
 _H_TOLERANCE = 1e-12  # h == 0 and h == 1 are matched to this absolute tolerance
 _PHASE_TOLERANCE_RAD = 1e-9
@@ -123,6 +128,7 @@ _RANK_RTOL = 1e-10  # det(G) / trace(G)^2 below this: the 2x2 normal equations a
 _MIN_SENSITIVITY = 1e-7  # |∂m/∂a ⊥| / (|Z| |g1/2|) below this: a is not identifiable
 _PROBE_DOPPLER_PHASE = 0.123  # rad: a generic a at which a camera set's ranks are judged
 _MAX_BRIGHTNESS_STEP = 0.5  # largest change of β in one Gauss-Newton step
+_NUMERICAL_DOPPLER_PHASE_RAD = 1e-12  # resolution of the estimators, added to the propagated error
 _BALANCE_TOLERANCE = 1e-6  # |Σ e^{2iψ}| / n_pairs below this: the ratio's pairs are balanced
 
 
@@ -150,7 +156,19 @@ class VelocityResult:
         ``"ratio"`` or ``"fit"``: the estimator that was used.
     velocity_stderr, depth_stderr : ndarray, shape (...), or None
         Standard errors (m/s, m) propagated from the measurements' errors (delta method,
-        :func:`velocity`); None when no measurement errors were given.
+        :func:`velocity`); None when no measurement errors were given. Monte Carlo error
+        only: a pixel that sees several paths (multipath, a silhouette) is biased by them.
+    max_velocity_stderr_m_s : float or None
+        The threshold on ``velocity_stderr`` that ``valid`` applied (m/s); None without
+        measurement errors.
+    threshold_reason : str
+        How that threshold was chosen (given, or derived from the scene: :func:`velocity`).
+    depth_range_m : float
+        Unambiguous depth range c/(2 f_g) (m): ``depth`` is the distance modulo it.
+    brightness : ndarray, shape (...)
+        β, the relative change of the path's radiance over the exposure (−2 v T/d for a
+        diffuse surface lit from the camera); 0 where it is not fitted (several windows,
+        non-sinusoidal waveforms), NaN where ``valid`` is False.
     """
 
     velocity: np.ndarray
@@ -161,6 +179,10 @@ class VelocityResult:
     method: str
     velocity_stderr: np.ndarray | None = None
     depth_stderr: np.ndarray | None = None
+    max_velocity_stderr_m_s: float | None = None
+    threshold_reason: str = "no measurement errors given: validity from the signal amplitude only"
+    depth_range_m: float = float("nan")
+    brightness: np.ndarray | None = None
 
 
 @dataclass
@@ -945,8 +967,12 @@ def velocity(
         ``measurement_covariance``); cameras rendered from the same paths are correlated.
     max_velocity_stderr : float, optional
         With errors given: pixels whose velocity standard error (m/s) exceeds this are
-        invalid. Default 5 % of the unambiguous speed c/(4 f_g T) (83 m/s at 30 MHz,
-        1.5 ms).
+        invalid. Default: a tenth of the scene's speed scale
+        (:func:`default_max_velocity_stderr`); the value used is
+        ``result.max_velocity_stderr_m_s``. Valid pixels are calibrated where the model holds
+        (one path per pixel, direct light): fewer than 2 % of them are off by more than three
+        standard errors (``tests/test_reconstruct_render.py``). Multipath biases are not in
+        the standard error.
     min_amplitude : float, optional
         Signal amplitude (measurement units) at or below which a pixel is invalid:
         the largest |H_i| over the phases for the ratio, (g1/2)|Z| for the fit (g1/2
@@ -1029,22 +1055,68 @@ def velocity(
         amplitude=out(amplitude, depth_ok),
         doppler_hz=out(dopp, ok),
         method=method,
+        depth_range_m=ambiguity_range_m(cams.frequency_hz),
+        brightness=out(brightness, ok),
     )
     covariance = _covariance(measurement_stderr, measurement_covariance, m.shape)
     if covariance is None:
         return result
     options = dict(min_amplitude=min_amplitude, method=method, max_doppler_hz=max_doppler_hz)
     v_err, d_err = _propagated_errors(m, cameras, covariance, options)
-    limit = 0.05 * unambiguous_speed_m_s(cams) if max_velocity_stderr is None else float(max_velocity_stderr)
-    if not (np.isfinite(limit) and limit > 0):
-        raise ValueError(f"max_velocity_stderr must be a finite number of m/s > 0, got {max_velocity_stderr!r}")
+    # The estimators converge to ~1e-13 rad of Doppler phase: pixels whose measurements
+    # are exact (a static surface: E = 0 with antithetic replay) are known to that, not to 0.
+    v_err = np.hypot(v_err, _doppler_to_velocity(_NUMERICAL_DOPPLER_PHASE_RAD, cams)[0])
+    if max_velocity_stderr is None:
+        limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err.reshape(shape))
+    else:
+        limit = checked("max_velocity_stderr", max_velocity_stderr, "float")
+        if not limit > 0:
+            raise ValueError(f"max_velocity_stderr must be > 0 m/s, got {max_velocity_stderr!r}")
+        result.threshold_reason = "given"
+    result.max_velocity_stderr_m_s = limit
     keep = result.valid & np.isfinite(v_err) & (v_err <= limit)
     result.valid = keep
     result.velocity = np.where(keep, result.velocity, np.nan)
     result.doppler_hz = np.where(keep, result.doppler_hz, np.nan)
+    result.brightness = np.where(keep, result.brightness, np.nan)
     result.velocity_stderr = np.where(keep, v_err, np.nan)
     result.depth_stderr = np.where(np.isfinite(result.depth), d_err, np.nan)
     return result
+
+
+def default_max_velocity_stderr(velocity_m_s, velocity_stderr_m_s) -> tuple[float, str]:
+    """The default threshold on a pixel's velocity standard error (m/s), and why.
+
+    A tenth of the scene's speed scale: the median |v| over the pixels whose velocity
+    differs from 0 by more than three standard errors (the motion the cameras actually
+    detect; the median, because silhouettes and multipath give a few wild values). A valid
+    pixel then knows its velocity to 10 % of the typical motion in view, enough to keep its
+    sign and its colour on a map of the scene; the scale comes
+    from the scene, so it suits a 1 m/s hand as well as a 30 m/s car (the unambiguous speed
+    c/(4 f_g T), 83 m/s at 30 MHz and 1.5 ms, says nothing about either). Where nothing moves
+    detectably there is no scale: three times the median standard error then keeps the
+    pixels measured about as well as the typical one.
+
+    Parameters
+    ----------
+    velocity_m_s, velocity_stderr_m_s : ndarray
+        Velocity estimates and their standard errors (m/s); NaN where not determined.
+
+    Returns
+    -------
+    (threshold_m_s, reason) : (float, str)
+    """
+    v = np.asarray(velocity_m_s, dtype=np.float64)
+    sigma = np.asarray(velocity_stderr_m_s, dtype=np.float64)
+    known = np.isfinite(v) & np.isfinite(sigma)
+    moving = known & (np.abs(v) > 3.0 * sigma)
+    if moving.any():
+        scale = float(np.median(np.abs(v[moving])))
+        limit = DEFAULT_RELATIVE_MAX_VELOCITY_STDERR * scale
+        return limit, (f"{DEFAULT_RELATIVE_MAX_VELOCITY_STDERR:.0%} of the scene's speed scale {scale:.3g} m/s "
+                       "(median |v| where |v| > 3 standard errors)")
+    typical = float(np.median(sigma[known])) if known.any() else 0.0
+    return 3.0 * typical, "no pixel moves detectably: 3 × the median standard error"
 
 
 def unambiguous_speed_m_s(cams) -> float:
