@@ -1087,11 +1087,12 @@ def velocity(
 def default_max_velocity_stderr(velocity_m_s, velocity_stderr_m_s) -> tuple[float, str]:
     """The default threshold on a pixel's velocity standard error (m/s), and why.
 
-    A tenth of the scene's speed scale: the median |v| over the pixels whose velocity
-    differs from 0 by more than three standard errors (the motion the cameras actually
-    detect; the median, because silhouettes and multipath give a few wild values). A valid
-    pixel then knows its velocity to 10 % of the typical motion in view, enough to keep its
-    sign and its colour on a map of the scene; the scale comes
+    A tenth of the scene's speed scale: the 90th percentile of |v| over the pixels whose
+    velocity differs from 0 by more than three standard errors (the motion the cameras
+    actually detect; not the maximum, which silhouettes make wild, nor the median, which
+    the small velocities multipath puts on static walls pull down). A valid pixel then
+    knows its velocity to 10 % of the motion in view, enough to keep its sign and its
+    colour on a map of the scene; the scale comes
     from the scene, so it suits a 1 m/s hand as well as a 30 m/s car (the unambiguous speed
     c/(4 f_g T), 83 m/s at 30 MHz and 1.5 ms, says nothing about either). Where nothing moves
     detectably there is no scale: three times the median standard error then keeps the
@@ -1111,10 +1112,10 @@ def default_max_velocity_stderr(velocity_m_s, velocity_stderr_m_s) -> tuple[floa
     known = np.isfinite(v) & np.isfinite(sigma)
     moving = known & (np.abs(v) > 3.0 * sigma)
     if moving.any():
-        scale = float(np.median(np.abs(v[moving])))
+        scale = float(np.percentile(np.abs(v[moving]), 90.0))
         limit = DEFAULT_RELATIVE_MAX_VELOCITY_STDERR * scale
         return limit, (f"{DEFAULT_RELATIVE_MAX_VELOCITY_STDERR:.0%} of the scene's speed scale {scale:.3g} m/s "
-                       "(median |v| where |v| > 3 standard errors)")
+                       "(90th percentile of |v| where |v| > 3 standard errors)")
     typical = float(np.median(sigma[known])) if known.any() else 0.0
     return 3.0 * typical, "no pixel moves detectably: 3 × the median standard error"
 
