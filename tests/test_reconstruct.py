@@ -90,7 +90,7 @@ def test_ratio_recovers_velocity(f, phases):
     amp, dist = scene(VELOCITIES.size, seed=1)
     cams = ratio_set(f, phases)
     m = rc.model_measurements(amp, dist, VELOCITIES, cams)
-    res = rc.velocity(m, cams)
+    res = rc.velocity(m, cams, method="ratio")
     assert res.method == "ratio"
     assert res.valid.all()
     np.testing.assert_allclose(res.velocity, VELOCITIES, rtol=1e-6)
@@ -176,8 +176,10 @@ def test_ratio_fusion_ignores_a_linear_brightness_change():
     res = rc.velocity(m, cams, method="ratio")
     assert res.valid.all()
     np.testing.assert_allclose(res.velocity, VELOCITIES, rtol=slope**2)
-    fit = rc.velocity(m, cams, method="fit")
-    np.testing.assert_allclose(fit.velocity, VELOCITIES, rtol=slope**2)
+    # the fit models the inverse-square brightening itself: exact on such data
+    inverse_square = rc.model_measurements(amp, dist, VELOCITIES, cams, brightness=-2 * VELOCITIES * T / dist)
+    fit = rc.velocity(inverse_square, cams, method="fit")
+    np.testing.assert_allclose(fit.velocity, VELOCITIES, rtol=1e-6)
 
     # the original fusion, r̄ = Σ r_i |H_i| / Σ |H_i| over the pairs valid alone
     per = rc.ratio_velocity_per_phase(m, cams)
@@ -215,7 +217,7 @@ def test_ratio_fusion_keeps_pairs_that_are_invalid_alone():
     m = np.array([[0.5, 1e-6], [0.6, 0.3], [2.0, -1.0], [0.02, -0.01]])
     per = rc.ratio_velocity_per_phase(m, cams)
     assert per.valid.tolist() == [[False, False], [True, True]]
-    res = rc.velocity(m, cams)
+    res = rc.velocity(m, cams, method="ratio")
     assert res.valid.tolist() == [True, True]
     r_bar = np.sum(m[1::2] * m[::2], axis=0) / np.sum(m[::2] ** 2, axis=0)
     np.testing.assert_allclose(res.velocity, C * r_bar / (2 * 30e6 * T * (1 - r_bar)), rtol=1e-12)
@@ -227,7 +229,7 @@ def test_ratio_second_phase_rescues_quadrature_pixel():
     cams = ratio_set(f, [0.0, 0.5 * np.pi])
     dist = np.array([(np.pi / 2) / (2 * k), 1.0])
     m = rc.model_measurements(np.ones(2), dist, np.array([-7.0, 3.0]), cams)
-    res = rc.velocity(m, cams)
+    res = rc.velocity(m, cams, method="ratio")
     assert res.valid.all()
     np.testing.assert_allclose(res.velocity, [-7.0, 3.0], rtol=1e-6)
 
@@ -294,9 +296,13 @@ def test_fit_auto_selects_fit_for_hu_set():
     cams = hu_set(30e6)
     m = rc.model_measurements(np.ones(2), np.array([1.0, 2.0]), np.array([1.0, -1.0]), cams)
     assert rc.velocity(m, cams).method == "fit"
-    assert rc.velocity(m, ratio_set(30e6, [0.0, 0.5 * np.pi])).method == "ratio"
+    # sinusoids: the fit, whatever the set (it models the brightening to second order)
+    assert rc.velocity(m, ratio_set(30e6, [0.0, 0.5 * np.pi])).method == "fit"
+    rectangular = ratio_set(30e6, [0.0, 0.5 * np.pi])
+    for c in rectangular:
+        c.waveform = "rectangular"
+    assert rc.velocity(m, rectangular).method == "ratio"
     # pairs whose phases do not balance (Σ e^{2iψ} ≠ 0) cannot cancel a brightness change
-    assert rc.velocity(m, ratio_set(30e6, [0.0, 1.0])).method == "fit"
     with pytest.raises(ValueError, match="must balance"):
         rc.velocity(m, ratio_set(30e6, [0.0, 1.0]), method="ratio")
 
@@ -518,3 +524,24 @@ def test_fit_separates_brightness_change_from_doppler(kind):
     assert res.method == "fit" and res.valid.all()
     np.testing.assert_allclose(res.velocity, VELOCITIES, rtol=1e-6)
     assert np.all(depth_error(res.depth, dist, f) < 1e-8)
+
+
+@pytest.mark.parametrize("method", ["ratio", "fit"])
+def test_propagated_errors_match_the_spread_of_noisy_estimates(method):
+    """Correlated Gaussian noise of a known covariance on exact measurements: the stated
+    velocity and depth errors equal the spread of the estimates over noise draws."""
+    f, n = 30e6, 4000
+    cams = ratio_set(f, [0.0, 0.5 * np.pi])
+    dist, v = 2.3, -10.0
+    m = rc.model_measurements(np.ones(n), dist, v, cams, brightness=-2 * v * T / dist)
+    rng = np.random.default_rng(2)
+    root = rng.normal(size=(4, 4)) * 2e-4
+    cov = root @ root.T  # correlated cameras, as from shared paths
+    noisy = m + (root @ rng.normal(size=(4, n)))
+    res = rc.velocity(noisy, cams, method=method, measurement_covariance=np.repeat(cov[:, :, None], n, axis=2),
+                      max_velocity_stderr=1e3)
+    assert res.valid.all()
+    stated_v, stated_d = np.median(res.velocity_stderr), np.median(res.depth_stderr)
+    assert np.std(res.velocity) == pytest.approx(stated_v, rel=0.06)  # 4000 draws: ±2.2 % (1σ)
+    assert np.std(res.depth) == pytest.approx(stated_d, rel=0.06)
+    assert abs(np.mean(res.velocity) - v) < 4 * stated_v / np.sqrt(n) + 1e-3 * abs(v)

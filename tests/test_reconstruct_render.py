@@ -109,7 +109,7 @@ def run_reconstruct(*args):
 def test_reconstruct_command_writes_the_maps(rendered, tmp_path):
     result = rendered
     rec = render_folder.reconstruct(result.measurements, CAMERAS)
-    assert rec.method == "ratio"  # the default for matched homodyne/heterodyne pairs
+    assert rec.method == "fit"  # the default for sinusoids
     write_result(result, tmp_path)
     code, output = run_reconstruct(tmp_path)
     assert code == 0, output

@@ -278,9 +278,29 @@ def _ramp_kernel(x: np.ndarray) -> np.ndarray:
     return np.where(small, series, direct)
 
 
+def _curvature_kernel(x: np.ndarray) -> np.ndarray:
+    """H(x) = ∫_0^1 (s − ½)² e^{ixs} ds = e^{ix/2} J(x), J(x) = ∫_{-½}^{½} u² cos(xu) du
+    (complex), with J's Taylor series near 0, where its closed form cancels."""
+    x = np.asarray(x, dtype=np.float64)
+    small = np.abs(x) < 0.1
+    xs = np.where(small, 1.0, x)  # placeholder avoids 0/0 in the branch not taken
+    half = 0.5 * xs
+    direct = np.sin(half) / (2.0 * xs) + 2.0 * np.cos(half) / xs**2 - 4.0 * np.sin(half) / xs**3
+    series = 1.0 / 12.0 - x**2 / 160.0 + x**4 / 10752.0
+    return np.exp(0.5j * x) * np.where(small, series, direct)
+
+
 def _kernel(doppler_phase: np.ndarray, cams: _CameraSet, brightness=0.0, wrt: str | None = None) -> np.ndarray:
-    """K_i = e^{i(ψ_i + a δ_i)} [(1 + β δ_i) F(x_i) + β G(x_i)], x_i = 2π h_i + a, shape
-    (n_cameras, N): camera i measures (g1_i/2) Re{Z K_i} (module docstring, brightness).
+    """K_i, shape (n_cameras, N): camera i measures (g1_i/2) Re{Z K_i} (module docstring,
+    brightness).
+
+    With τ = δ_i + s the time in exposures from the first window's opening, the radiance
+    A(τ)/A_mid = 1 + β (τ − ½) + q (τ − ½)², q = ¾ β² (the inverse-square law of a
+    surface lit from the camera whose distance changes linearly, to second order), so
+
+        K_i = e^{i(ψ_i + a δ_i)} [(1 + β δ_i + q δ_i²) F(x_i) + (β + 2 q δ_i) G(x_i) + q H(x_i)],
+
+    x_i = 2π h_i + a, F the beat kernel, G and H the ramp and curvature kernels.
 
     Parameters
     ----------
@@ -297,17 +317,21 @@ def _kernel(doppler_phase: np.ndarray, cams: _CameraSet, brightness=0.0, wrt: st
     delta = cams.window_offset[:, None]
     f_re, f_im = _beat_kernel(x)
     f = f_re + 1j * f_im
-    g = _ramp_kernel(x)
+    g, h = _ramp_kernel(x), _curvature_kernel(x)
     rotation = np.exp(1j * (cams.phase_rad[:, None] + delta * a))
+    q = 0.75 * beta * beta
     if wrt == "beta":
-        return rotation * (delta * f + g)
-    inner = (1.0 + beta * delta) * f + beta * g
+        dq = 1.5 * beta
+        return rotation * ((delta + dq * delta * delta) * f + (1.0 + 2.0 * dq * delta) * g + dq * h)
+    inner = (1.0 + beta * delta + q * delta * delta) * f + (beta + 2.0 * q * delta) * g + q * h
     if wrt is None:
         return rotation * inner
     d_re, d_im = _beat_kernel_derivative(x)
-    step = 1e-5  # G' by central differences: ample for Gauss-Newton steps, which only need a descent direction
+    step = 1e-5  # G', H' by central differences: ample for Gauss-Newton steps, which only need a descent direction
     g_prime = (_ramp_kernel(x + step) - _ramp_kernel(x - step)) / (2.0 * step)
-    return rotation * ((1.0 + beta * delta) * (d_re + 1j * d_im) + beta * g_prime + 1j * delta * inner)
+    h_prime = (_curvature_kernel(x + step) - _curvature_kernel(x - step)) / (2.0 * step)
+    return rotation * ((1.0 + beta * delta + q * delta * delta) * (d_re + 1j * d_im)
+                       + (beta + 2.0 * q * delta) * g_prime + q * h_prime + 1j * delta * inner)
 
 
 def _design_columns(doppler_phase: np.ndarray, cams: _CameraSet, brightness=0.0, wrt: str | None = None):
@@ -349,15 +373,16 @@ def model_measurements(amplitude, depth_m, velocity_m_s, cameras: Sequence, brig
     cameras : sequence of camera configurations
         Sinusoidal waveform only; see the module docstring for the attributes.
     brightness : array_like, broadcastable to ``amplitude``, default 0
-        β: the radiance is A (1 + β (t/T − ½)), t from the first window's opening
-        (dimensionless; −2 v T/d for a diffuse surface lit from the camera).
+        β: the radiance is A (1 + β τ' + ¾ β² τ'²), τ' = t/T − ½ with t from the first
+        window's opening (dimensionless; −2 v T/d for a surface lit from the camera: the
+        inverse-square law to second order).
 
     Returns
     -------
     ndarray, shape (n_cameras, ...)
-        m_i = (g1_i/2) Re{A e^{i k L(0)} K_i}, K_i = e^{i(ψ_i + a δ_i)} [(1 + β δ_i) F(x_i)
-        + β G(x_i)], x_i = 2π h_i + a, a = 2 k v T, δ_i the camera's window offset; at
-        β = 0: (g1_i A/2) [sin(θ_i + 2π h_i + a) − sin θ_i]/(2π h_i + a), θ_i = ψ_i + k L(0) + a δ_i.
+        m_i = (g1_i/2) Re{A e^{i k L(0)} K_i} (K_i: ``_kernel``), a = 2 k v T, δ_i the
+        camera's window offset; at β = 0: (g1_i A/2) [sin(θ_i + 2π h_i + a) − sin θ_i]/(2π h_i
+        + a), θ_i = ψ_i + k L(0) + a δ_i.
 
     Raises
     ------
@@ -755,7 +780,8 @@ def _gauss_newton(m, start, cams: _CameraSet, max_step: float, max_phase: float,
             step_a[pending] *= 0.5
             step_b[pending] *= 0.5
         a[active], beta[active] = aa, bb
-        tiny = (np.abs(step_a) <= 1e-15 + 1e-13 * np.abs(aa)) & (np.abs(step_b) <= 1e-15 + 1e-13 * np.abs(bb))
+        # converged far below any noise: 1e-13 rad of Doppler phase is 5e-11 m/s at 30 MHz, 1.5 ms
+        tiny = (np.abs(step_a) <= 1e-13 + 1e-11 * np.abs(aa)) & (np.abs(step_b) <= 1e-12)
         active = active[accepted & ~tiny]
     return a, beta
 
@@ -1020,16 +1046,20 @@ def velocity(
     reason = _velocity_identifiable(cams)
     if reason is not None:
         raise ValueError(reason)
-    if method == "auto":
-        pairs = _ratio_pairs(cams)
-        method = "ratio" if pairs is not None and _balanced(cams, pairs) else "fit"
+    if method == "auto":  # the fit models the inverse-square brightening exactly; the ratio to first order
+        method = "fit" if all(w == "sinusoidal" for w in cams.waveforms) else "ratio"
 
     flat, shape, finite = _flatten(m)
+    # β is fitted in one window (module docstring) and, for depth, after the ratio of sinusoids
+    fit_brightness = not np.any(cams.window_offset)
+    pairs = None
     if method == "ratio":
+        pairs = _ratio_pairs(cams)
         doppler_phase, ok = _velocity_ratio(flat, cams, min_amplitude)
         depth_threshold = None
         a_known = np.where(ok, doppler_phase, 0.0)
-        if all(w == "sinusoidal" for w in cams.waveforms) and not np.any(cams.window_offset):  # β, for an unbiased Z (depth)
+        fit_brightness &= all(w == "sinusoidal" for w in cams.waveforms)
+        if fit_brightness:  # the brightness slope at the ratio's a: for an unbiased Z (depth)
             _, brightness = _gauss_newton(flat, a_known, cams, max_step=0.0, max_phase=np.inf, fit_doppler=False)
         else:
             brightness = np.zeros_like(a_known)
@@ -1061,8 +1091,8 @@ def velocity(
     covariance = _covariance(measurement_stderr, measurement_covariance, m.shape)
     if covariance is None:
         return result
-    options = dict(min_amplitude=min_amplitude, method=method, max_doppler_hz=max_doppler_hz)
-    v_err, d_err = _propagated_errors(m, cameras, covariance, options)
+    v_err, d_err = (e.reshape(shape) for e in _propagated_errors(
+        flat, cams, covariance, a_for_depth, np.where(ok, brightness, 0.0), fit, fit_brightness, pairs))
     # The estimators converge to ~1e-13 rad of Doppler phase: pixels whose measurements
     # are exact (a static surface: E = 0 with antithetic replay) are known to that, not to 0.
     v_err = np.hypot(v_err, _doppler_to_velocity(_NUMERICAL_DOPPLER_PHASE_RAD, cams)[0])
@@ -1145,29 +1175,45 @@ def _covariance(stderr, covariance, shape):
     return c
 
 
-def _propagated_errors(m, cameras, covariance, options):
-    """Delta method: the velocity's and depth's Jacobians in the measurements by central
-    differences (steps of 1e-3 standard errors, where the estimators are locally linear),
-    then σ² = J Σ Jᵀ per pixel."""
-    n = m.shape[0]
-    sigma = np.sqrt(np.maximum(np.einsum("ii...->i...", covariance), 0.0))
-    step = 1e-3 * np.where(sigma > 0, sigma, 1.0)
-    jac_v = np.empty_like(m)
-    jac_d = np.empty_like(m)
-    for i in range(n):
-        up, down = m.copy(), m.copy()
-        up[i] += step[i]
-        down[i] -= step[i]
-        plus = velocity(up, cameras, **options)
-        minus = velocity(down, cameras, **options)
-        jac_v[i] = (plus.velocity - minus.velocity) / (2 * step[i])
-        jac_d[i] = (plus.depth - minus.depth) / (2 * step[i])
-    var_v = np.einsum("i...,ij...,j...->...", jac_v, covariance, jac_v)
-    var_d = np.einsum("i...,ij...,j...->...", jac_d, covariance, jac_d)
+def _propagated_errors(flat, cams: _CameraSet, covariance, doppler_phase, brightness, fit, fit_brightness, pairs=None):
+    """Delta method: σ² = g Σ gᵀ per pixel, g the gradient of the velocity (or depth)
+    estimate in the measurements, shape (N,) each.
+
+    The fit's gradient is the Gauss-Newton linearisation of the least-squares solution,
+    (JᵀJ)⁻¹Jᵀ with J = ∂m/∂(Re Z, Im Z, a[, β]) at the solution (exact when the set has as
+    many measurements as unknowns); the ratio's velocity is differentiated in closed form
+    (``pairs``); the depth, arg Z + a/2 over 2k, from the same linearisation for both.
+    """
+    n, count = flat.shape
+    d1, d2 = _design_columns(doppler_phase, cams, brightness, "a")
+    columns = [fit["c1"], fit["c2"], d1 * fit["x"] + d2 * fit["y"]]
+    if fit_brightness:
+        d1, d2 = _design_columns(doppler_phase, cams, brightness, "beta")
+        columns.append(d1 * fit["x"] + d2 * fit["y"])
+    jac = np.moveaxis(np.stack(columns, axis=-1), 1, 0)  # (N, n, k)
+    with np.errstate(all="ignore"):
+        solve = np.linalg.pinv(np.where(np.isfinite(jac), jac, 0.0))  # (N, k, n)
+        z2 = fit["x"] ** 2 + fit["y"] ** 2
+        w_depth = np.zeros((count, jac.shape[2]))
+        w_depth[:, 0], w_depth[:, 1], w_depth[:, 2] = -fit["y"] / z2, fit["x"] / z2, 0.5
+        grad_depth = np.einsum("pk,pkn->pn", w_depth, solve) / (2.0 * cams.wavenumber)
+        if pairs is None:
+            grad_a = solve[:, 2, :]
+        else:  # a = 2π r/(1 − r), r = Σ E_i H_i / Σ H_i² (g1/2 divided out)
+            hom = np.stack([flat[i] / cams.half_g1[i] for i, _ in pairs])
+            het = np.stack([flat[j] / cams.half_g1[j] for _, j in pairs])
+            total = np.sum(hom * hom, axis=0)
+            r = np.sum(het * hom, axis=0) / total
+            grad_a = np.zeros((count, n))
+            for (i, j), h_i, e_i in zip(pairs, hom, het):
+                grad_a[:, j] = h_i / (total * cams.half_g1[j])
+                grad_a[:, i] = (e_i - 2.0 * r * h_i) / (total * cams.half_g1[i])
+            grad_a *= (2.0 * np.pi / (1.0 - r) ** 2)[:, None]
+        grad_v = grad_a / (2.0 * cams.wavenumber * cams.exposure_s)  # v = a/(2 k T)
+        sigma = np.moveaxis(covariance.reshape(n, n, count), 2, 0)
+        var_v = np.einsum("pi,pij,pj->p", grad_v, sigma, grad_v)
+        var_d = np.einsum("pi,pij,pj->p", grad_depth, sigma, grad_depth)
     return np.sqrt(np.maximum(var_v, 0.0)), np.sqrt(np.maximum(var_d, 0.0))
-
-
-
 
 
 def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None) -> np.ndarray:
