@@ -15,6 +15,23 @@ this module inverts that model per pixel. With the light co-located with the cam
 path length is twice the distance, so u = 2 v (v the radial velocity, positive when the
 distance grows) and the reported depth is d = L/2.
 
+Brightness. A moving surface does not keep its radiance: lit from the camera, it follows
+the inverse-square law, A ∝ 1/d(t)², a relative change β = −2 v T/d over the exposure. That
+is as large as the Doppler phase itself (β/a = −c/(2π f_g d): −0.4 at 30 MHz and 4 m), and
+it enters the heterodyne measurements like a Doppler shift turned by 90°: to first order a
+heterodyne pair measures (a + iβ) Z/2π. The model therefore has four unknowns per pixel,
+Z (amplitude and depth phase), a and β, with
+
+    A(τ)/A_mid = 1 + β (τ − ½) + ¾ β² (τ − ½)²      (τ = t/T, the inverse square to 2nd order),
+
+    m_i = (g1_i/2) Re{ Z K_i },   K_i = e^{iψ_i} [F(x_i) + β G(x_i) + ¾ β² H(x_i)],
+
+x_i = 2π h_i + a, G(x) = ∫_0^1 (s − ½) e^{ixs} ds, H(x) = ∫_0^1 (s − ½)² e^{ixs} ds (the
+curvature term matters: without it the fit read the moving-plane oracle 5e-4 fast at
+10 m/s). A camera set whose measurements cannot tell a from β — three cameras (h = 0 at one
+phase, h = 1 at two: the homodyne gives only Re Z), or a single h = 0/h = 1 pair — cannot
+determine velocity and is refused, naming the cameras to add (h = 0 at the missing phase).
+
 Two estimators:
 
 ``"ratio"`` (Heide et al. 2015, the original code's ``calc_velocity_from_homo_hetero(s)``)
@@ -31,18 +48,28 @@ Two estimators:
     β A₀ (g1/2) sin θ_i / 2π at a = 0, so r_i gains β tan θ_i / 2π, which the |H|-weighted
     mean keeps, while Σ E_i H_i gains ∝ β Σ sin 2θ_i, zero as soon as Σ e^{2iψ_i} = 0
     (ψ = 0, π/2; or 0, π/2, π, 3π/2). What is left is second order: the velocity is
-    scaled by ≈ 1 − β²/12. (ψ = 0 alone, or 0 and π, cannot tell a brightness change
-    from a Doppler shift.) The slope divides by no single H_i, so every pair enters it:
+    scaled by ≈ 1 − β²/12, and the inverse square's curvature, ¾ β², adds ≈ 5e-4 at
+    10 m/s and 5 m (relative, ∝ v/d²). Pairs whose phases do not balance are refused
+    (use the fit). The slope divides by no single H_i, so every pair enters it:
     leaving out pairs by their own r_i (small |H_i|, r_i ≥ 1) would select on noise and
     undo the cancellation. Other waveforms are accepted but the ratio is then only
     approximately a/(a + 2π).
 ``"fit"``
-    any set of ≥ 3 measurements with known (h_i, ψ_i), sinusoid only: for a fixed Doppler
-    phase a the model is linear in (Re Z, Im Z) and solved in closed form (2×2 normal
-    equations); a is found per pixel by a coarse grid over ``|Δf| ≤ max_doppler_hz``
-    followed by variable-projection Gauss-Newton steps with step halving. Covers
-    homodyne + heterodyne at several phases and arbitrary heterodyne schemes such as
-    Hu et al. 2022 (h ∈ {½, ½, −½, −½}, ψ ∈ {3π/2, 0, π/2, π}).
+    any set that determines a and β (≥ 4 measurements), sinusoid only: for fixed a and β
+    the model is linear in (Re Z, Im Z) and solved in closed form (2×2 normal equations);
+    a is found per pixel by a coarse grid over ``|Δf| ≤ max_doppler_hz`` (at β = 0), then
+    a and β by variable-projection Gauss-Newton steps with step halving. Exact for the
+    brightness model above. Covers homodyne + heterodyne at several phases and arbitrary
+    heterodyne schemes such as Hu et al. 2022 (h ∈ {½, ½, −½, −½}, ψ ∈ {3π/2, 0, π/2, π}).
+
+``"auto"`` is the fit for sinusoids and the ratio otherwise.
+
+Errors. Given the measurements' covariance (a render's per-camera standard errors and
+``measurement_covariance``), the velocity and depth errors are propagated by the delta
+method: the fit's gradient is its Gauss-Newton linearisation, the ratio's its closed form.
+A pixel is valid when its velocity's standard error is at most ``max_velocity_stderr``
+(:func:`default_max_velocity_stderr`). These are Monte Carlo errors: a pixel that sees
+several paths (global illumination, a silhouette) is biased beyond them.
 
 Depth refers to the middle of the exposure (t = T/2): the phase of the homodyne
 correlation is exactly k L(T/2) whatever the velocity, so a 4-phase homodyne depth is
@@ -52,7 +79,8 @@ range c/(2 f_g).
 Capture schedules. Cameras may expose at different times (``exposure_start``, s: a
 render's cameras one after another, README "Capture schedules"). The model then takes
 each pixel to see *one* path over the whole schedule, its length growing at a constant
-rate and its radiance constant: camera i, whose window opens δ_i = (s_i − s_0)/T
+rate and its radiance constant (β = 0: with β free, four windows of four cameras leave
+several exact solutions): camera i, whose window opens δ_i = (s_i − s_0)/T
 exposures after the first camera's, sees the path lengthened by u (s_i − s_0), so its
 phase gains a δ_i:
 
@@ -89,8 +117,8 @@ name                   unit    default                      meaning
                                                             (g1/2)|Z| for the fit and depth)
                                                             is not above it are invalid
 ``method``             –       ``"auto"``                   ``"ratio"``, ``"fit"`` or ``"auto"``
-                                                            (ratio iff the cameras form matched
-                                                            h = 0 / h = 1 pairs)
+                                                            (the fit for sinusoids, else the
+                                                            ratio)
 ``max_doppler_hz``     Hz      1/(2T)                       search range of the fit, |Δf|;
                                                             |a| ≤ π at the default
 =====================  ======  ===========================  ===================================
@@ -1006,7 +1034,7 @@ def velocity(
         |H_i| (ratio) or of the data amplitude sqrt(2 mean_i m_i²) (fit; unlike the fitted
         amplitude it cannot be inflated by ill-conditioned pixels).
     method : {"auto", "ratio", "fit"}
-        ``"auto"`` uses the ratio when the cameras are matched h=0/h=1 pairs, else the fit.
+        ``"auto"`` uses the fit for sinusoidal cameras, else the ratio.
     max_doppler_hz : float, optional
         Fit only: the search range |Δf| (Hz); default 1/(2T), i.e. |a| ≤ π. At f_g = 30
         MHz, T = 1.5 ms that is |v| ≤ 1665 m/s.

@@ -32,12 +32,10 @@ multipath (global illumination, silhouettes) biases a pixel beyond it.
 Reconstruction method
 ---------------------
 ``method=None`` (the default) is ``"auto"`` of :func:`dopplertof.reconstruct.velocity`:
-the homodyne/heterodyne ratio when the cameras are matched h = 0 / h = 1 pairs, else the
-per-pixel fit. With phases in quadrature (ψ = 0 and 90°, or four phases) both are
-insensitive, to first order, to a radiance that changes during the exposure (a box
-moving 1.5 cm closer in the Cornell box brightens by ≈ 0.5 %, 1/d²): the ratio fuses the
-phases as Σ E_i H_i / Σ H_i², to which a linear brightness change is orthogonal (see
-:mod:`dopplertof.reconstruct`).
+the per-pixel fit for sinusoidal cameras, which estimates the radiance change during the
+exposure with the velocity (a box moving 1.5 cm closer in the Cornell box brightens by
+≈ 0.5 %, 1/d²), else the homodyne/heterodyne ratio of balanced pairs, blind to that change
+to first order (see :mod:`dopplertof.reconstruct`).
 """
 
 from __future__ import annotations
@@ -363,7 +361,7 @@ def parse_speed(text: str) -> float:
 @click.argument("folder")
 @click.option("-o", "--output", default=None, help="Output folder (default: FOLDER).")
 @click.option("--method", type=click.Choice(["auto", "ratio", "fit"]), default=None,
-              help="Estimator (default: auto, the ratio for matched h=0/h=1 pairs in quadrature, else the fit).")
+              help="Estimator (default: auto, the fit for sinusoidal cameras, else the ratio).")
 @click.option("--max-velocity-stderr", "max_velocity_stderr", default=None, metavar="M/S",
               help="Valid pixels: velocity standard error at most this, m/s (e.g. 0.5 or 0.5m/s; "
                    "default a tenth of the scene's speed scale).")
