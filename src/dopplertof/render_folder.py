@@ -17,10 +17,11 @@ file                              content
 ``depth_wrapped.png``             mask: white where the true depth (``depth.exr``) is beyond
                                   the unambiguous range c/(2 f_g), so the depth read is wrapped
 ``velocity_comparison.png``       ground truth next to the reconstruction, one colour range
-``velocity_error.json``           error of the reconstruction on its valid pixels, m/s
+``velocity_error.json``           error of the reconstruction on its valid pixels, m/s, and
+                                  the fraction off by more than 3 standard errors
 ``reconstruction.json``           method, the validity threshold (m/s) and why, the error
                                   model, the depth range c/(2 f_g) and, against the ground
-                                  truth, the calibration and wrapped fractions
+                                  truth, the fraction of wrapped depths
 ================================  ============================================================
 
 Validity. A pixel is valid when the estimator determines its velocity and the standard
@@ -112,11 +113,12 @@ def reconstruct(measurements, cameras, method: str | None = None, stderr=None, c
 ERROR_MODEL = "standard errors are Monte Carlo only; multipath bias (global illumination, silhouettes) is not included"
 
 
-def summary(reconstruction: rc.VelocityResult) -> dict:
+def summary(reconstruction: rc.VelocityResult, depth_truth_m=None) -> dict:
     """What a reconstruction assumed and decided, for ``reconstruction.json`` and the
     command's summary line: method, validity threshold (m/s) and its reason, the error
-    model, the unambiguous depth range (m)."""
-    return {
+    model, the unambiguous depth range (m) and, given the true depth (m, NaN where nothing
+    is hit), the fraction of the hit pixels whose depth is wrapped (:func:`depth_wrapped`)."""
+    info = {
         "method": reconstruction.method,
         "max_velocity_stderr_m_s": reconstruction.max_velocity_stderr_m_s,
         "threshold_reason": reconstruction.threshold_reason,
@@ -124,6 +126,11 @@ def summary(reconstruction: rc.VelocityResult) -> dict:
         "depth_range_m": reconstruction.depth_range_m,
         "valid_fraction_of_image": float(np.mean(reconstruction.valid)),
     }
+    if depth_truth_m is not None:
+        hit = np.isfinite(np.asarray(depth_truth_m, dtype=np.float64))
+        wrapped = depth_wrapped(depth_truth_m, reconstruction.depth_range_m)
+        info["depth_wrapped_fraction"] = float(wrapped[hit].mean()) if hit.any() else 0.0
+    return info
 
 
 def describe_summary(info: dict) -> str:
@@ -231,13 +238,10 @@ def write_reconstruction(folder: str, reconstruction: rc.VelocityResult, ground_
             vmax=vmax_m_s, unit="m/s", title="radial velocity",
         )
         io.write_json(path(ERROR_FILE), velocity_error(reconstruction, ground_truth_m_s))
-    info = summary(reconstruction)
     if depth_truth_m is not None:
         wrapped = depth_wrapped(depth_truth_m, reconstruction.depth_range_m)
         viz.save_png(path("depth_wrapped.png"), np.where(wrapped, 255, 0).astype(np.uint8))
-        hit = np.isfinite(np.asarray(depth_truth_m, dtype=np.float64))
-        info["depth_wrapped_fraction"] = float(wrapped[hit].mean()) if hit.any() else 0.0
-    io.write_json(path(SUMMARY_FILE), info)
+    io.write_json(path(SUMMARY_FILE), summary(reconstruction, depth_truth_m))
     return written
 
 
@@ -336,9 +340,9 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
     """
     cameras, measurements, truth, stderr, covariance = read_render_folder(folder)
     result = reconstruct(measurements, cameras, method, stderr, covariance, max_velocity_stderr)
-    output = output or folder
-    written = write_reconstruction(output, result, truth, depth_truth_m=read_depth_truth(folder))
-    info = io.read_json(os.path.join(output, SUMMARY_FILE))
+    depth_truth = read_depth_truth(folder)
+    written = write_reconstruction(output or folder, result, truth, depth_truth_m=depth_truth)
+    info = summary(result, depth_truth)
     if truth is not None:
         info.update(velocity_error(result, truth))
     return result, written, info
