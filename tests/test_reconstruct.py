@@ -454,6 +454,13 @@ def test_bad_arguments_raise():
         rc.velocity(m, cams, min_amplitude=-1.0)
     with pytest.raises(ValueError, match="max_doppler_hz"):
         rc.velocity(m, cams, max_doppler_hz=0.0)
+    quad = ratio_set(30e6, [0.0, 0.5 * np.pi])
+    m4, stderr = np.ones((4, 2)), np.full((4, 2), 0.01)
+    for bad in (0.0, -1.0, float("nan"), "1 m/s"):
+        with pytest.raises(ValueError, match="max_velocity_stderr"):
+            rc.velocity(m4, quad, measurement_stderr=stderr, max_velocity_stderr=bad)
+    with pytest.raises(ValueError, match=r"max_velocity_stderr=0.5 m/s needs the measurements' errors"):
+        rc.velocity(m4, quad, max_velocity_stderr=0.5)
     with pytest.raises(ValueError, match="exposure"):
         rc.velocity(m, [Cam(exposure=-1.0), Cam(exposure=-1.0, heterodyne=1)])
     with pytest.raises(ValueError, match="depth needs at least two"):

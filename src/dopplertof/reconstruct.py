@@ -386,9 +386,9 @@ def model_measurements(amplitude, depth_m, velocity_m_s, cameras: Sequence, brig
     """Forward model: exposure-averaged low-pass sinusoid of one path per pixel.
 
     The light is co-located with the camera (optical path L = 2 × distance, dL/dt =
-    2 × radial velocity), the velocity is constant and the radiance changes linearly
-    over the exposure (over every camera's window: module docstring). The inverse of
-    :func:`velocity` and :func:`depth`.
+    2 × radial velocity), the velocity is constant and the radiance follows the
+    inverse-square law to second order in β (over every camera's window: module
+    docstring). The inverse of :func:`velocity` and :func:`depth`.
 
     Parameters
     ----------
@@ -862,7 +862,10 @@ def _ratio_to_doppler_phase(ratio):
 
 
 def ratio_velocity_per_phase(measurements, cameras: Sequence, *, min_amplitude=None):
-    """Velocity from each homodyne/heterodyne pair separately (no fusion).
+    """Velocity from each homodyne/heterodyne pair separately (no fusion): the original
+    formula per phase, a diagnostic. A pair alone cannot tell the brightness change of a
+    moving surface from a Doppler shift (module docstring): each pair's ratio carries
+    β tan θ_i / 2π besides a/(a + 2π), so its velocity is biased wherever cos θ_i is small.
 
     Parameters
     ----------
@@ -1071,6 +1074,10 @@ def velocity(
         max_doppler_hz = 0.5 / cams.exposure_s
     if not (np.isfinite(max_doppler_hz) and max_doppler_hz > 0):
         raise ValueError(f"max_doppler_hz must be a finite number > 0, got {max_doppler_hz!r}")
+    if max_velocity_stderr is not None:
+        max_velocity_stderr = checked("max_velocity_stderr", max_velocity_stderr, "float")
+        if not max_velocity_stderr > 0:
+            raise ValueError(f"max_velocity_stderr must be > 0 m/s, got {max_velocity_stderr!r}")
     reason = _velocity_identifiable(cams)
     if reason is not None:
         raise ValueError(reason)
@@ -1118,6 +1125,11 @@ def velocity(
     )
     covariance = _covariance(measurement_stderr, measurement_covariance, m.shape)
     if covariance is None:
+        if max_velocity_stderr is not None:
+            raise ValueError(
+                f"max_velocity_stderr={max_velocity_stderr!r} m/s needs the measurements' errors "
+                "(measurement_stderr or measurement_covariance, or pass the RenderResult)"
+            )
         return result
     v_err, d_err = (e.reshape(shape) for e in _propagated_errors(
         flat, cams, covariance, a_for_depth, np.where(ok, brightness, 0.0), fit, fit_brightness, pairs))
@@ -1125,12 +1137,9 @@ def velocity(
     # are exact (a static surface: E = 0 with antithetic replay) are known to that, not to 0.
     v_err = np.hypot(v_err, _doppler_to_velocity(_NUMERICAL_DOPPLER_PHASE_RAD, cams)[0])
     if max_velocity_stderr is None:
-        limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err.reshape(shape))
+        limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err)
     else:
-        limit = checked("max_velocity_stderr", max_velocity_stderr, "float")
-        if not limit > 0:
-            raise ValueError(f"max_velocity_stderr must be > 0 m/s, got {max_velocity_stderr!r}")
-        result.threshold_reason = "given"
+        limit, result.threshold_reason = max_velocity_stderr, "given"
     result.max_velocity_stderr_m_s = limit
     keep = result.valid & np.isfinite(v_err) & (v_err <= limit)
     result.valid = keep
