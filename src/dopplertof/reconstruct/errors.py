@@ -1,0 +1,111 @@
+"""Standard errors of the reconstruction (:mod:`dopplertof.reconstruct`, errors): the
+measurements' covariance, the delta method, and the default validity threshold."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .model import _CameraSet, _design_columns
+
+
+DEFAULT_RELATIVE_MAX_VELOCITY_STDERR = 0.1
+"""Default ``max_velocity_stderr`` as a fraction of the scene's speed scale
+(:func:`default_max_velocity_stderr`)."""
+
+_NUMERICAL_DOPPLER_PHASE_RAD = 1e-12  # resolution of the estimators, added to the propagated error
+
+
+def default_max_velocity_stderr(velocity_m_s, velocity_stderr_m_s) -> tuple[float, str]:
+    """The default threshold on a pixel's velocity standard error (m/s), and why.
+
+    A tenth of the scene's speed scale: the 90th percentile of |v| over the pixels whose
+    velocity differs from 0 by more than three standard errors (the motion the cameras
+    actually detect; not the maximum, which silhouettes make wild, nor the median, which
+    the small velocities multipath puts on static walls pull down). A valid pixel then
+    knows its velocity to 10 % of the motion in view, enough to keep its sign and its
+    colour on a map of the scene; the scale comes
+    from the scene, so it suits a 1 m/s hand as well as a 30 m/s car (the unambiguous speed
+    c/(4 f_g T), 83 m/s at 30 MHz and 1.5 ms, says nothing about either). Where nothing moves
+    detectably there is no scale: three times the median standard error then keeps the
+    pixels measured about as well as the typical one.
+
+    Parameters
+    ----------
+    velocity_m_s, velocity_stderr_m_s : ndarray
+        Velocity estimates and their standard errors (m/s); NaN where not determined.
+
+    Returns
+    -------
+    (threshold_m_s, reason) : (float, str)
+    """
+    v = np.asarray(velocity_m_s, dtype=np.float64)
+    sigma = np.asarray(velocity_stderr_m_s, dtype=np.float64)
+    known = np.isfinite(v) & np.isfinite(sigma)
+    moving = known & (np.abs(v) > 3.0 * sigma)
+    if moving.any():
+        scale = float(np.percentile(np.abs(v[moving]), 90.0))
+        limit = DEFAULT_RELATIVE_MAX_VELOCITY_STDERR * scale
+        return limit, (f"{DEFAULT_RELATIVE_MAX_VELOCITY_STDERR:.0%} of the scene's speed scale {scale:.3g} m/s "
+                       "(90th percentile of |v| where |v| > 3 standard errors)")
+    typical = float(np.median(sigma[known])) if known.any() else 0.0
+    return 3.0 * typical, "no pixel moves detectably: 3 × the median standard error"
+
+
+def _covariance(stderr, covariance, shape):
+    """(n, n, pixels...) covariance from either argument, or None."""
+    n = shape[0]
+    if covariance is not None:
+        c = np.asarray(covariance, dtype=np.float64)
+        if c.shape != (n, n) + shape[1:]:
+            raise ValueError(f"measurement_covariance must have shape {(n, n) + shape[1:]}, got {c.shape}")
+        return c
+    if stderr is None:
+        return None
+    e = np.asarray(stderr, dtype=np.float64)
+    if e.shape != shape:
+        raise ValueError(f"measurement_stderr must have the measurements' shape {shape}, got {e.shape}")
+    c = np.zeros((n, n) + shape[1:])
+    for i in range(n):
+        c[i, i] = e[i] ** 2
+    return c
+
+
+def _propagated_errors(flat, cams: _CameraSet, covariance, doppler_phase, brightness, fit, fit_brightness, pairs=None):
+    """Delta method: σ² = g Σ gᵀ per pixel, g the gradient of the velocity (or depth)
+    estimate in the measurements, shape (N,) each.
+
+    The fit's gradient is the Gauss-Newton linearisation of the least-squares solution,
+    (JᵀJ)⁻¹Jᵀ with J = ∂m/∂(Re Z, Im Z, a[, β]) at the solution (exact when the set has as
+    many measurements as unknowns); the ratio's velocity is differentiated in closed form
+    (``pairs``); the depth, arg Z + a/2 over 2k, from the same linearisation for both.
+    """
+    n, count = flat.shape
+    d1, d2 = _design_columns(doppler_phase, cams, brightness, "a")
+    columns = [fit["c1"], fit["c2"], d1 * fit["x"] + d2 * fit["y"]]
+    if fit_brightness:
+        d1, d2 = _design_columns(doppler_phase, cams, brightness, "beta")
+        columns.append(d1 * fit["x"] + d2 * fit["y"])
+    jac = np.moveaxis(np.stack(columns, axis=-1), 1, 0)  # (N, n, k)
+    with np.errstate(all="ignore"):
+        solve = np.linalg.pinv(np.where(np.isfinite(jac), jac, 0.0))  # (N, k, n)
+        z2 = fit["x"] ** 2 + fit["y"] ** 2
+        w_depth = np.zeros((count, jac.shape[2]))
+        w_depth[:, 0], w_depth[:, 1], w_depth[:, 2] = -fit["y"] / z2, fit["x"] / z2, 0.5
+        grad_depth = np.einsum("pk,pkn->pn", w_depth, solve) / (2.0 * cams.wavenumber)
+        if pairs is None:
+            grad_a = solve[:, 2, :]
+        else:  # a = 2π r/(1 − r), r = Σ E_i H_i / Σ H_i² (g1/2 divided out)
+            hom = np.stack([flat[i] / cams.half_g1[i] for i, _ in pairs])
+            het = np.stack([flat[j] / cams.half_g1[j] for _, j in pairs])
+            total = np.sum(hom * hom, axis=0)
+            r = np.sum(het * hom, axis=0) / total
+            grad_a = np.zeros((count, n))
+            for (i, j), h_i, e_i in zip(pairs, hom, het):
+                grad_a[:, j] = h_i / (total * cams.half_g1[j])
+                grad_a[:, i] = (e_i - 2.0 * r * h_i) / (total * cams.half_g1[i])
+            grad_a *= (2.0 * np.pi / (1.0 - r) ** 2)[:, None]
+        grad_v = grad_a / (2.0 * cams.wavenumber * cams.exposure_s)  # v = a/(2 k T)
+        sigma = np.moveaxis(covariance.reshape(n, n, count), 2, 0)
+        var_v = np.einsum("pi,pij,pj->p", grad_v, sigma, grad_v)
+        var_d = np.einsum("pi,pij,pj->p", grad_depth, sigma, grad_depth)
+    return np.sqrt(np.maximum(var_v, 0.0)), np.sqrt(np.maximum(var_d, 0.0))

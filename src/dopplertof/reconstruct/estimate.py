@@ -1,0 +1,297 @@
+"""The public estimators of :mod:`dopplertof.reconstruct`: :func:`velocity` and :func:`depth`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..modulation import SPEED_OF_LIGHT_M_S
+from ..validation import checked
+from .errors import _NUMERICAL_DOPPLER_PHASE_RAD, _covariance, _propagated_errors, default_max_velocity_stderr
+from .fit import _depth_and_amplitude, _gauss_newton, _velocity_fit
+from .identify import _PROBE_DOPPLER_PHASE, _column_rank, _velocity_identifiable
+from .model import _CameraSet, _camera_set, _check_min_amplitude, _data_amplitude, _default_threshold, _design_columns, _doppler_to_velocity, _flatten, _measurement_array
+from .ratio import _ratio_pairs, _velocity_ratio
+
+
+@dataclass
+class VelocityResult:
+    """Per-pixel result of :func:`velocity`.
+
+    Attributes
+    ----------
+    velocity : ndarray, shape (...)
+        Radial velocity (m/s), positive when the distance grows, assuming the light is
+        co-located with the camera; NaN where ``valid`` is False.
+    valid : ndarray of bool, shape (...)
+        Where the velocity could be determined.
+    depth : ndarray, shape (...)
+        Distance (m) at mid-exposure (of the first camera's window), modulo the ambiguity
+        range c/(2 f_g); NaN where it is not determined (for example a single phase offset).
+    amplitude : ndarray, shape (...)
+        Radiance A of the path (units of the standard intensity image: the g1/2 factor is
+        divided out); NaN where not determined.
+    doppler_hz : ndarray, shape (...)
+        Doppler shift of the modulation frequency, Δf = f_g u / c = a / (2π T) (Hz), where
+        u = dL/dt is the rate of the optical path length; NaN where ``valid`` is False.
+    method : str
+        ``"ratio"`` or ``"fit"``: the estimator that was used.
+    velocity_stderr, depth_stderr : ndarray, shape (...), or None
+        Standard errors (m/s, m) propagated from the measurements' errors (delta method,
+        :func:`velocity`); None when no measurement errors were given. Monte Carlo error
+        only: a pixel that sees several paths (multipath, a silhouette) is biased by them.
+    max_velocity_stderr_m_s : float or None
+        The threshold on ``velocity_stderr`` that ``valid`` applied (m/s); None without
+        measurement errors.
+    threshold_reason : str
+        How that threshold was chosen (given, or derived from the scene: :func:`velocity`).
+    depth_range_m : float
+        Unambiguous depth range c/(2 f_g) (m): ``depth`` is the distance modulo it.
+    brightness : ndarray, shape (...)
+        β, the relative change of the path's radiance over the exposure (−2 v T/d for a
+        diffuse surface lit from the camera); 0 where it is not fitted (several windows,
+        non-sinusoidal waveforms), NaN where ``valid`` is False.
+    """
+
+    velocity: np.ndarray
+    valid: np.ndarray
+    depth: np.ndarray
+    amplitude: np.ndarray
+    doppler_hz: np.ndarray
+    method: str
+    velocity_stderr: np.ndarray | None = None
+    depth_stderr: np.ndarray | None = None
+    max_velocity_stderr_m_s: float | None = None
+    threshold_reason: str = "no measurement errors given: validity from the signal amplitude only"
+    depth_range_m: float = float("nan")
+    brightness: np.ndarray | None = None
+
+
+def velocity(
+    measurements,
+    cameras: Sequence | None = None,
+    *,
+    min_amplitude: float | None = None,
+    method: str = "auto",
+    max_doppler_hz: float | None = None,
+    measurement_stderr=None,
+    measurement_covariance=None,
+    max_velocity_stderr: float | None = None,
+) -> VelocityResult:
+    """Per-pixel radial velocity (and depth, amplitude) from D-ToF measurements.
+
+    Parameters
+    ----------
+    measurements : array_like, shape (n_cameras, ...), or a RenderResult
+        Rendered (or sensor-reconstructed) measurements, one image per camera, in the
+        units of the standard image times g1/2. A :class:`~dopplertof.render.RenderResult`
+        gives its measurements, cameras, standard errors and covariance at once.
+    cameras : sequence of n_cameras camera configurations
+        Sharing f_g (Hz) and T (s). See the module docstring. Cameras in different
+        exposure windows (``exposure_start``) are taken to see one path moving at a
+        constant rate over the whole schedule, with constant radiance (module docstring,
+        capture schedules): false at moving edges, under acceleration or brightness
+        changes between windows, where the result is wrong (a motion artefact).
+    measurement_stderr : array_like, shape (n_cameras, ...), optional
+        Standard errors of the measurements; taken as independent between cameras unless
+        ``measurement_covariance`` is given.
+    measurement_covariance : array_like, shape (n_cameras, n_cameras, ...), optional
+        Covariance of the measurements (of their means: a render's
+        ``measurement_covariance``); cameras rendered from the same paths are correlated.
+    max_velocity_stderr : float, optional
+        With errors given: pixels whose velocity standard error (m/s) exceeds this are
+        invalid. Default: a tenth of the scene's speed scale
+        (:func:`default_max_velocity_stderr`); the value used is
+        ``result.max_velocity_stderr_m_s``. Valid pixels are calibrated where the model holds
+        (one path per pixel, direct light): fewer than 2 % of them are off by more than three
+        standard errors (``tests/test_reconstruct_render.py``). Multipath biases are not in
+        the standard error.
+    min_amplitude : float, optional
+        Signal amplitude (measurement units) at or below which a pixel is invalid:
+        the largest |H_i| over the phases for the ratio, (g1/2)|Z| for the fit (g1/2
+        averaged over the cameras). Default: 1e-3 × the 99th percentile over the image of
+        |H_i| (ratio) or of the data amplitude sqrt(2 mean_i m_i²) (fit; unlike the fitted
+        amplitude it cannot be inflated by ill-conditioned pixels).
+    method : {"auto", "ratio", "fit"}
+        ``"auto"`` uses the fit for sinusoidal cameras, else the ratio.
+    max_doppler_hz : float, optional
+        Fit only: the search range |Δf| (Hz); default 1/(2T), i.e. |a| ≤ π. At f_g = 30
+        MHz, T = 1.5 ms that is |v| ≤ 1665 m/s.
+
+    Returns
+    -------
+    VelocityResult
+        Arrays of shape ``measurements.shape[1:]``. The ratio method also returns depth and
+        amplitude when its pairs span two phases (linear fit at the recovered Doppler).
+
+    Raises
+    ------
+    ValueError
+        If the number of measurements differs from the number of cameras, the cameras
+        differ in f_g or T, ``method`` is unknown, the set cannot determine velocity (e.g.
+        only homodyne), ``method="fit"`` is used with a non-sinusoidal waveform, or
+        ``method="ratio"`` with cameras that are not matched pairs.
+    """
+    if hasattr(measurements, "measurements"):  # a RenderResult
+        result = measurements
+        cameras = result.cameras if cameras is None else cameras
+        measurements = result.measurements
+        if measurement_stderr is None and measurement_covariance is None:
+            measurement_covariance = result.maps.get("measurement_covariance")
+            measurement_stderr = result.measurement_stderr
+    if cameras is None:
+        raise ValueError("velocity() needs the cameras (or a RenderResult)")
+    cams = _camera_set(cameras)
+    m = _measurement_array(measurements, cams)
+    _check_min_amplitude(min_amplitude)
+    if method not in ("auto", "ratio", "fit"):
+        raise ValueError(f"method must be 'auto', 'ratio' or 'fit', got {method!r}")
+    if max_doppler_hz is None:
+        max_doppler_hz = 0.5 / cams.exposure_s
+    if not (np.isfinite(max_doppler_hz) and max_doppler_hz > 0):
+        raise ValueError(f"max_doppler_hz must be a finite number > 0, got {max_doppler_hz!r}")
+    if max_velocity_stderr is not None:
+        max_velocity_stderr = checked("max_velocity_stderr", max_velocity_stderr, "float")
+        if not max_velocity_stderr > 0:
+            raise ValueError(f"max_velocity_stderr must be > 0 m/s, got {max_velocity_stderr!r}")
+    reason = _velocity_identifiable(cams)
+    if reason is not None:
+        raise ValueError(reason)
+    if method == "auto":  # the fit models the inverse-square brightening exactly; the ratio to first order
+        method = "fit" if all(w == "sinusoidal" for w in cams.waveforms) else "ratio"
+
+    flat, shape, finite = _flatten(m)
+    # β is fitted in one window (module docstring) and, for depth, after the ratio of sinusoids
+    fit_brightness = not np.any(cams.window_offset)
+    pairs = None
+    if method == "ratio":
+        pairs = _ratio_pairs(cams)
+        doppler_phase, ok = _velocity_ratio(flat, cams, min_amplitude)
+        depth_threshold = None
+        a_known = np.where(ok, doppler_phase, 0.0)
+        fit_brightness &= all(w == "sinusoidal" for w in cams.waveforms)
+        if fit_brightness:  # the brightness slope at the ratio's a: for an unbiased Z (depth)
+            _, brightness = _gauss_newton(flat, a_known, cams, max_step=0.0, max_phase=np.inf, fit_doppler=False)
+        else:
+            brightness = np.zeros_like(a_known)
+    else:
+        doppler_phase, brightness, ok, depth_threshold = _velocity_fit(flat, cams, min_amplitude, max_doppler_hz)
+    ok &= finite
+    vel, dopp = _doppler_to_velocity(doppler_phase, cams)
+
+    # Depth and amplitude: the linear part at the recovered Doppler phase and brightness slope.
+    a_for_depth = np.where(ok, doppler_phase, 0.0)
+    depth_m, amplitude, signal, fit = _depth_and_amplitude(flat, a_for_depth, cams, np.where(ok, brightness, 0.0))
+    if depth_threshold is None:
+        depth_threshold = _default_threshold(_data_amplitude(flat), min_amplitude)
+    depth_ok = ok & fit["full_rank"] & (signal > depth_threshold)
+
+    def out(values, mask):
+        return np.where(mask, values, np.nan).reshape(shape)
+
+    result = VelocityResult(
+        velocity=out(vel, ok),
+        valid=ok.reshape(shape),
+        depth=out(depth_m, depth_ok),
+        amplitude=out(amplitude, depth_ok),
+        doppler_hz=out(dopp, ok),
+        method=method,
+        depth_range_m=ambiguity_range_m(cams.frequency_hz),
+        brightness=out(brightness, ok),
+    )
+    covariance = _covariance(measurement_stderr, measurement_covariance, m.shape)
+    if covariance is None:
+        if max_velocity_stderr is not None:
+            raise ValueError(
+                f"max_velocity_stderr={max_velocity_stderr!r} m/s needs the measurements' errors "
+                "(measurement_stderr or measurement_covariance, or pass the RenderResult)"
+            )
+        return result
+    v_err, d_err = (e.reshape(shape) for e in _propagated_errors(
+        flat, cams, covariance, a_for_depth, np.where(ok, brightness, 0.0), fit, fit_brightness, pairs))
+    # The estimators converge to ~1e-13 rad of Doppler phase: pixels whose measurements
+    # are exact (a static surface: E = 0 with antithetic replay) are known to that, not to 0.
+    v_err = np.hypot(v_err, _doppler_to_velocity(_NUMERICAL_DOPPLER_PHASE_RAD, cams)[0])
+    if max_velocity_stderr is None:
+        limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err)
+    else:
+        limit, result.threshold_reason = max_velocity_stderr, "given"
+    result.max_velocity_stderr_m_s = limit
+    keep = result.valid & np.isfinite(v_err) & (v_err <= limit)
+    result.valid = keep
+    result.velocity = np.where(keep, result.velocity, np.nan)
+    result.doppler_hz = np.where(keep, result.doppler_hz, np.nan)
+    result.brightness = np.where(keep, result.brightness, np.nan)
+    result.velocity_stderr = np.where(keep, v_err, np.nan)
+    result.depth_stderr = np.where(np.isfinite(result.depth), d_err, np.nan)
+    return result
+
+
+def unambiguous_speed_m_s(cams) -> float:
+    """The radial speed c/(4 f_g T) at which the Doppler phase over the exposure reaches π."""
+    cams = cams if isinstance(cams, _CameraSet) else _camera_set(cams)
+    return SPEED_OF_LIGHT_M_S / (4.0 * cams.frequency_hz * cams.exposure_s)
+
+
+def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None) -> np.ndarray:
+    """Per-pixel distance (m) at mid-exposure, modulo the ambiguity range c/(2 f_g).
+
+    If the cameras determine the velocity, this is ``velocity(...).depth`` (the Doppler
+    shift is fitted and accounted for). Otherwise (for example homodyne cameras only) the
+    linear model is solved with no Doppler shift: for 4-phase homodyne (ψ = 0, π/2, π,
+    3π/2) that is the classic φ = atan2(m₃ − m₁, m₀ − m₂), d = c φ / (4π f_g). Its phase is
+    exact at mid-exposure even for a moving target when the cameras share a window (only
+    the amplitude is reduced by sinc(a/2)); phases captured one after another take the
+    target as still between the windows, and its motion biases the depth. For non-sinusoidal waveforms this homodyne path is accepted but has the
+    usual cyclic (wiggling) error.
+
+    Parameters
+    ----------
+    measurements : array_like, shape (n_cameras, ...)
+    cameras : sequence of n_cameras camera configurations (shared f_g, T)
+    min_amplitude : float, optional
+        (g1/2)|Z| threshold (measurement units); default 1e-3 × the 99th percentile of
+        the data amplitude sqrt(2 mean_i m_i²).
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Depth (m) in [0, c/(2 f_g)); NaN where not determined.
+
+    Raises
+    ------
+    ValueError
+        On shape/camera mismatch, or when the phases cannot determine depth (fewer than
+        two independent phase offsets).
+    """
+    cams = _camera_set(cameras)
+    m = _measurement_array(measurements, cams)
+    _check_min_amplitude(min_amplitude)
+    sinusoid = all(w == "sinusoidal" for w in cams.waveforms)
+    determines_velocity = sinusoid and _velocity_identifiable(cams) is None
+    # generic Doppler phase when it is fitted, a = 0 when it is not
+    probe = np.array([_PROBE_DOPPLER_PHASE if determines_velocity else 0.0])
+    if _column_rank(*_design_columns(probe, cams)) < 2:
+        raise ValueError(
+            "depth needs at least two independent phase measurements (e.g. homodyne at "
+            f"ψ = 0 and π/2); got h = {cams.heterodyne.tolist()}, "
+            f"ψ = {cams.phase_rad.tolist()} rad"
+        )
+    if determines_velocity:
+        return velocity(m, cameras, min_amplitude=min_amplitude).depth
+    flat, shape, finite = _flatten(m)
+    depth_m, _, signal, fit = _depth_and_amplitude(flat, np.zeros(flat.shape[1]), cams)
+    threshold = _default_threshold(_data_amplitude(flat), min_amplitude)
+    ok = finite & fit["full_rank"] & (signal > threshold)
+    return np.where(ok, depth_m, np.nan).reshape(shape)
+
+
+def ambiguity_range_m(modulation_frequency_hz: float) -> float:
+    """Unambiguous depth range c/(2 f_g) (m) of a co-located ToF camera."""
+    if not (np.isfinite(modulation_frequency_hz) and modulation_frequency_hz > 0):
+        raise ValueError(
+            f"modulation_frequency_hz must be > 0, got {modulation_frequency_hz!r}"
+        )
+    return SPEED_OF_LIGHT_M_S / (2.0 * modulation_frequency_hz)
