@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model import _CameraSet, _design_columns
+from .model import _CameraSet, _design_columns, _doppler_to_velocity, _fits_brightness
 
 
 DEFAULT_RELATIVE_MAX_VELOCITY_STDERR = 0.1
@@ -70,19 +70,20 @@ def _covariance(stderr, covariance, shape):
     return c
 
 
-def _propagated_errors(flat, cams: _CameraSet, covariance, doppler_phase, brightness, fit, fit_brightness, pairs=None):
+def _propagated_errors(flat, cams: _CameraSet, covariance, doppler_phase, brightness, fit, pairs=None):
     """Delta method: σ² = g Σ gᵀ per pixel, g the gradient of the velocity (or depth)
     estimate in the measurements, shape (N,) each.
 
     The fit's gradient is the Gauss-Newton linearisation of the least-squares solution,
     (JᵀJ)⁻¹Jᵀ with J = ∂m/∂(Re Z, Im Z, a[, β]) at the solution (exact when the set has as
     many measurements as unknowns); the ratio's velocity is differentiated in closed form
-    (``pairs``); the depth, arg Z + a/2 over 2k, from the same linearisation for both.
+    (``pairs``); the depth, arg Z + a/2 over 2k, from the same linearisation for both. The
+    velocity error is at least the estimators' numerical resolution.
     """
     n, count = flat.shape
     d1, d2 = _design_columns(doppler_phase, cams, brightness, "a")
     columns = [fit["c1"], fit["c2"], d1 * fit["x"] + d2 * fit["y"]]
-    if fit_brightness:
+    if _fits_brightness(cams):
         d1, d2 = _design_columns(doppler_phase, cams, brightness, "beta")
         columns.append(d1 * fit["x"] + d2 * fit["y"])
     jac = np.moveaxis(np.stack(columns, axis=-1), 1, 0)  # (N, n, k)
@@ -108,4 +109,7 @@ def _propagated_errors(flat, cams: _CameraSet, covariance, doppler_phase, bright
         sigma = np.moveaxis(covariance.reshape(n, n, count), 2, 0)
         var_v = np.einsum("pi,pij,pj->p", grad_v, sigma, grad_v)
         var_d = np.einsum("pi,pij,pj->p", grad_depth, sigma, grad_depth)
-    return np.sqrt(np.maximum(var_v, 0.0)), np.sqrt(np.maximum(var_d, 0.0))
+    # The estimators converge to ~1e-13 rad of Doppler phase: pixels whose measurements
+    # are exact (a static surface: E = 0 with antithetic replay) are known to that, not to 0.
+    floor_v = _doppler_to_velocity(_NUMERICAL_DOPPLER_PHASE_RAD, cams)[0]
+    return np.hypot(np.sqrt(np.maximum(var_v, 0.0)), floor_v), np.sqrt(np.maximum(var_d, 0.0))

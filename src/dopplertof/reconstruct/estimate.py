@@ -9,8 +9,8 @@ import numpy as np
 
 from ..modulation import SPEED_OF_LIGHT_M_S
 from ..validation import checked
-from .errors import _NUMERICAL_DOPPLER_PHASE_RAD, _covariance, _propagated_errors, default_max_velocity_stderr
-from .fit import _depth_and_amplitude, _gauss_newton, _velocity_fit
+from .errors import _covariance, _propagated_errors, default_max_velocity_stderr
+from .fit import _depth_and_amplitude, _velocity_fit
 from .identify import _PROBE_DOPPLER_PHASE, _column_rank, _velocity_identifiable
 from .model import _CameraSet, _camera_set, _check_min_amplitude, _data_amplitude, _default_threshold, _design_columns, _doppler_to_velocity, _flatten, _measurement_array
 from .ratio import _ratio_pairs, _velocity_ratio
@@ -156,6 +156,12 @@ def velocity(
         max_velocity_stderr = checked("max_velocity_stderr", max_velocity_stderr, "float")
         if not max_velocity_stderr > 0:
             raise ValueError(f"max_velocity_stderr must be > 0 m/s, got {max_velocity_stderr!r}")
+    covariance = _covariance(measurement_stderr, measurement_covariance, m.shape)
+    if covariance is None and max_velocity_stderr is not None:
+        raise ValueError(
+            f"max_velocity_stderr={max_velocity_stderr!r} m/s needs the measurements' errors "
+            "(measurement_stderr or measurement_covariance, or pass the RenderResult)"
+        )
     reason = _velocity_identifiable(cams)
     if reason is not None:
         raise ValueError(reason)
@@ -163,19 +169,11 @@ def velocity(
         method = "fit" if all(w == "sinusoidal" for w in cams.waveforms) else "ratio"
 
     flat, shape, finite = _flatten(m)
-    # β is fitted in one window (module docstring) and, for depth, after the ratio of sinusoids
-    fit_brightness = not np.any(cams.window_offset)
     pairs = None
     if method == "ratio":
         pairs = _ratio_pairs(cams)
-        doppler_phase, ok = _velocity_ratio(flat, cams, min_amplitude)
+        doppler_phase, brightness, ok = _velocity_ratio(flat, cams, min_amplitude)
         depth_threshold = None
-        a_known = np.where(ok, doppler_phase, 0.0)
-        fit_brightness &= all(w == "sinusoidal" for w in cams.waveforms)
-        if fit_brightness:  # the brightness slope at the ratio's a: for an unbiased Z (depth)
-            _, brightness = _gauss_newton(flat, a_known, cams, max_step=0.0, max_phase=np.inf, fit_doppler=False)
-        else:
-            brightness = np.zeros_like(a_known)
     else:
         doppler_phase, brightness, ok, depth_threshold = _velocity_fit(flat, cams, min_amplitude, max_doppler_hz)
     ok &= finite
@@ -201,19 +199,10 @@ def velocity(
         depth_range_m=ambiguity_range_m(cams.frequency_hz),
         brightness=out(brightness, ok),
     )
-    covariance = _covariance(measurement_stderr, measurement_covariance, m.shape)
     if covariance is None:
-        if max_velocity_stderr is not None:
-            raise ValueError(
-                f"max_velocity_stderr={max_velocity_stderr!r} m/s needs the measurements' errors "
-                "(measurement_stderr or measurement_covariance, or pass the RenderResult)"
-            )
         return result
     v_err, d_err = (e.reshape(shape) for e in _propagated_errors(
-        flat, cams, covariance, a_for_depth, np.where(ok, brightness, 0.0), fit, fit_brightness, pairs))
-    # The estimators converge to ~1e-13 rad of Doppler phase: pixels whose measurements
-    # are exact (a static surface: E = 0 with antithetic replay) are known to that, not to 0.
-    v_err = np.hypot(v_err, _doppler_to_velocity(_NUMERICAL_DOPPLER_PHASE_RAD, cams)[0])
+        flat, cams, covariance, a_for_depth, np.where(ok, brightness, 0.0), fit, pairs))
     if max_velocity_stderr is None:
         limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err)
     else:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model import _CameraSet, _data_amplitude, _default_threshold, _design_columns, _require_sinusoid
+from .model import _CameraSet, _data_amplitude, _default_threshold, _design_columns, _fits_brightness, _require_sinusoid
 
 
 _GRID_POINTS = 65
@@ -195,11 +195,8 @@ def _velocity_fit(flat, cams, min_amplitude, max_doppler_hz):
     spacing = 2.0 * max_phase / (_grid_points(cams) - 1)
     # Windows at different times give the residual several deep minima, whose depths on
     # the grid can mislead: refine the deepest few and keep the best.
-    schedule = bool(np.any(cams.window_offset))
-    candidates = _SCHEDULE_CANDIDATES if schedule else 1
-    # Across windows β would make several of those minima exact (four unknowns, and four
-    # cameras in the usual schedule): the radiance is taken as constant there (module docstring).
-    fit_brightness = not schedule
+    candidates = _SCHEDULE_CANDIDATES if np.any(cams.window_offset) else 1
+    fit_brightness = _fits_brightness(cams)
     best = None
     for start in _grid_search(flat, cams, max_phase, candidates):
         a, beta = _gauss_newton(flat, start, cams, max_step=spacing, max_phase=max_phase, fit_brightness=fit_brightness)

@@ -313,6 +313,13 @@ def _flatten(m: np.ndarray) -> tuple[np.ndarray, tuple[int, ...], np.ndarray]:
     return np.where(finite, flat, 0.0), shape, finite
 
 
+def _fits_brightness(cams: _CameraSet) -> bool:
+    """Whether the estimators fit the brightness slope β: for sinusoids in one window. Across
+    windows β would make several Doppler phases fit exactly (four unknowns, and four cameras
+    in the usual schedule), so the radiance is taken as constant there (module docstring)."""
+    return not np.any(cams.window_offset) and all(w == "sinusoidal" for w in cams.waveforms)
+
+
 def _doppler_to_velocity(doppler_phase, cams: _CameraSet):
     """(velocity m/s, Δf Hz) from a = k u T, co-located light (u = 2 v)."""
     path_rate = doppler_phase / (cams.wavenumber * cams.exposure_s)

@@ -8,8 +8,9 @@ from typing import Sequence
 
 import numpy as np
 
+from .fit import _gauss_newton
 from .identify import _camera_spec
-from .model import _CameraSet, _camera_set, _check_min_amplitude, _default_threshold, _doppler_to_velocity, _flatten, _measurement_array
+from .model import _CameraSet, _camera_set, _check_min_amplitude, _default_threshold, _doppler_to_velocity, _fits_brightness, _flatten, _measurement_array
 
 
 _H_TOLERANCE = 1e-12  # h == 0 and h == 1 are matched to this absolute tolerance
@@ -158,6 +159,8 @@ def ratio_velocity_per_phase(measurements, cameras: Sequence, *, min_amplitude=N
 
 
 def _velocity_ratio(flat, cams, min_amplitude):
+    """Doppler phase a (the fused ratio), brightness slope β at that a (for an unbiased Z,
+    depth; 0 where :func:`_fits_brightness` says not) and validity, shape (N,) each."""
     pairs = _require_pairs(cams)
     if not _balanced(cams, pairs):
         phases = [_camera_spec(0.0, cams.phase_rad[i]).split(",")[1] for i, _ in pairs]
@@ -176,4 +179,8 @@ def _velocity_ratio(flat, cams, min_amplitude):
     signal = np.max(per_pair["homodyne_amplitude"], axis=0) > per_pair["threshold"]
     ok = signal & (total > 0) & np.isfinite(fused) & (fused < 1.0)
     doppler_phase = _ratio_to_doppler_phase(np.where(ok, fused, 0.0))
-    return doppler_phase, ok
+    if _fits_brightness(cams):
+        _, brightness = _gauss_newton(flat, doppler_phase, cams, max_step=0.0, max_phase=np.inf, fit_doppler=False)
+    else:
+        brightness = np.zeros_like(doppler_phase)
+    return doppler_phase, brightness, ok
