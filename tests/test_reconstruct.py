@@ -383,6 +383,11 @@ def test_depth_wraps_at_ambiguity_range():
     cams = cams_from(f, [(0.0, 0.0), (0.0, 0.5 * np.pi), (0.0, np.pi)])
     m = rc.model_measurements(1.0, span + 0.75, 0.0, cams)
     assert rc.depth(m, cams) == pytest.approx(0.75, rel=1e-9)
+    # the velocity's result states the range its depth is taken modulo
+    quad = ratio_set(30e6, [0.0, 0.5 * np.pi])
+    res = rc.velocity(rc.model_measurements(np.ones(1), 5.75, 1.0, quad), quad)
+    assert res.depth_range_m == pytest.approx(C / (2 * 30e6)) == rc.ambiguity_range_m(30e6)
+    assert res.depth[0] == pytest.approx(5.75 - res.depth_range_m, rel=1e-9)
 
 
 def test_depth_uses_fit_when_velocity_is_determined():

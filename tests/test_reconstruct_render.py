@@ -7,9 +7,9 @@ not an error, and too close to the 5 % bound to test the pipeline with. One indi
 bounce (max_depth 3) keeps indirect light on the static walls, so "zero within noise"
 means something there, and leaves about +1 % on the boxes.
 
-Both estimators are tested: the homodyne/heterodyne ratio (the default for these matched
-pairs) and the per-pixel fit; with ψ = 0 and 90° both are blind, to first order, to the
-boxes' change of brightness during the exposure, and they agree closely here.
+Both estimators are tested: the per-pixel fit (the default for sinusoids), which fits the
+boxes' change of brightness during the exposure, and the homodyne/heterodyne ratio, blind
+to it to first order with ψ = 0 and 90°; they agree closely here.
 """
 
 from __future__ import annotations
@@ -258,3 +258,8 @@ def test_reconstruct_command_states_threshold_error_model_and_depth_range(direct
         code, out, err = run_cli("reconstruct", tmp_path, "--max-velocity-stderr", bad)
         assert code == 2 and err.strip().splitlines() == [
             f"error: --max-velocity-stderr must be a speed > 0 in m/s (e.g. 0.5 or 0.5m/s), got '{bad}'"]
+
+
+def test_depth_wrapped_marks_true_distances_beyond_the_range():
+    truth = np.array([[np.nan, 0.5, 4.99], [5.0, 7.2, 12.0]])
+    np.testing.assert_array_equal(render_folder.depth_wrapped(truth, 5.0), [[False, False, False], [True, True, True]])
