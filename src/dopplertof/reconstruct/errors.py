@@ -70,15 +70,16 @@ def _covariance(stderr, covariance, shape):
     return c
 
 
-def _propagated_errors(flat, cams: _CameraSet, covariance, doppler_phase, brightness, fit, pairs=None):
+def _propagated_errors(flat, cams: _CameraSet, covariance, doppler_phase, brightness, fit, doppler_gradient=None):
     """Delta method: σ² = g Σ gᵀ per pixel, g the gradient of the velocity (or depth)
     estimate in the measurements, shape (N,) each.
 
     The fit's gradient is the Gauss-Newton linearisation of the least-squares solution,
     (JᵀJ)⁻¹Jᵀ with J = ∂m/∂(Re Z, Im Z, a[, β]) at the solution (exact when the set has as
-    many measurements as unknowns); the ratio's velocity is differentiated in closed form
-    (``pairs``); the depth, arg Z + a/2 over 2k, from the same linearisation for both. The
-    velocity error is at least the estimators' numerical resolution.
+    many measurements as unknowns); another estimator gives its own ∂a/∂m,
+    ``doppler_gradient`` (N, n_cameras); the depth, arg Z + a/2 over 2k, comes from the
+    same linearisation for both. The velocity error is at least the estimators' numerical
+    resolution.
     """
     n, count = flat.shape
     d1, d2 = _design_columns(doppler_phase, cams, brightness, "a")
@@ -93,18 +94,7 @@ def _propagated_errors(flat, cams: _CameraSet, covariance, doppler_phase, bright
         w_depth = np.zeros((count, jac.shape[2]))
         w_depth[:, 0], w_depth[:, 1], w_depth[:, 2] = -fit["y"] / z2, fit["x"] / z2, 0.5
         grad_depth = np.einsum("pk,pkn->pn", w_depth, solve) / (2.0 * cams.wavenumber)
-        if pairs is None:
-            grad_a = solve[:, 2, :]
-        else:  # a = 2π r/(1 − r), r = Σ E_i H_i / Σ H_i² (g1/2 divided out)
-            hom = np.stack([flat[i] / cams.half_g1[i] for i, _ in pairs])
-            het = np.stack([flat[j] / cams.half_g1[j] for _, j in pairs])
-            total = np.sum(hom * hom, axis=0)
-            r = np.sum(het * hom, axis=0) / total
-            grad_a = np.zeros((count, n))
-            for (i, j), h_i, e_i in zip(pairs, hom, het):
-                grad_a[:, j] = h_i / (total * cams.half_g1[j])
-                grad_a[:, i] = (e_i - 2.0 * r * h_i) / (total * cams.half_g1[i])
-            grad_a *= (2.0 * np.pi / (1.0 - r) ** 2)[:, None]
+        grad_a = solve[:, 2, :] if doppler_gradient is None else doppler_gradient
         grad_v = grad_a / (2.0 * cams.wavenumber * cams.exposure_s)  # v = a/(2 k T)
         sigma = np.moveaxis(covariance.reshape(n, n, count), 2, 0)
         var_v = np.einsum("pi,pij,pj->p", grad_v, sigma, grad_v)

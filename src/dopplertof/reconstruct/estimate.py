@@ -13,7 +13,7 @@ from .errors import _covariance, _propagated_errors, default_max_velocity_stderr
 from .fit import _depth_and_amplitude, _velocity_fit
 from .identify import _PROBE_DOPPLER_PHASE, _column_rank, _velocity_identifiable
 from .model import _CameraSet, _camera_set, _check_min_amplitude, _data_amplitude, _default_threshold, _design_columns, _doppler_to_velocity, _flatten, _measurement_array
-from .ratio import _ratio_pairs, _velocity_ratio
+from .ratio import _ratio_doppler_gradient, _velocity_ratio
 
 
 @dataclass
@@ -169,9 +169,7 @@ def velocity(
         method = "fit" if all(w == "sinusoidal" for w in cams.waveforms) else "ratio"
 
     flat, shape, finite = _flatten(m)
-    pairs = None
     if method == "ratio":
-        pairs = _ratio_pairs(cams)
         doppler_phase, brightness, ok = _velocity_ratio(flat, cams, min_amplitude)
         depth_threshold = None
     else:
@@ -202,7 +200,8 @@ def velocity(
     if covariance is None:
         return result
     v_err, d_err = (e.reshape(shape) for e in _propagated_errors(
-        flat, cams, covariance, a_for_depth, np.where(ok, brightness, 0.0), fit, pairs))
+        flat, cams, covariance, a_for_depth, np.where(ok, brightness, 0.0), fit,
+        _ratio_doppler_gradient(flat, cams) if method == "ratio" else None))
     if max_velocity_stderr is None:
         limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err)
     else:

@@ -158,6 +158,30 @@ def ratio_velocity_per_phase(measurements, cameras: Sequence, *, min_amplitude=N
     )
 
 
+def _fuse(hom, het):
+    """Σ H_i² and the least-squares slope of E against H over all pairs, Σ E_i H_i / Σ H_i²
+    (g1/2 divided out): blind to a linear brightness change (module docstring); a pair with
+    H ≈ 0 adds ≈ 0 to both sums."""
+    total = np.sum(hom * hom, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return total, np.sum(het * hom, axis=0) / total
+
+
+def _ratio_doppler_gradient(flat, cams: _CameraSet):
+    """∂a/∂m_i, shape (N, n_cameras), of the fused ratio's a = 2π r/(1 − r): for the delta
+    method (:func:`~dopplertof.reconstruct.errors._propagated_errors`)."""
+    pairs = _require_pairs(cams)
+    per_pair = _ratio_per_phase(flat, cams, pairs, None)
+    hom, het = per_pair["homodyne"], per_pair["heterodyne"]
+    total, r = _fuse(hom, het)
+    gradient = np.zeros((flat.shape[1], flat.shape[0]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for (i, j), h_i, e_i in zip(pairs, hom, het):
+            gradient[:, j] = h_i / (total * cams.half_g1[j])
+            gradient[:, i] = (e_i - 2.0 * r * h_i) / (total * cams.half_g1[i])
+        return gradient * (2.0 * np.pi / (1.0 - r) ** 2)[:, None]
+
+
 def _velocity_ratio(flat, cams, min_amplitude):
     """Doppler phase a (the fused ratio), brightness slope β at that a (for an unbiased Z,
     depth; 0 where :func:`_fits_brightness` says not) and validity, shape (N,) each."""
@@ -170,12 +194,7 @@ def _velocity_ratio(flat, cams, min_amplitude):
             "psi=0 and 90deg, or four phases 90deg apart); use method='fit'"
         )
     per_pair = _ratio_per_phase(flat, cams, pairs, min_amplitude)
-    # The least-squares slope of E against H over all pairs, blind to a linear brightness
-    # change (module docstring); a pair with H ≈ 0 adds ≈ 0 to both sums.
-    hom, het = per_pair["homodyne"], per_pair["heterodyne"]
-    total = np.sum(hom * hom, axis=0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        fused = np.sum(het * hom, axis=0) / total
+    total, fused = _fuse(per_pair["homodyne"], per_pair["heterodyne"])
     signal = np.max(per_pair["homodyne_amplitude"], axis=0) > per_pair["threshold"]
     ok = signal & (total > 0) & np.isfinite(fused) & (fused < 1.0)
     doppler_phase = _ratio_to_doppler_phase(np.where(ok, fused, 0.0))
