@@ -568,3 +568,17 @@ def test_inverse_square_curvature_biases_the_ratio_not_the_fit():
         ratio = rc.velocity(m, cams, method="ratio").velocity[0]
         assert ratio - v == pytest.approx(0.0046 * (v / 10.0) ** 2 * (5.0 / d) ** 2, rel=0.03)
         assert rc.velocity(m, cams, method="fit").velocity[0] == pytest.approx(v, rel=1e-9)
+
+
+def test_default_threshold_is_a_tenth_of_the_detected_speeds_else_of_the_speed_range():
+    rng = np.random.default_rng(4)
+    sigma = np.full(10_000, 0.2)
+    static = rng.standard_t(15, sigma.size) * sigma  # noise alone: a few |v| > 5 σ by chance
+    limit, reason = rc.default_max_velocity_stderr(static, sigma, 1666.0)
+    assert limit == pytest.approx(0.05 * 1666.0) and "too few pixels move detectably" in reason
+    moving = static.copy()
+    moving[:500] = rng.uniform(8.0, 12.0, 500)  # 5 % of the pixels move at 8 to 12 m/s
+    limit, reason = rc.default_max_velocity_stderr(moving, sigma, 1666.0)
+    assert limit == pytest.approx(0.1 * np.percentile(moving[:500], 90), rel=0.02) and "speed scale" in reason
+    unknown = np.full(4, np.nan)  # nothing determined: no scale either
+    assert rc.default_max_velocity_stderr(unknown, unknown, 1666.0)[0] == pytest.approx(83.3)

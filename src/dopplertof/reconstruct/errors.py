@@ -13,26 +13,31 @@ DEFAULT_RELATIVE_MAX_VELOCITY_STDERR = 0.1
 (:func:`default_max_velocity_stderr`)."""
 
 _NUMERICAL_DOPPLER_PHASE_RAD = 1e-12  # resolution of the estimators, added to the propagated error
+_DETECTION_Z = 5.0  # |v| above this many standard errors: motion detected (noise: 2e-4 of pixels, t with 15 dof)
+_MIN_DETECTED = (10, 1e-3)  # a speed scale needs this many detected pixels, or this fraction of them
+_STATIC_RELATIVE_MAX_VELOCITY_STDERR = 0.05  # of c/(4 f_g T), where nothing moves detectably
 
 
-def default_max_velocity_stderr(velocity_m_s, velocity_stderr_m_s) -> tuple[float, str]:
+def default_max_velocity_stderr(velocity_m_s, velocity_stderr_m_s, speed_range_m_s: float) -> tuple[float, str]:
     """The default threshold on a pixel's velocity standard error (m/s), and why.
 
     A tenth of the scene's speed scale: the 90th percentile of |v| over the pixels whose
-    velocity differs from 0 by more than three standard errors (the motion the cameras
+    velocity differs from 0 by more than five standard errors (the motion the cameras
     actually detect; not the maximum, which silhouettes make wild, nor the median, which
     the small velocities multipath puts on static walls pull down). A valid pixel then
     knows its velocity to 10 % of the motion in view, enough to keep its sign and its
-    colour on a map of the scene; the scale comes
-    from the scene, so it suits a 1 m/s hand as well as a 30 m/s car (the unambiguous speed
-    c/(4 f_g T), 83 m/s at 30 MHz and 1.5 ms, says nothing about either). Where nothing moves
-    detectably there is no scale: three times the median standard error then keeps the
-    pixels measured about as well as the typical one.
+    colour on a map of the scene; the scale comes from the scene, so it suits a 1 m/s hand
+    as well as a 30 m/s car (the speed range of the cameras, c/(4 f_g T), 1.7 km/s at
+    30 MHz and 1.5 ms, says nothing about either). Where too few pixels move detectably for a
+    scale (fewer than 10, and than 0.1 % of them: noise alone gives ~0.02 %), the scene
+    gives none, and the threshold is 5 % of that range.
 
     Parameters
     ----------
     velocity_m_s, velocity_stderr_m_s : ndarray
         Velocity estimates and their standard errors (m/s); NaN where not determined.
+    speed_range_m_s : float
+        c/(4 f_g T), the speed at which the Doppler phase over the exposure reaches π (m/s).
 
     Returns
     -------
@@ -41,14 +46,15 @@ def default_max_velocity_stderr(velocity_m_s, velocity_stderr_m_s) -> tuple[floa
     v = np.asarray(velocity_m_s, dtype=np.float64)
     sigma = np.asarray(velocity_stderr_m_s, dtype=np.float64)
     known = np.isfinite(v) & np.isfinite(sigma)
-    moving = known & (np.abs(v) > 3.0 * sigma)
-    if moving.any():
+    moving = known & (np.abs(v) > _DETECTION_Z * sigma)
+    if moving.sum() >= max(_MIN_DETECTED[0], _MIN_DETECTED[1] * known.sum()):
         scale = float(np.percentile(np.abs(v[moving]), 90.0))
-        limit = DEFAULT_RELATIVE_MAX_VELOCITY_STDERR * scale
-        return limit, (f"{DEFAULT_RELATIVE_MAX_VELOCITY_STDERR:.0%} of the scene's speed scale {scale:.3g} m/s "
-                       "(90th percentile of |v| where |v| > 3 standard errors)")
-    typical = float(np.median(sigma[known])) if known.any() else 0.0
-    return 3.0 * typical, "no pixel moves detectably: 3 × the median standard error"
+        return DEFAULT_RELATIVE_MAX_VELOCITY_STDERR * scale, (
+            f"{DEFAULT_RELATIVE_MAX_VELOCITY_STDERR:.0%} of the scene's speed scale {scale:.3g} m/s "
+            f"(90th percentile of |v| where |v| > {_DETECTION_Z:g} standard errors)")
+    return _STATIC_RELATIVE_MAX_VELOCITY_STDERR * speed_range_m_s, (
+        f"too few pixels move detectably for a speed scale: {_STATIC_RELATIVE_MAX_VELOCITY_STDERR:.0%} "
+        f"of the cameras' speed range c/(4 f_g T) = {speed_range_m_s:.3g} m/s")
 
 
 def _covariance(stderr, covariance, shape):

@@ -203,7 +203,7 @@ def velocity(
         flat, cams, covariance, a_for_depth, np.where(ok, brightness, 0.0), fit,
         _ratio_doppler_gradient(flat, cams) if method == "ratio" else None))
     if max_velocity_stderr is None:
-        limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err)
+        limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err, unambiguous_speed_m_s(cams))
     else:
         limit, result.threshold_reason = max_velocity_stderr, "given"
     result.max_velocity_stderr_m_s = limit
