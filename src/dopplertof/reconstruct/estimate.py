@@ -26,7 +26,8 @@ class VelocityResult:
         Radial velocity (m/s), positive when the distance grows, assuming the light is
         co-located with the camera; NaN where ``valid`` is False.
     valid : ndarray of bool, shape (...)
-        Where the velocity could be determined.
+        Where the velocity is determined and, with measurement errors, its standard error
+        is at most ``max_velocity_stderr_m_s``.
     depth : ndarray, shape (...)
         Distance (m) at mid-exposure (of the first camera's window), modulo the ambiguity
         range c/(2 f_g); NaN where it is not determined (for example a single phase offset).
@@ -131,8 +132,11 @@ def velocity(
     ValueError
         If the number of measurements differs from the number of cameras, the cameras
         differ in f_g or T, ``method`` is unknown, the set cannot determine velocity (e.g.
-        only homodyne), ``method="fit"`` is used with a non-sinusoidal waveform, or
-        ``method="ratio"`` with cameras that are not matched pairs.
+        only homodyne, or it cannot tell the brightness change from a Doppler shift: the
+        message names the cameras to add), ``method="fit"`` is used with a non-sinusoidal
+        waveform, ``method="ratio"`` with cameras that are not matched pairs or whose phases
+        do not balance, or ``max_velocity_stderr`` is not a number > 0 or comes without
+        measurement errors.
     """
     if hasattr(measurements, "measurements"):  # a RenderResult
         result = measurements
