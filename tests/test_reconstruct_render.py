@@ -185,7 +185,7 @@ def test_validity_is_calibrated_on_the_moving_plane(method):
     standard errors, and the stated errors are not inflated (median |z| near 0.67)."""
     from dopplertof.oracles import moving_plane_scene
 
-    result = dt.render(moving_plane_scene(10.0, resolution=24), CAMERAS, spp=1024, max_depth=2, seed=3)
+    result = dt.render(moving_plane_scene(10.0, resolution=32), CAMERAS, spp=512, max_depth=2, seed=3)
     rec = dt.reconstruct.velocity(result, method=method)
     assert rec.valid.mean() > 0.9
     assert rec.max_velocity_stderr_m_s == pytest.approx(0.1 * np.percentile(np.abs(result.velocity), 90), rel=0.05)
