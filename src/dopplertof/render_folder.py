@@ -124,6 +124,7 @@ def summary(reconstruction: rc.VelocityResult, depth_truth_m=None) -> dict:
         "threshold_reason": reconstruction.threshold_reason,
         "error_model": ERROR_MODEL if reconstruction.velocity_stderr is not None else "no standard errors",
         "depth_range_m": reconstruction.depth_range_m,
+        "modulation_frequencies_hz": list(reconstruction.frequencies_hz),
         "valid_fraction_of_image": float(np.mean(reconstruction.valid)),
     }
     if depth_truth_m is not None:
@@ -143,7 +144,8 @@ def describe_summary(info: dict) -> str:
         parts.append(info["threshold_reason"])
     if "off_by_3_stderr_fraction" in info and math.isfinite(info["off_by_3_stderr_fraction"]):
         parts.append(f"{100 * info['off_by_3_stderr_fraction']:.1f}% of valid pixels are off by > 3 standard errors")
-    depth = f"depth modulo {info['depth_range_m']:.4g} m (c/(2 f_g))"
+    formula = "c/(2 f_g)" if len(info["modulation_frequencies_hz"]) < 2 else "c/(2 |f_1 − f_2|), two frequencies"
+    depth = f"depth modulo {info['depth_range_m']:.4g} m ({formula})"
     if "depth_wrapped_fraction" in info:
         depth += f", wrapped on {100 * info['depth_wrapped_fraction']:.1f}% of the pixels that hit a surface (ground truth)"
     parts.append(depth)

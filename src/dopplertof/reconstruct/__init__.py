@@ -128,8 +128,8 @@ range, velocity not identifiable at that pixel) have ``valid == False`` and NaN 
 """
 
 from .errors import DEFAULT_RELATIVE_MAX_VELOCITY_STDERR, default_max_velocity_stderr
-from .estimate import VelocityResult, ambiguity_range_m, depth, unambiguous_speed_m_s, velocity
-from .model import DEFAULT_RELATIVE_MIN_AMPLITUDE, SPEED_OF_LIGHT_M_S, model_measurements
+from .estimate import VelocityResult, depth, unambiguous_speed_m_s, velocity
+from .model import DEFAULT_RELATIVE_MIN_AMPLITUDE, SPEED_OF_LIGHT_M_S, ambiguity_range_m, model_measurements
 from .ratio import RatioPhaseResult, ratio_velocity_per_phase
 
 __all__ = [

@@ -76,18 +76,17 @@ def _covariance(stderr, covariance, shape):
     return c
 
 
-def _propagated_errors(flat, cams: _CameraSet, covariance, doppler_phase, brightness, fit, doppler_gradient=None):
-    """Delta method: σ² = g Σ gᵀ per pixel, g the gradient of the velocity (or depth)
-    estimate in the measurements, shape (N,) each.
+def _gradients(flat, cams: _CameraSet, doppler_phase, brightness, fit, doppler_gradient=None):
+    """Gradients of the velocity (m/s) and depth (m) estimates in the measurements, shape
+    (N, n_cameras) each: the delta method's g in σ² = g Σ gᵀ (:func:`_stderr`).
 
     The fit's gradient is the Gauss-Newton linearisation of the least-squares solution,
     (JᵀJ)⁻¹Jᵀ with J = ∂m/∂(Re Z, Im Z, a[, β]) at the solution (exact when the set has as
     many measurements as unknowns); another estimator gives its own ∂a/∂m,
     ``doppler_gradient`` (N, n_cameras); the depth, arg Z + a/2 over 2k, comes from the
-    same linearisation for both. The velocity error is at least the estimators' numerical
-    resolution.
+    same linearisation for both.
     """
-    n, count = flat.shape
+    count = flat.shape[1]
     d1, d2 = _design_columns(doppler_phase, cams, brightness, "a")
     columns = [fit["c1"], fit["c2"], d1 * fit["x"] + d2 * fit["y"]]
     if _fits_brightness(cams):
@@ -100,12 +99,18 @@ def _propagated_errors(flat, cams: _CameraSet, covariance, doppler_phase, bright
         w_depth = np.zeros((count, jac.shape[2]))
         w_depth[:, 0], w_depth[:, 1], w_depth[:, 2] = -fit["y"] / z2, fit["x"] / z2, 0.5
         grad_depth = np.einsum("pk,pkn->pn", w_depth, solve) / (2.0 * cams.wavenumber)
-        grad_a = solve[:, 2, :] if doppler_gradient is None else doppler_gradient
-        grad_v = grad_a / (2.0 * cams.wavenumber * cams.exposure_s)  # v = a/(2 k T)
-        sigma = np.moveaxis(covariance.reshape(n, n, count), 2, 0)
-        var_v = np.einsum("pi,pij,pj->p", grad_v, sigma, grad_v)
-        var_d = np.einsum("pi,pij,pj->p", grad_depth, sigma, grad_depth)
-    # The estimators converge to ~1e-13 rad of Doppler phase: pixels whose measurements
-    # are exact (a static surface: E = 0 with antithetic replay) are known to that, not to 0.
-    floor_v = _doppler_to_velocity(_NUMERICAL_DOPPLER_PHASE_RAD, cams)[0]
-    return np.hypot(np.sqrt(np.maximum(var_v, 0.0)), floor_v), np.sqrt(np.maximum(var_d, 0.0))
+    grad_a = solve[:, 2, :] if doppler_gradient is None else doppler_gradient
+    return grad_a / (2.0 * cams.wavenumber * cams.exposure_s), grad_depth  # v = a/(2 k T)
+
+
+def _stderr(gradient, covariance) -> np.ndarray:
+    """sqrt(g Σ gᵀ) per pixel: ``gradient`` (N, n), ``covariance`` (n, n, N)."""
+    with np.errstate(all="ignore"):
+        variance = np.einsum("pi,ijp,pj->p", gradient, covariance, gradient)
+    return np.sqrt(np.maximum(variance, 0.0))
+
+
+def _velocity_floor_m_s(cams: _CameraSet) -> float:
+    """The estimators converge to ~1e-13 rad of Doppler phase: pixels whose measurements are
+    exact (a static surface: E = 0 with antithetic replay) are known to this, not to 0."""
+    return float(_doppler_to_velocity(_NUMERICAL_DOPPLER_PHASE_RAD, cams)[0])

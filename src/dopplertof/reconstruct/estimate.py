@@ -9,8 +9,9 @@ import numpy as np
 
 from ..modulation import SPEED_OF_LIGHT_M_S
 from ..validation import checked
-from .errors import _covariance, _propagated_errors, default_max_velocity_stderr
+from .errors import _covariance, _gradients, _stderr, _velocity_floor_m_s, default_max_velocity_stderr
 from .fit import _depth_and_amplitude, _velocity_fit
+from .frequencies import _frequency_groups, beat_range_m, inverse_variance_weights, unwrap_depth
 from .identify import _PROBE_DOPPLER_PHASE, _column_rank, _velocity_identifiable
 from .model import _CameraSet, _camera_set, _check_min_amplitude, _data_amplitude, _default_threshold, _design_columns, _doppler_to_velocity, _flatten, _measurement_array
 from .ratio import _ratio_doppler_gradient, _velocity_ratio
@@ -49,7 +50,10 @@ class VelocityResult:
     threshold_reason : str
         How that threshold was chosen (given, or derived from the scene: :func:`velocity`).
     depth_range_m : float
-        Unambiguous depth range c/(2 f_g) (m): ``depth`` is the distance modulo it.
+        Unambiguous depth range (m): ``depth`` is the distance modulo it; c/(2 f_g), or
+        c/(2 |f_1 − f_2|) for cameras at two frequencies.
+    frequencies_hz : tuple of float
+        The cameras' modulation frequencies f_g (Hz), one or two.
     brightness : ndarray, shape (...)
         β, the relative change of the path's radiance over the exposure (−2 v T/d for a
         diffuse surface lit from the camera); 0 where it is not fitted (several windows,
@@ -68,6 +72,7 @@ class VelocityResult:
     threshold_reason: str = "no measurement errors given: validity from the signal amplitude only"
     depth_range_m: float = float("nan")
     brightness: np.ndarray | None = None
+    frequencies_hz: tuple = ()
 
 
 def velocity(
@@ -147,30 +152,70 @@ def velocity(
             measurement_stderr = result.measurement_stderr
     if cameras is None:
         raise ValueError("velocity() needs the cameras (or a RenderResult)")
-    cams = _camera_set(cameras)
-    m = _measurement_array(measurements, cams)
+    cameras = [cameras] if hasattr(cameras, "modulation_frequency") else list(cameras)
+    groups = _frequency_groups(cameras)
+    sets = [_camera_set([cameras[i] for i in group]) for group in groups]
+    m = _measurement_array(measurements, cameras)
     _check_min_amplitude(min_amplitude)
     if method not in ("auto", "ratio", "fit"):
         raise ValueError(f"method must be 'auto', 'ratio' or 'fit', got {method!r}")
-    if max_doppler_hz is None:
-        max_doppler_hz = 0.5 / cams.exposure_s
-    if not (np.isfinite(max_doppler_hz) and max_doppler_hz > 0):
+    if max_doppler_hz is not None and not (np.isfinite(max_doppler_hz) and max_doppler_hz > 0):
         raise ValueError(f"max_doppler_hz must be a finite number > 0, got {max_doppler_hz!r}")
     if max_velocity_stderr is not None:
         max_velocity_stderr = checked("max_velocity_stderr", max_velocity_stderr, "float")
         if not max_velocity_stderr > 0:
             raise ValueError(f"max_velocity_stderr must be > 0 m/s, got {max_velocity_stderr!r}")
+    if len(sets) > 1:
+        _check_frequency_pair(sets)
     covariance = _covariance(measurement_stderr, measurement_covariance, m.shape)
     if covariance is None and max_velocity_stderr is not None:
         raise ValueError(
             f"max_velocity_stderr={max_velocity_stderr!r} m/s needs the measurements' errors "
             "(measurement_stderr or measurement_covariance, or pass the RenderResult)"
         )
+    flat_covariance = None if covariance is None else covariance.reshape(covariance.shape[:2] + (-1,))
+    parts = []
+    for group, cams in zip(groups, sets):
+        part_covariance = None if covariance is None else flat_covariance[np.ix_(group, group)]
+        try:
+            parts.append(_estimate(m[group], cams, part_covariance, method, min_amplitude, max_doppler_hz))
+        except ValueError as exc:
+            if len(sets) == 1:
+                raise
+            others = ", ".join(f"{other.frequency_hz / 1e6:g}" for other in sets if other is not cams)
+            raise ValueError(f"the cameras at modulation_frequency = {cams.frequency_hz / 1e6:g} MHz "
+                             f"(beside {others} MHz, reconstructed on their own): {exc}") from None
+    result = parts[0][0] if len(parts) == 1 else _combine_frequencies(parts, groups, sets, flat_covariance)
+    if covariance is None:
+        return result
+    v_err = result.velocity_stderr
+    if max_velocity_stderr is None:
+        speed_range = min(unambiguous_speed_m_s(cams) for cams in sets)
+        limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err, speed_range)
+    else:
+        limit, result.threshold_reason = max_velocity_stderr, "given"
+    result.max_velocity_stderr_m_s = limit
+    keep = result.valid & np.isfinite(v_err) & (v_err <= limit)
+    result.valid = keep
+    result.velocity = np.where(keep, result.velocity, np.nan)
+    result.doppler_hz = np.where(keep, result.doppler_hz, np.nan)
+    result.brightness = np.where(keep, result.brightness, np.nan)
+    result.velocity_stderr = np.where(keep, v_err, np.nan)
+    result.depth_stderr = np.where(np.isfinite(result.depth), result.depth_stderr, np.nan)
+    return result
+
+
+def _estimate(m, cams: _CameraSet, covariance, method, min_amplitude, max_doppler_hz):
+    """:func:`velocity` for cameras of one frequency, with the errors (``covariance``, shape
+    (n, n, N), given) but no threshold on them; and the gradients of velocity and depth in
+    the measurements (:func:`~dopplertof.reconstruct.errors._gradients`), or None."""
     reason = _velocity_identifiable(cams)
     if reason is not None:
         raise ValueError(reason)
     if method == "auto":  # the fit models the inverse-square brightening exactly; the ratio to first order
         method = "fit" if all(w == "sinusoidal" for w in cams.waveforms) else "ratio"
+    if max_doppler_hz is None:
+        max_doppler_hz = 0.5 / cams.exposure_s
 
     flat, shape, finite = _flatten(m)
     if method == "ratio":
@@ -198,27 +243,67 @@ def velocity(
         amplitude=out(amplitude, depth_ok),
         doppler_hz=out(dopp, ok),
         method=method,
-        depth_range_m=ambiguity_range_m(cams.frequency_hz),
+        depth_range_m=cams.depth_range_m,
         brightness=out(brightness, ok),
+        frequencies_hz=(cams.frequency_hz,),
     )
     if covariance is None:
-        return result
-    v_err, d_err = (e.reshape(shape) for e in _propagated_errors(
-        flat, cams, covariance, a_for_depth, np.where(ok, brightness, 0.0), fit,
-        _ratio_doppler_gradient(flat, cams) if method == "ratio" else None))
-    if max_velocity_stderr is None:
-        limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err, unambiguous_speed_m_s(cams))
-    else:
-        limit, result.threshold_reason = max_velocity_stderr, "given"
-    result.max_velocity_stderr_m_s = limit
-    keep = result.valid & np.isfinite(v_err) & (v_err <= limit)
-    result.valid = keep
-    result.velocity = np.where(keep, result.velocity, np.nan)
-    result.doppler_hz = np.where(keep, result.doppler_hz, np.nan)
-    result.brightness = np.where(keep, result.brightness, np.nan)
-    result.velocity_stderr = np.where(keep, v_err, np.nan)
-    result.depth_stderr = np.where(np.isfinite(result.depth), d_err, np.nan)
-    return result
+        return result, None
+    gradients = _gradients(flat, cams, a_for_depth, np.where(ok, brightness, 0.0), fit,
+                           _ratio_doppler_gradient(flat, cams) if method == "ratio" else None)
+    result.velocity_stderr = np.hypot(_stderr(gradients[0], covariance), _velocity_floor_m_s(cams)).reshape(shape)
+    result.depth_stderr = _stderr(gradients[1], covariance).reshape(shape)
+    return result, gradients
+
+
+def _check_frequency_pair(sets) -> None:
+    """Two frequencies combine when their cameras share the exposure and the first window."""
+    frequencies = ", ".join(f"{cams.frequency_hz / 1e6:g}" for cams in sets)
+    if len(sets) > 2:
+        raise ValueError(f"cameras at {len(sets)} modulation frequencies ({frequencies} MHz): velocity() "
+                         "combines two; reconstruct the others separately")
+    if sets[0].exposure_s != sets[1].exposure_s:
+        raise ValueError(f"the cameras at {frequencies} MHz differ in exposure ({sets[0].exposure_s!r} and "
+                         f"{sets[1].exposure_s!r} s); all cameras must share one exposure (T)")
+    if sets[0].first_start_s != sets[1].first_start_s:
+        raise ValueError(f"the cameras at {frequencies} MHz open their first windows at different times "
+                         f"({sets[0].first_start_s!r} and {sets[1].first_start_s!r} s): their depths refer to "
+                         "different instants; give both frequencies the same first window")
+
+
+def _combine_frequencies(parts, groups, sets, covariance) -> VelocityResult:
+    """One result from two frequencies' (:mod:`.frequencies`): velocity and brightness
+    averaged with inverse-variance weights (equal without errors), whose error takes in the
+    covariance between the frequencies (the same paths render both); depth unwrapped to the
+    beat range (its error the finer frequency's); amplitude and Doppler shift of the first."""
+    (first, first_gradients), (second, _) = parts
+    results = [p[0] for p in parts]
+    stderrs = None if covariance is None else [r.velocity_stderr for r in results]
+    weights = inverse_variance_weights([r.velocity for r in results], stderrs)
+    velocity = np.sum([w * np.nan_to_num(r.velocity) for w, r in zip(weights, results)], axis=0)
+    brightness = np.sum([w * np.nan_to_num(r.brightness) for w, r in zip(weights, results)], axis=0)
+    valid = first.valid | second.valid
+    depth = unwrap_depth(first.depth, first.depth_range_m, second.depth, second.depth_range_m)
+    finer = min(results, key=lambda r: r.depth_range_m)
+    combined = VelocityResult(
+        velocity=np.where(valid, velocity, np.nan),
+        valid=valid,
+        depth=depth,
+        amplitude=np.where(np.isfinite(depth), first.amplitude, np.nan),
+        doppler_hz=first.doppler_hz,
+        method="/".join(dict.fromkeys(r.method for r in results)),
+        depth_range_m=beat_range_m(first.depth_range_m, second.depth_range_m),
+        brightness=np.where(valid, brightness, np.nan),
+        frequencies_hz=first.frequencies_hz + second.frequencies_hz,
+    )
+    if covariance is not None:
+        gradient = np.zeros((valid.size, covariance.shape[0]))
+        for w, group, (_, (grad_v, _)) in zip(weights, groups, parts):
+            gradient[:, group] += w.reshape(-1, 1) * np.nan_to_num(grad_v)
+        floor = min(_velocity_floor_m_s(cams) for cams in sets)
+        combined.velocity_stderr = np.hypot(_stderr(gradient, covariance), floor).reshape(valid.shape)
+        combined.depth_stderr = np.where(np.isfinite(depth), finer.depth_stderr, np.nan)
+    return combined
 
 
 def unambiguous_speed_m_s(cams) -> float:
@@ -228,7 +313,9 @@ def unambiguous_speed_m_s(cams) -> float:
 
 
 def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None) -> np.ndarray:
-    """Per-pixel distance (m) at mid-exposure, modulo the ambiguity range c/(2 f_g).
+    """Per-pixel distance (m) at mid-exposure, modulo the ambiguity range c/(2 f_g), or
+    modulo c/(2 |f_1 − f_2|) when the cameras use two modulation frequencies (each
+    determining depth on its own; :mod:`dopplertof.reconstruct.frequencies`).
 
     If the cameras determine the velocity, this is ``velocity(...).depth`` (the Doppler
     shift is fitted and accounted for). Otherwise (for example homodyne cameras only) the
@@ -242,7 +329,7 @@ def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None
     Parameters
     ----------
     measurements : array_like, shape (n_cameras, ...)
-    cameras : sequence of n_cameras camera configurations (shared f_g, T)
+    cameras : sequence of n_cameras camera configurations (one or two f_g, shared T)
     min_amplitude : float, optional
         (g1/2)|Z| threshold (measurement units); default 1e-3 × the 99th percentile of
         the data amplitude sqrt(2 mean_i m_i²).
@@ -258,6 +345,14 @@ def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None
         On shape/camera mismatch, or when the phases cannot determine depth (fewer than
         two independent phase offsets).
     """
+    cameras = [cameras] if hasattr(cameras, "modulation_frequency") else list(cameras)
+    groups = _frequency_groups(cameras)
+    if len(groups) > 1:  # each frequency's depth, then the pair's (module frequencies)
+        sets = [_camera_set([cameras[i] for i in group]) for group in groups]
+        _check_frequency_pair(sets)
+        m = _measurement_array(measurements, cameras)
+        depths = [depth(m[group], [cameras[i] for i in group], min_amplitude=min_amplitude) for group in groups]
+        return unwrap_depth(depths[0], sets[0].depth_range_m, depths[1], sets[1].depth_range_m)
     cams = _camera_set(cameras)
     m = _measurement_array(measurements, cams)
     _check_min_amplitude(min_amplitude)
@@ -278,12 +373,3 @@ def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None
     threshold = _default_threshold(_data_amplitude(flat), min_amplitude)
     ok = finite & fit["full_rank"] & (signal > threshold)
     return np.where(ok, depth_m, np.nan).reshape(shape)
-
-
-def ambiguity_range_m(modulation_frequency_hz: float) -> float:
-    """Unambiguous depth range c/(2 f_g) (m) of a co-located ToF camera."""
-    if not (np.isfinite(modulation_frequency_hz) and modulation_frequency_hz > 0):
-        raise ValueError(
-            f"modulation_frequency_hz must be > 0, got {modulation_frequency_hz!r}"
-        )
-    return SPEED_OF_LIGHT_M_S / (2.0 * modulation_frequency_hz)

@@ -10,6 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from ..modulation import SPEED_OF_LIGHT_M_S
+from .frequencies import _frequency_groups
 
 
 DEFAULT_RELATIVE_MIN_AMPLITUDE = 1e-3
@@ -27,6 +28,12 @@ class _CameraSet:
     half_g1: np.ndarray
     waveforms: tuple[str, ...]
     window_offset: np.ndarray  # δ_i: window start minus the first camera's, in exposures T
+    first_start_s: float | None = None  # the first camera's exposure_start (s; None: the render's)
+
+    @property
+    def depth_range_m(self) -> float:
+        """c/(2 f_g): the depth is known modulo this (m)."""
+        return ambiguity_range_m(self.frequency_hz)
 
     @property
     def wavenumber(self) -> float:
@@ -170,7 +177,9 @@ def model_measurements(amplitude, depth_m, velocity_m_s, cameras: Sequence, brig
     velocity_m_s : array_like, broadcastable to ``amplitude``
         Radial velocity (m/s), positive when the distance grows.
     cameras : sequence of camera configurations
-        Sinusoidal waveform only; see the module docstring for the attributes.
+        Sinusoidal waveform only; see the module docstring for the attributes. Cameras at
+        different modulation frequencies are modelled frequency by frequency, each from the
+        window of its first camera.
     brightness : array_like, broadcastable to ``amplitude``, default 0
         β: the radiance is A (1 + β τ' + ¾ β² τ'²), τ' = t/T − ½ with t from the first
         window's opening (dimensionless; −2 v T/d for a surface lit from the camera: the
@@ -188,10 +197,14 @@ def model_measurements(amplitude, depth_m, velocity_m_s, cameras: Sequence, brig
     ValueError
         If the cameras are invalid or not sinusoidal.
     """
-    cams = _camera_set(cameras)
-    _require_sinusoid(cams, "model_measurements uses the closed form of the sinusoid")
+    cameras = [cameras] if hasattr(cameras, "modulation_frequency") else list(cameras)
     arrays = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (amplitude, depth_m, velocity_m_s, brightness)))
-    return _exposure_average(*arrays, cams)
+    out = np.empty((len(cameras),) + arrays[0].shape)
+    for group in _frequency_groups(cameras):
+        cams = _camera_set([cameras[i] for i in group])
+        _require_sinusoid(cams, "model_measurements uses the closed form of the sinusoid")
+        out[group] = _exposure_average(*arrays, cams)
+    return out
 
 
 def _camera_set(cameras: Sequence) -> _CameraSet:
@@ -245,6 +258,7 @@ def _camera_set(cameras: Sequence) -> _CameraSet:
         half_g1=0.5 * g1,
         waveforms=waveforms,
         window_offset=_window_offsets(cameras, float(exposures[0])),
+        first_start_s=getattr(cameras[0], "exposure_start", None),
     )
 
 
@@ -324,3 +338,12 @@ def _doppler_to_velocity(doppler_phase, cams: _CameraSet):
     """(velocity m/s, Δf Hz) from a = k u T, co-located light (u = 2 v)."""
     path_rate = doppler_phase / (cams.wavenumber * cams.exposure_s)
     return 0.5 * path_rate, doppler_phase / (2.0 * np.pi * cams.exposure_s)
+
+
+def ambiguity_range_m(modulation_frequency_hz: float) -> float:
+    """Unambiguous depth range c/(2 f_g) (m) of a co-located ToF camera."""
+    if not (np.isfinite(modulation_frequency_hz) and modulation_frequency_hz > 0):
+        raise ValueError(
+            f"modulation_frequency_hz must be > 0, got {modulation_frequency_hz!r}"
+        )
+    return SPEED_OF_LIGHT_M_S / (2.0 * modulation_frequency_hz)

@@ -169,7 +169,7 @@ def _fuse(hom, het):
 
 def _ratio_doppler_gradient(flat, cams: _CameraSet):
     """∂a/∂m_i, shape (N, n_cameras), of the fused ratio's a = 2π r/(1 − r): for the delta
-    method (:func:`~dopplertof.reconstruct.errors._propagated_errors`)."""
+    method (:func:`~dopplertof.reconstruct.errors._gradients`)."""
     pairs = _require_pairs(cams)
     per_pair = _ratio_per_phase(flat, cams, pairs, None)
     hom, het = per_pair["homodyne"], per_pair["heterodyne"]
