@@ -12,7 +12,8 @@ file                              content
 ``velocity_reconstructed.exr``    radial velocity, m/s, positive receding; NaN where invalid
 ``velocity_reconstructed.png``    the same with a colourbar
 ``velocity_valid.png``            mask: white where the velocity was determined
-``depth_reconstructed.exr/.png``  distance at mid-exposure, m (only where the set determines it)
+``depth_reconstructed.exr/.png``  distance at mid-exposure, m (only where the set determines it),
+                                  modulo c/(2 f_g), or c/(2 |f_1 − f_2|) at two frequencies
 ``velocity_stderr.exr``           propagated standard error of the velocity, m/s (valid pixels)
 ``depth_wrapped.png``             mask: white where the true depth (``depth.exr``) is beyond
                                   the unambiguous range c/(2 f_g), so the depth read is wrapped

@@ -74,7 +74,10 @@ several paths (global illumination, a silhouette) is biased beyond them.
 Depth refers to the middle of the exposure (t = T/2): the phase of the homodyne
 correlation is exactly k L(T/2) whatever the velocity, so a 4-phase homodyne depth is
 exact at mid-exposure even for a moving target. Depth is reported modulo the ambiguity
-range c/(2 f_g).
+range c/(2 f_g) (``VelocityResult.depth_range_m``). Cameras at two modulation frequencies
+(sharing T and the first window) are reconstructed frequency by frequency, their
+velocities averaged and their depths unwrapped to c/(2 |f_1 − f_2|)
+(:mod:`dopplertof.reconstruct.frequencies`).
 
 Capture schedules. Cameras may expose at different times (``exposure_start``, s: a
 render's cameras one after another, README "Capture schedules"). The model then takes
@@ -110,7 +113,7 @@ name                   unit    default                      meaning
                                                             ``phase`` (rad), ``waveform``,
                                                             ``g1``, optionally
                                                             ``exposure_start`` (s); all must
-                                                            share f_g and T
+                                                            share T, and one or two f_g
 ``min_amplitude``      meas.   1e-3 × 99th percentile       pixels whose signal amplitude
                                of the image's amplitude     (max_i |H_i| for the ratio,
                                                             |H_i| for a per-phase ratio,

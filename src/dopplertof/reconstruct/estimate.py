@@ -95,7 +95,8 @@ def velocity(
         units of the standard image times g1/2. A :class:`~dopplertof.render.RenderResult`
         gives its measurements, cameras, standard errors and covariance at once.
     cameras : sequence of n_cameras camera configurations
-        Sharing f_g (Hz) and T (s). See the module docstring. Cameras in different
+        Sharing T (s), at one or two f_g (Hz: the depth is then unwrapped, module
+        docstring). See the module docstring. Cameras in different
         exposure windows (``exposure_start``) are taken to see one path moving at a
         constant rate over the whole schedule, with constant radiance (module docstring,
         capture schedules): false at moving edges, under acceleration or brightness
