@@ -51,10 +51,15 @@ def _with_cameras(cams: _CameraSet, added) -> _CameraSet:
     )
 
 
+def _phase_spec(psi_rad: float) -> str:
+    """A phase offset as ``--camera`` takes it."""
+    degrees = float(np.degrees(psi_rad))
+    return f"psi={'0' if degrees == 0 else f'{degrees:g}deg'}"
+
+
 def _camera_spec(h: float, psi_rad: float) -> str:
     """A camera as ``--camera`` takes it."""
-    degrees = float(np.degrees(psi_rad))
-    return f"h={h:g},psi={'0' if degrees == 0 else f'{degrees:g}deg'}"
+    return f"h={h:g},{_phase_spec(psi_rad)}"
 
 
 def _what_to_add(cams: _CameraSet) -> str:

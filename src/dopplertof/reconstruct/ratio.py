@@ -9,7 +9,7 @@ from typing import Sequence
 import numpy as np
 
 from .fit import _gauss_newton
-from .identify import _camera_spec
+from .identify import _phase_spec
 from .model import _CameraSet, _camera_set, _check_min_amplitude, _default_threshold, _doppler_to_velocity, _fits_brightness, _flatten, _measurement_array
 
 
@@ -187,7 +187,7 @@ def _velocity_ratio(flat, cams, min_amplitude):
     depth; 0 where :func:`_fits_brightness` says not) and validity, shape (N,) each."""
     pairs = _require_pairs(cams)
     if not _balanced(cams, pairs):
-        phases = [_camera_spec(0.0, cams.phase_rad[i]).split(",")[1] for i, _ in pairs]
+        phases = [_phase_spec(cams.phase_rad[i]) for i, _ in pairs]
         raise ValueError(
             f"method='ratio' with pairs at {', '.join(phases)} would read the brightness change "
             "of a moving surface as velocity: the pairs' phases must balance (Σ e^{2iψ} = 0, e.g. "
