@@ -296,7 +296,7 @@ def read_render_folder(folder: str):
     except ValueError as exc:
         raise ValueError(f"{metadata_path}: {exc}") from None
     if not cameras:
-        raise ValueError(f"{folder}: the render has no D-ToF camera; render with e.g. --camera h=0,psi=0 --camera h=1,psi=0")
+        raise ValueError(f"{folder}: the render has no D-ToF camera; render with e.g. --camera h=0,psi=0 --camera h=0,psi=90deg --camera h=1,psi=0 --camera h=1,psi=90deg")
     images = [io.read_exr(_measurement_file(folder, i)) for i in range(len(cameras))]
     shapes = {m.shape for m in images}
     if len(shapes) != 1 or len(next(iter(shapes))) != 2:
