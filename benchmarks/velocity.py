@@ -3,8 +3,8 @@
 
 For every time sampling x correlation (default uniform/stratified/antithetic x
 replay/adaptive) and every spp of a sweep it renders a scene, reconstructs the radial
-velocity with :func:`dopplertof.reconstruct.velocity` (default ``method="auto"``: the
-homodyne/heterodyne ratio, fused over both phases) and measures the RMSE against the
+velocity with :func:`dopplertof.reconstruct.velocity` (``method="ratio"``: the
+homodyne/heterodyne ratio, fused over both phases, as the measured tables were made) and measures the RMSE against the
 render's ground truth ``RenderResult.velocity`` on the moving pixels, once from the
 rendered measurements and once after :class:`dopplertof.sensor.SensorModel` (shot, read
 and ADC noise at realistic photon counts)::
@@ -150,8 +150,8 @@ def velocity_maps(result, cameras, sensor, noise_seed):
 
     noisy = sensor.noisy_measurements(luminance(result.intensity), result.measurements, cameras, seed=noise_seed)
     return {
-        "none": reconstruct.velocity(result.measurements, cameras).velocity,
-        "sensor": reconstruct.velocity(noisy, cameras).velocity,
+        "none": reconstruct.velocity(result.measurements, cameras, method="ratio").velocity,
+        "sensor": reconstruct.velocity(noisy, cameras, method="ratio").velocity,
     }
 
 

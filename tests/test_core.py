@@ -297,11 +297,12 @@ def test_velocity_stderr_is_propagated_and_calibrated():
     """Direct light, a receding plane: reconstructed velocity against the truth, z spread ≈ 1."""
     cameras = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
     result = dt.render(moving_plane_scene(40.0, resolution=16), cameras, spp=32, max_depth=2, seed=5)
-    v = rc.velocity(result)
+    # the z spread over every pixel: a threshold far above the errors (32 spp: up to ~40 m/s)
+    v = rc.velocity(result, max_velocity_stderr=1e3)
     assert v.velocity_stderr is not None and v.valid.mean() > 0.9
     z = ((v.velocity - result.velocity) / v.velocity_stderr)[v.valid]
     assert 0.75 <= np.std(z) <= 1.3
-    independent = rc.velocity(result.measurements, cameras, measurement_stderr=result.measurement_stderr)
+    independent = rc.velocity(result.measurements, cameras, measurement_stderr=result.measurement_stderr, max_velocity_stderr=1e3)
     assert not np.allclose(independent.velocity_stderr[v.valid], v.velocity_stderr[v.valid])  # the covariance matters
 
 

@@ -174,7 +174,7 @@ def test_rendering_source_digest_follows_the_renderer_only(tmp_path):
     tracing = {"tracing/single.py", "tracing/paired.py", "tracing/path.py", "tracing/lanes.py", "tracing/sink.py", "tracing/film.py", "tracing/materials.py"}
     assert tracing | {"render.py", "settings.py", "outputs.py", "timesampling.py", "scene.py", "motion.py", "loader.py", "scenes.py"} <= names
     assert not names & {"cli.py", "clitools.py", "folder.py", "viz.py", "io.py", "render_folder.py"}
-    assert not any(name.startswith("experiments/") for name in names)
+    assert not any(name.startswith(("experiments/", "reconstruct/")) for name in names)
 
     before = common.rendering_source_digest(package)
     with open(package / "cli.py", "a") as f:

@@ -297,7 +297,7 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
 @click.option("--camera", "camera_specs", multiple=True,
               help="A camera as in 'dopplertof render' (repeatable; default h=0 and h=1 at psi=0 and 90deg).")
 @click.option("--method", type=click.Choice(["auto", "ratio", "fit"]), default=None,
-              help="Velocity reconstruction (default: auto, the ratio for matched h=0/h=1 pairs, else the fit).")
+              help="Velocity reconstruction (default: auto, the fit for sinusoidal cameras, else the ratio).")
 @click.option("--overwrite", is_flag=True, help="Replace a clip with other settings in the output folder.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @settings_options(exclude=("exposure_start",))

@@ -181,17 +181,19 @@ def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
 """The ``dopplertof`` package folder."""
 
-_NOT_RENDERING = {"cli.py", "clitools.py", "folder.py", "animate.py", "render_folder.py", "viz.py", "io.py", "reconstruct.py", "sensor.py"}
+_NOT_RENDERING = {"cli.py", "clitools.py", "folder.py", "animate.py", "render_folder.py", "viz.py", "io.py", "sensor.py"}
 """Package modules that only read, post-process or show renders; with the ``experiments``
-subpackage they cannot change a render's pixels. Everything else (integrator, render, scene,
-motion, modulation, time sampling, correlation, loader, scenes, and any new module) can."""
+and ``reconstruct`` subpackages they cannot change a render's pixels. Everything else
+(integrator, render, scene, motion, modulation, time sampling, correlation, loader, scenes,
+and any new module) can."""
+_NOT_RENDERING_PACKAGES = {"experiments", "reconstruct"}
 
 
 def rendering_source_files(package_dir: Path = PACKAGE_DIR) -> list[Path]:
     """The package's ``*.py`` files that can change a render, sorted by relative path."""
     package_dir = Path(package_dir)
     relative = {path: path.relative_to(package_dir) for path in package_dir.rglob("*.py")}
-    kept = [path for path, rel in relative.items() if rel.as_posix() not in _NOT_RENDERING and rel.parts[0] != "experiments"]
+    kept = [path for path, rel in relative.items() if rel.as_posix() not in _NOT_RENDERING and rel.parts[0] not in _NOT_RENDERING_PACKAGES]
     return sorted(kept, key=lambda path: relative[path].as_posix())
 
 
