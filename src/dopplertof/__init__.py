@@ -29,7 +29,7 @@ _ATTRIBUTES = {
     "load_scene": "loader",
     "set_variant": "backend",
 }
-_MODULES = ("scenes", "reconstruct", "sensor", "io", "viz", "experiments", "animate", "outputs", "settings", "oracles", "folder", "tracing")
+_MODULES = ("scenes", "reconstruct", "sensor", "io", "viz", "experiments", "animate", "outputs", "settings", "oracles", "folder", "tracing", "dataset")
 
 
 def __getattr__(name):
