@@ -173,6 +173,121 @@ def test_a_signal_keeps_the_work_and_resume_is_bit_identical(tmp_path, sig):
         np.testing.assert_array_equal(io.read_exr(out / name), io.read_exr(whole / name), err_msg=name)
 
 
+# 64² × 256 spp in 128 passes of 4096 lanes, a checkpoint after every pass.
+_KILLABLE = ["render", "cornell-box", "--resolution", "64", "--spp", "256", "--lanes-per-pass", "4096", "--camera", "h=1", "--seed", "3", "--quiet"]
+_EXRS = ("intensity.exr", "stderr.exr", "depth.exr", "velocity.exr", "measurement_0_h1_psi0deg.exr", "measurement_0_h1_psi0deg_stderr.exr")
+
+
+def _passes_in_checkpoint(path):
+    with np.load(path) as data:
+        return int(data["passes_done"][0])
+
+
+def _start_and_wait_for_a_checkpoint(out, extra=()):
+    """A render into ``out`` saving a checkpoint after every pass; returns the process once
+    the first checkpoint is there."""
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *_KILLABLE, "-o", str(out), "--checkpoint-interval", "0", *extra],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    deadline = time.monotonic() + 300
+    while not (out / "checkpoint.npz").exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "no checkpoint after 300 s"
+        time.sleep(0.01)
+    return proc
+
+
+def _assert_same_as_an_uninterrupted_render(tmp_path, out):
+    whole = tmp_path / "whole"
+    run = _cli(*_KILLABLE, "-o", str(whole))
+    assert run.returncode == 0, run.stderr
+    for name in _EXRS:
+        np.testing.assert_array_equal(io.read_exr(out / name), io.read_exr(whole / name), err_msg=name)
+
+
+@pytest.mark.slow
+def test_sigkill_loses_at_most_the_checkpoint_interval_and_resume_is_bit_identical(tmp_path):
+    out = tmp_path / "killed"
+    proc = _start_and_wait_for_a_checkpoint(out)
+    proc.kill()
+    proc.wait(timeout=60)
+    assert not (out / "metadata.json").exists()
+    kept = _passes_in_checkpoint(out / "checkpoint.npz")
+    assert 0 < kept < 128
+    (out / f".checkpoint.{2**22 + 1}.partial.npz").write_bytes(b"half")  # what a kill mid-save leaves (no such process id)
+    _one_error_line(_cli(*_KILLABLE, "-o", str(out)), "continue it with --resume")
+    resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    assert not (out / "checkpoint.npz").exists() and not [p for p in os.listdir(out) if ".partial" in p]
+    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 16 MiB tmpfs (needs root); unmounted after the test."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small tmpfs needs root")
+    mount = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=16m", "tmpfs", str(disk)], capture_output=True, text=True)
+    if mount.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs: {mount.stderr.strip()}")
+    yield disk
+    subprocess.run(["umount", str(disk)], check=True)
+
+
+@pytest.mark.slow
+def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_identical(tmp_path, small_disk):
+    import errno
+    import time
+
+    out = small_disk / "out"
+    proc = _start_and_wait_for_a_checkpoint(out)
+    # Another program fills the disk, and keeps it full, until the render gives up.
+    with open(small_disk / "filler", "wb") as filler:
+        while proc.poll() is None:
+            try:
+                filler.write(b"\0" * 65536)
+                filler.flush()
+            except OSError as exc:
+                assert exc.errno == errno.ENOSPC
+                time.sleep(0.005)
+    stdout, stderr = proc.communicate()
+    _one_error_line(subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr), "No space left on device")
+    assert "passes is kept" in stderr and "--resume" in stderr
+    kept = _passes_in_checkpoint(out / "checkpoint.npz")
+    assert 0 < kept < 128, stderr
+    os.remove(small_disk / "filler")
+    resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    assert not (out / "checkpoint.npz").exists()
+    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+
+
+def test_a_checkpoint_interval_is_honoured_or_refused(tmp_path):
+    scene = dt.scenes.build("cornell-box", resolution=16)  # 256 pixels x 8 spp: two passes of 1024 lanes
+    checkpoint = tmp_path / "c.npz"
+    seen = []
+
+    def stop():  # called before each pass: what the checkpoint holds then
+        seen.append(_passes_in_checkpoint(checkpoint) if checkpoint.exists() else 0)
+        return False
+
+    whole = dt.render(scene, spp=8, lanes_per_pass=1024, checkpoint=checkpoint, checkpoint_interval_s=0, keep_checkpoint=True, stop=stop)
+    assert seen == [0, 1] and _passes_in_checkpoint(checkpoint) == 2
+    resumed = dt.render(scene, spp=8, lanes_per_pass=1024, checkpoint=checkpoint)  # complete: nothing left to render
+    np.testing.assert_array_equal(resumed.intensity, whole.intensity)
+    assert not checkpoint.exists()
+    seen.clear()
+    dt.render(scene, spp=8, lanes_per_pass=1024, checkpoint=checkpoint, checkpoint_interval_s=3600, stop=stop)
+    assert seen == [0, 0] and not checkpoint.exists()
+    for bad in (-1.0, float("nan"), "60"):
+        with pytest.raises(ValueError, match="'checkpoint_interval_s' must be"):
+            dt.render(scene, spp=8, checkpoint=checkpoint, checkpoint_interval_s=bad)
+    _one_error_line(_cli("render", "cornell-box", "--resolution", "8", "-o", str(tmp_path / "o"), "--checkpoint-interval", "-5"), "'checkpoint_interval_s' must be >= 0 seconds, got -5.0")
+
+
 def test_a_resume_with_other_settings_is_refused(tmp_path):
     scene = dt.scenes.build("cornell-box", resolution=16)  # 256 pixels x 8 spp: two passes of 1024 lanes
     checkpoint = str(tmp_path / "c.npz")

@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 from pathlib import Path
 from typing import Any, Sequence, Union
 
@@ -70,6 +71,33 @@ def atomic_path(path: PathLike):
         with contextlib.suppress(OSError):
             os.remove(tmp)
         raise
+
+
+_PARTIAL_NAME = re.compile(r"^\..+\.(\d+)\.partial(\.[^.]*)?$")
+
+
+def _process_exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except (ProcessLookupError, OverflowError):
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def remove_stale_partials(folder: PathLike) -> list[Path]:
+    """Remove the temporary files of :func:`atomic_path` in ``folder`` whose writer is gone
+    (a process killed mid-write, by SIGKILL or the OOM killer, leaves one); the paths removed.
+    Those of a running process (its id is in the name) are kept."""
+    removed = []
+    for entry in os.scandir(folder):
+        match = _PARTIAL_NAME.match(entry.name)
+        if match and entry.is_file(follow_symlinks=False) and not _process_exists(int(match.group(1))):
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(entry.path)
+                removed.append(Path(entry.path))
+    return removed
 
 
 def _existing_file(path: PathLike, what: str) -> Path:

@@ -20,9 +20,13 @@ window share paths, cameras of different windows are independent.
 
 Random numbers depend on (seed, window, pixel, sample index) only, so the result does not
 depend on the tiling or the pass split. A render stopped early (Ctrl-C, or ``stop()`` returning
-True between passes) returns what the finished passes hold (``result.interrupted``);
-with ``checkpoint=PATH`` its sums are saved there, and a later call with the same
-settings continues from them to a result bit-identical to an uninterrupted render.
+True between passes) returns what the finished passes hold (``result.interrupted``).
+With ``checkpoint=PATH`` the sums are saved there while the render runs (after the first
+pass that ends ``checkpoint_interval_s`` after the previous save, default 60 s) and when it
+stops early, each time atomically (temporary file, fsync, rename: a fault during a save
+leaves the previous checkpoint), so a fault that kills the process (SIGKILL, the OOM
+killer, a full disk) loses at most that interval; a later call with the same settings
+continues from them to a result bit-identical to an uninterrupted render.
 
 Each pass is traced and reduced to per-pixel increments where its scene is
 (:class:`~dopplertof.passes.PassTracer`) and added here, in order
@@ -37,15 +41,16 @@ import dataclasses
 import hashlib
 import json
 import os
+import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .outputs import BY_NAME, ESTIMATES, TRUTH
 from .passes import MAX_COVARIANCE_CAMERAS, Accumulator, PassTracer, Reducer, schedule
-from .settings import DEFAULT_EXPOSURE_S, RenderSettings, scene_layer
+from .settings import DEFAULT_CHECKPOINT_INTERVAL_S, DEFAULT_EXPOSURE_S, RenderSettings, checked_checkpoint_interval, scene_layer
 
-__all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S"]
+__all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S", "CheckpointWriteError"]
 
 
 @dataclass
@@ -132,24 +137,62 @@ def _checkpoint_names(accs: list) -> list[tuple[str, Accumulator, str]]:
     return [(prefix(k) + name, acc, name) for k, acc in enumerate(accs) for name in acc.state]
 
 
+# What np.load raises for a file that is not a whole .npz.
+_UNREADABLE = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
+
+
 def _load_checkpoint(path, accs: list, key: str):
-    with np.load(path, allow_pickle=False) as data:
-        if str(data["fingerprint"]) != key:
-            raise ValueError(f"{path}: the checkpoint belongs to a render with other settings or another scene; remove it or render into another folder")
-        for stored, acc, name in _checkpoint_names(accs):
-            if stored not in data or data[stored].shape != acc.state[name].shape:
-                raise ValueError(f"{path}: the checkpoint is damaged ({stored!r} missing or of another shape)")
-            acc.state[name] = data[stored].copy()
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            stored = {name: data[name] for name in data.files}
+    except _UNREADABLE as exc:
+        raise ValueError(f"{path}: the checkpoint cannot be read ({exc}); remove it to render from the start") from None
+    if str(stored.get("fingerprint")) != key:
+        raise ValueError(f"{path}: the checkpoint belongs to a render with other settings or another scene; remove it or render into another folder")
+    for name_in_file, acc, name in _checkpoint_names(accs):
+        if name_in_file not in stored or stored[name_in_file].shape != acc.state[name].shape:
+            raise ValueError(f"{path}: the checkpoint is damaged ({name_in_file!r} missing or of another shape)")
+        acc.state[name] = stored[name_in_file]
+
+
+class CheckpointWriteError(OSError):
+    """A checkpoint could not be written (a full disk, say); the one before it, if any, is intact.
+
+    ``str()`` says what was lost and what is kept; ``errno`` is the failed write's.
+    """
+
+    def __str__(self):
+        return self.strerror
 
 
 def save_checkpoint(path, accs: list, key: str):
-    """Write the accumulators (one per exposure window) atomically (temporary name, then rename)."""
+    """Write the accumulators (one per exposure window) atomically (temporary name, fsync,
+    rename: :func:`dopplertof.io.atomic_path`)."""
     from .io import atomic_path
 
     arrays = {stored: acc.state[name] for stored, acc, name in _checkpoint_names(accs)}
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             np.savez(f, fingerprint=np.array(key), **arrays)
+
+
+def _passes_in(path) -> int | None:
+    """Passes done that the checkpoint at ``path`` holds (all windows); None without one."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return sum(int(data[name][0]) for name in data.files if name.rpartition(".")[2] == "passes_done")
+    except _UNREADABLE:
+        return None
+
+
+def _save_or_explain(path, accs: list, key: str, total_passes: int):
+    """:func:`save_checkpoint`, or a :class:`CheckpointWriteError` saying what the kept one holds."""
+    try:
+        save_checkpoint(path, accs, key)
+    except OSError as exc:
+        kept = _passes_in(path)
+        what = "no earlier checkpoint is kept" if kept is None else f"the checkpoint of {kept} of {total_passes} passes is kept"
+        raise CheckpointWriteError(exc.errno, f"cannot write the checkpoint {os.fspath(path)!r} ({exc.strerror or exc}); {what}") from exc
 
 
 # ----------------------------------------------------------------------------------------
@@ -198,7 +241,8 @@ def _traced_locally(scene, settings, passes):
 
 
 def render(
-    scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None, stop=None,
+    scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None,
+    checkpoint_interval_s=DEFAULT_CHECKPOINT_INTERVAL_S, keep_checkpoint=False, stop=None,
     executor="local", address=None, workers=None, **overrides,
 ) -> RenderResult:  # fmt: skip
     """Render the intensity, ground truth and D-ToF measurements of a dynamic scene.
@@ -219,7 +263,15 @@ def render(
         ``time_sampling``, ``correlation``, …), applied on top.
     progress : bool. Show a progress bar.
     checkpoint : path, optional. Continue from this checkpoint if it exists (same
-        settings, else ValueError); save the sums there if the render stops early.
+        settings, else ValueError); save the sums there while rendering (see
+        ``checkpoint_interval_s``) and if the render stops early; remove it when the render
+        is complete (unless ``keep_checkpoint``).
+    checkpoint_interval_s : float, seconds, default 60. With ``checkpoint``: a save follows
+        the first pass that ends at least this long after the previous save (0: every
+        pass), so a killed process loses at most this much rendering (plus a pass).
+    keep_checkpoint : bool, default False. With ``checkpoint``: also save the sums of a
+        complete render and leave them, for a caller that removes the checkpoint once the
+        result is safely written (resuming a complete checkpoint renders nothing).
     stop : callable, optional. Checked after every pass; True stops the render there.
     executor : ``"local"`` (default) or ``"ray"``. ``"ray"`` traces the passes on Ray
         workers (:mod:`dopplertof.render_ray`), each rebuilding the scene from its file or
@@ -233,6 +285,12 @@ def render(
     Returns
     -------
     RenderResult
+
+    Raises
+    ------
+    CheckpointWriteError
+        A checkpoint could not be written (full disk, ...): the render stops there; the
+        message says which earlier checkpoint is kept.
     """
     import time
 
@@ -246,6 +304,7 @@ def render(
         raise ValueError(f"executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
     if executor != "ray" and (address is not None or workers is not None):
         raise ValueError("address and workers apply to executor='ray'")
+    checkpoint_interval_s = checked_checkpoint_interval(checkpoint_interval_s)
     if cameras is not None:
         overrides["cameras"] = cameras
     base = scene_layer(scene) if settings is None else {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
@@ -267,6 +326,18 @@ def render(
 
     def passes_done():
         return [int(acc.state["passes_done"][0]) for acc in accs]
+
+    saved = sum(passes_done()) if checkpoint is not None and os.path.exists(checkpoint) else None
+    last_save_s = time.monotonic()
+
+    def save(due: bool):
+        """Save the sums if they changed since the last save (and, unless ``due``, the interval passed)."""
+        nonlocal saved, last_save_s
+        done = sum(passes_done())
+        if checkpoint is None or done == saved or not (due or time.monotonic() - last_save_s >= checkpoint_interval_s):
+            return
+        _save_or_explain(checkpoint, accs, key, len(passes) * len(windows))
+        saved, last_save_s = done, time.monotonic()
 
     bar = None
     if progress:
@@ -295,6 +366,7 @@ def render(
                     acc.apply(p, next(traced))
                     if bar is not None:
                         bar.update(1)
+                    save(due=False)
             finally:
                 traced.close()  # a Ray render's workers stop here
     except KeyboardInterrupt:
@@ -305,11 +377,10 @@ def render(
     done = sum(passes_done())
     if done == 0:
         raise KeyboardInterrupt("render interrupted before the first pass finished")
-    if checkpoint is not None:
-        if interrupted:
-            save_checkpoint(checkpoint, accs, key)
-        elif os.path.exists(checkpoint):
-            os.remove(checkpoint)
+    if interrupted or keep_checkpoint:
+        save(due=True)
+    elif checkpoint is not None and os.path.exists(checkpoint):
+        os.remove(checkpoint)
     spp_done = min(int(acc.state["samples"].min()) for acc in accs)
     info = {"render_seconds": time.perf_counter() - start, "passes": len(passes) * len(windows), "passes_done": done,
             "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows]}  # fmt: skip
