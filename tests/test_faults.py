@@ -348,3 +348,71 @@ def test_metadata_records_the_render(tmp_path):
     assert meta["render"]["render_seconds"] > 0 and meta["command"][0]
     assert meta["settings"]["seed"] == 0 and len(meta["cameras"]) == 1
     assert set(meta["files"]) <= set(os.listdir(out))
+
+
+# ------------------------------------------------------------------------------ other commands (issue 16)
+
+
+def test_reconstruct_into_a_file_or_an_unwritable_folder_is_one_error_line(tmp_path):
+    rendered = tmp_path / "r"
+    cameras = [a for c in ("h=0", "h=1", "h=0,psi=90deg", "h=1,psi=90deg") for a in ("--camera", c)]
+    assert _cli("render", "cornell-box", "--resolution", "8", "--spp", "4", *cameras, "-o", str(rendered), "--quiet").returncode == 0
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    _one_error_line(_cli("reconstruct", str(rendered), "-o", str(a_file)), "exists and is not a folder")
+    _one_error_line(_cli("reconstruct", str(rendered), "-o", str(a_file / "sub")), "which is a file")
+    _one_error_line(_cli("reconstruct", str(rendered), "-o", "/proc/sys/dopplertof-out"), "not writable")
+    assert a_file.read_text() == "x"
+    done = _cli("reconstruct", str(rendered), "-o", str(tmp_path / "v"))
+    assert done.returncode == 0 and (tmp_path / "v" / "velocity_reconstructed.exr").exists(), done.stderr
+
+
+@pytest.mark.parametrize("fps, match", [("1e-9", "fps must be >= 0.001526 frames per second"), ("0", "fps must be a finite number of frames per second > 0")])
+def test_animate_refuses_an_fps_its_clip_cannot_hold(tmp_path, fps, match):
+    out = tmp_path / "clip"
+    _one_error_line(_cli("animate", "cornell-box", "--fps", fps, "--resolution", "8", "--spp", "2", "-o", str(out), "--quiet"), match)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("address, why", [("nonsense:1234", "cannot reach the Ray cluster at 'nonsense:1234' within 5 s"),
+                                          ("127.0.0.1:1", "Connection refused")])
+def test_an_unreachable_ray_address_fails_fast(tmp_path, address, why):
+    import time
+
+    pytest.importorskip("ray")
+    started = time.monotonic()
+    run = _cli("render", "cornell-box", "--resolution", "8", "--spp", "2", "-o", str(tmp_path / "o"), "--quiet", "--ray", "--address", address, timeout=120)
+    _one_error_line(run, why)
+    assert time.monotonic() - started < 60
+
+
+def test_experiment_output_and_cache_are_checked_before_rendering(tmp_path):
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    common = ["experiment", "velocity", "cornell-box", "--quick", "--cache", str(tmp_path / "cache")]
+    _one_error_line(_cli(*common, "-o", str(a_file)), "exists and is not a folder")
+    _one_error_line(_cli(*common, "-o", "/proc/sys/dopplertof-out"), "not writable")
+    _one_error_line(_cli(*common[:-1], str(a_file), "-o", str(tmp_path / "o")), "reference cache: output")
+    assert not (tmp_path / "cache").exists() or not os.listdir(tmp_path / "cache")
+
+
+def test_sigint_during_start_up_is_one_error_line(tmp_path):
+    """SIGINT while Dr.Jit loads (its library is mapped: the command's own code runs, no pass has started)."""
+    import time
+
+    out = tmp_path / "o"
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *_KILLABLE, "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    maps = f"/proc/{proc.pid}/maps"
+    if not os.path.exists(maps):
+        proc.kill()
+        pytest.skip("needs /proc")
+    deadline = time.monotonic() + 120
+    while "libdrjit" not in open(maps).read():
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.001)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 130, stderr
+    lines = [line for line in stderr.splitlines() if line.strip() and not line.startswith("SIGINT: stopping")]
+    assert lines == ["error: interrupted before the first pass finished; nothing written"], stderr
+    assert not (out / "metadata.json").exists() and not (out / "checkpoint.npz").exists()

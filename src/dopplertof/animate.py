@@ -68,11 +68,14 @@ def default_cameras(base: Camera | None = None) -> list[Camera]:
 
 
 def check_frames_and_fps(frames, fps) -> tuple[int, float]:
-    """``frames`` as a positive int and ``fps`` as a finite positive float, else ValueError."""
+    """``frames`` as a positive int and ``fps`` as a finite float the clip's GIF can play
+    (>= 1 / :data:`dopplertof.viz.GIF_MAX_FRAME_S`, a frame every 655.35 s), else ValueError."""
     if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames <= 0:
         raise ValueError(f"frames must be a positive integer, got {frames!r}")
     if isinstance(fps, bool) or not isinstance(fps, (int, float, np.number)) or not (math.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be a finite number of frames per second > 0, got {fps!r}")
+    if 1.0 / fps > viz.GIF_MAX_FRAME_S:
+        raise ValueError(f"fps must be >= {1.0 / viz.GIF_MAX_FRAME_S:.4g} frames per second (the clip's GIF holds a frame for at most {viz.GIF_MAX_FRAME_S} s), got {fps!r}")
     return int(frames), float(fps)
 
 

@@ -129,7 +129,7 @@ def _render(stop, scene, output, camera_specs, resolution, defines, overwrite, r
     from . import folder as out_folder
     from .backend import BackendError
     from .raytools import require_ray
-    from .render import CheckpointWriteError, check_film_memory
+    from .render import CheckpointWriteError, check_film_memory, checkpoint_disk_bytes
     from .render import render as run_render
     from .scene import SceneError
     from .scenes import open_scene
@@ -153,7 +153,8 @@ def _render(stop, scene, output, camera_specs, resolution, defines, overwrite, r
         settings = RenderSettings.build(base, layer, where=scene)
         width, height = dyn.resolution
         check_film_memory(width, height, len(settings.cameras), len(settings.windows))
-        out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=out_folder.estimated_bytes(width, height, len(settings.cameras)))
+        bytes_needed = out_folder.estimated_bytes(width, height, len(settings.cameras)) + checkpoint_disk_bytes(width, height, settings)
+        out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=bytes_needed)
         executor = {"executor": "ray", "address": address, "workers": workers} if use_ray else {}
         # The checkpoint outlives the render until its images are written: a full disk then loses nothing.
         result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=checkpoint, checkpoint_interval_s=checkpoint_interval_s,

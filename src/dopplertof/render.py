@@ -97,12 +97,26 @@ class RenderResult:
         return self.settings.seed
 
 
+def sums_bytes_per_pixel(n_cameras: int) -> int:
+    """Bytes per pixel of the Float64 sums and counters of one exposure window with
+    ``n_cameras`` cameras: what :class:`~dopplertof.passes.Accumulator` keeps and a checkpoint holds."""
+    estimates = 3 + n_cameras
+    truth = sum(o.channels for o in TRUTH)
+    pairs = n_cameras * (n_cameras - 1) // 2 if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS else 0
+    return 8 * (4 * estimates + truth + pairs) + 4 * 5
+
+
 def host_bytes_per_pixel(n_cameras: int) -> int:
     """Host memory of the film's Float64 sums and the float32 result, per pixel (bytes)."""
     estimates = 3 + n_cameras
     truth = sum(o.channels for o in TRUTH)
-    pairs = n_cameras * (n_cameras - 1) // 2 if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS else 0
-    return 8 * (4 * estimates + truth + pairs) + 4 * (2 * estimates + truth + 6 + n_cameras * n_cameras)
+    return sums_bytes_per_pixel(n_cameras) + 4 * (2 * estimates + truth + 6 + n_cameras * n_cameras)
+
+
+def checkpoint_disk_bytes(width: int, height: int, settings: RenderSettings) -> int:
+    """Disk space a render's checkpoint needs at its peak: while a save is under way the
+    previous checkpoint and the new one exist side by side (atomic replace)."""
+    return 2 * width * height * sum(sums_bytes_per_pixel(len(w.cameras)) for w in settings.windows)
 
 
 def check_film_memory(width: int, height: int, n_cameras: int, n_windows: int = 1) -> None:

@@ -249,8 +249,17 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
     Returns
     -------
     (VelocityResult, list of written paths, error dict or None)
+
+    Raises
+    ------
+    ValueError
+        ``folder`` is not a usable render folder, or ``output`` cannot be written (a file,
+        under a file, read-only: :func:`dopplertof.folder.check_writable`), before any work.
     """
+    from .folder import check_writable
+
     cameras, measurements, truth, stderr, covariance = read_render_folder(folder)
+    check_writable(output or folder)
     result = reconstruct(measurements, cameras, method, stderr, covariance)
     written = write_reconstruction(output or folder, result, truth)
     return result, written, None if truth is None else velocity_error(result, truth)
@@ -268,6 +277,8 @@ def reconstruct_command(folder, output, method):
         result, written, error = reconstruct_folder(folder, output, method)
     except (ValueError, FileNotFoundError) as exc:
         fail(str(exc))
+    except OSError as exc:  # the disk filled, or the folder went away, while writing
+        fail(f"cannot write {output or folder!r}: {exc.strerror or exc}")
     summary = f"; {describe_error(error)}" if error else ""
     click.echo(f"reconstructed velocity ({result.method}) of {folder}{summary}")
     for path in written:
