@@ -288,6 +288,40 @@ def test_a_checkpoint_interval_is_honoured_or_refused(tmp_path):
     _one_error_line(_cli("render", "cornell-box", "--resolution", "8", "-o", str(tmp_path / "o"), "--checkpoint-interval", "-5"), "'checkpoint_interval_s' must be >= 0 seconds, got -5.0")
 
 
+def test_stopping_at_once_inside_an_update_keeps_the_last_checkpoint_not_a_torn_pass(tmp_path, monkeypatch):
+    """A second Ctrl-C raises KeyboardInterrupt wherever the code is, also half-way through
+    adding a pass to the sums: the render falls back to the last checkpoint."""
+    from dopplertof.passes import Accumulator
+
+    scene = dt.scenes.build("cornell-box", resolution=16)  # 256 pixels x 16 spp: four passes of 1024 lanes
+    checkpoint = tmp_path / "c.npz"
+    apply = Accumulator.apply
+    calls = iter(range(100))
+
+    def torn_third_pass(self, p, inc):
+        if next(calls) == 2:
+            self.applying = True
+            self.state["group_sum"][:, p.pixel_start : p.pixel_start + p.n_pixels] += 1.0  # half the update
+            raise KeyboardInterrupt
+        apply(self, p, inc)
+
+    monkeypatch.setattr(Accumulator, "apply", torn_third_pass)
+    with pytest.raises(KeyboardInterrupt):  # no checkpoint yet: nothing is kept, nothing torn is saved
+        dt.render(scene, spp=16, lanes_per_pass=1024, checkpoint=checkpoint, checkpoint_interval_s=3600)
+    assert not checkpoint.exists()
+    calls = iter(range(100))
+    partial = dt.render(scene, spp=16, lanes_per_pass=1024, checkpoint=checkpoint, checkpoint_interval_s=0)
+    assert partial.interrupted and partial.info["passes_done"] == 2 and _passes_in_checkpoint(checkpoint) == 2
+    monkeypatch.setattr(Accumulator, "apply", apply)
+    stops = iter(range(100))
+    two_passes = dt.render(scene, spp=16, lanes_per_pass=1024, stop=lambda: next(stops) >= 2)
+    np.testing.assert_array_equal(partial.intensity, two_passes.intensity)
+    resumed = dt.render(scene, spp=16, lanes_per_pass=1024, checkpoint=checkpoint)
+    whole = dt.render(scene, spp=16, lanes_per_pass=1024)
+    np.testing.assert_array_equal(resumed.intensity, whole.intensity)
+    np.testing.assert_array_equal(resumed.stderr, whole.stderr)
+
+
 def test_a_resume_with_other_settings_is_refused(tmp_path):
     scene = dt.scenes.build("cornell-box", resolution=16)  # 256 pixels x 8 spp: two passes of 1024 lanes
     checkpoint = str(tmp_path / "c.npz")

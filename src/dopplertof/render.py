@@ -332,10 +332,16 @@ def render(
     window_settings = [
         dataclasses.replace(settings, cameras=w.cameras, exposure_start=w.start_s, seed=window_seed(settings.seed, k)) for k, w in enumerate(windows)
     ]  # fmt: skip
-    accs = [Accumulator(n_pixels, *Reducer.layout(ws)) for ws in window_settings]
     key = fingerprint(scene, settings)
-    if checkpoint is not None and os.path.exists(checkpoint):
-        _load_checkpoint(checkpoint, accs, key)
+
+    def saved_sums():
+        """The sums of the checkpoint, else zeros."""
+        accs = [Accumulator(n_pixels, *Reducer.layout(ws)) for ws in window_settings]
+        if checkpoint is not None and os.path.exists(checkpoint):
+            _load_checkpoint(checkpoint, accs, key)
+        return accs
+
+    accs = saved_sums()
     passes = schedule(n_pixels, settings.spp, settings.group_size, settings.lanes_per_pass)
 
     def passes_done():
@@ -385,6 +391,8 @@ def render(
                 traced.close()  # a Ray render's workers stop here
     except KeyboardInterrupt:
         interrupted = True
+        if any(acc.applying for acc in accs):  # stopped at once while adding a pass: back to the last checkpoint
+            accs = saved_sums()
     finally:
         if bar is not None:
             bar.close()
