@@ -173,7 +173,7 @@ def test_a_signal_keeps_the_work_and_resume_is_bit_identical(tmp_path, sig):
         np.testing.assert_array_equal(io.read_exr(out / name), io.read_exr(whole / name), err_msg=name)
 
 
-# 64² × 256 spp in 128 passes of 4096 lanes, a checkpoint after every pass.
+# 64² × 256 spp in 256 passes of 4096 lanes (two tiles of 2048 pixels × 2 spp).
 _KILLABLE = ["render", "cornell-box", "--resolution", "64", "--spp", "256", "--lanes-per-pass", "4096", "--camera", "h=1", "--seed", "3", "--quiet"]
 _EXRS = ("intensity.exr", "stderr.exr", "depth.exr", "velocity.exr", "measurement_0_h1_psi0deg.exr", "measurement_0_h1_psi0deg_stderr.exr")
 
@@ -214,7 +214,7 @@ def test_sigkill_loses_at_most_the_checkpoint_interval_and_resume_is_bit_identic
     proc.wait(timeout=60)
     assert not (out / "metadata.json").exists()
     kept = _passes_in_checkpoint(out / "checkpoint.npz")
-    assert 0 < kept < 128
+    assert 0 < kept < 256
     (out / f".checkpoint.{2**22 + 1}.partial.npz").write_bytes(b"half")  # what a kill mid-save leaves (no such process id)
     _one_error_line(_cli(*_KILLABLE, "-o", str(out)), "continue it with --resume")
     resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
@@ -257,7 +257,47 @@ def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_ide
     _one_error_line(subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr), "No space left on device")
     assert "passes is kept" in stderr and "--resume" in stderr
     kept = _passes_in_checkpoint(out / "checkpoint.npz")
-    assert 0 < kept < 128, stderr
+    assert 0 < kept < 256, stderr
+    os.remove(small_disk / "filler")
+    resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    assert not (out / "checkpoint.npz").exists()
+    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+
+
+@pytest.mark.slow
+def test_a_disk_that_fills_while_the_images_are_written_keeps_the_rendered_sums(tmp_path, small_disk):
+    """The render finishes, its checkpoint is saved, then the disk is too full for the images:
+    one error line, and --resume writes them without rendering again."""
+    import threading
+
+    out = small_disk / "out"
+    args = [*_KILLABLE, "-o", str(out), "--checkpoint-interval", "3600"]
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *[a for a in args if a != "--quiet"]], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    progress = threading.Event()  # the bar shows once the folder is checked and the render runs
+    stderr = []
+
+    def read():
+        while (char := proc.stderr.read(1)):
+            stderr.append(char)
+            if "/256" in "".join(stderr[-8:]):
+                progress.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    assert progress.wait(timeout=300), "".join(stderr)
+    from dopplertof.render import checkpoint_disk_bytes
+
+    checkpoint_bytes = checkpoint_disk_bytes(64, 64, dt.RenderSettings(cameras=(dt.Camera(heterodyne=1),))) // 2  # one copy, + npz headers (< 64 KiB)
+    free = os.statvfs(small_disk).f_bavail * os.statvfs(small_disk).f_frsize
+    with open(small_disk / "filler", "wb") as filler:  # room for the checkpoint and 64 KiB more
+        filler.write(b"\0" * (free - checkpoint_bytes - 65536))
+    proc.wait(timeout=300)
+    reader.join(timeout=10)
+    lines = [line for line in "".join(stderr).replace("\r", "\n").splitlines() if line.startswith("error:")]
+    assert proc.returncode == 2 and len(lines) == 1 and "No space left on device" in lines[0] and "--resume" in lines[0], "".join(stderr)
+    assert "Traceback" not in "".join(stderr)
+    assert _passes_in_checkpoint(out / "checkpoint.npz") == 256 and not (out / "metadata.json").exists()
     os.remove(small_disk / "filler")
     resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
     assert resumed.returncode == 0, resumed.stderr

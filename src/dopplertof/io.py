@@ -152,6 +152,8 @@ def write_exr(path: PathLike, image: np.ndarray, channels: Sequence[str] | None 
     ValueError
         If the image is not 2-D or 3-D, is empty, is not real-valued, or the channel names
         are missing, of the wrong count, empty or repeated.
+    OSError
+        If the file cannot be written (no space left, ...); ``path`` is left as it was.
     """
     array = np.asarray(image)
     if array.ndim not in (2, 3):
@@ -190,7 +192,10 @@ def write_exr(path: PathLike, image: np.ndarray, channels: Sequence[str] | None 
         EXR_CHANNEL_ORDER_ATTRIBUTE: names,
     }
     with atomic_path(path) as tmp, OpenEXR.File(header, pixels) as exr_file:
-        exr_file.write(str(tmp))
+        try:
+            exr_file.write(str(tmp))
+        except RuntimeError as exc:  # OpenEXR's word for a failed write (a full disk, say): an OSError like every other
+            raise OSError(str(exc).replace(str(tmp), str(path))) from exc
     return Path(path)
 
 
