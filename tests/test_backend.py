@@ -241,3 +241,14 @@ def test_an_old_libllvm_is_an_exception_from_the_api():
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]
     assert "Dr.Jit loaded libLLVM 15" in run.stdout and "libllvm19" in run.stdout, run.stdout
+
+
+def test_an_interrupt_inside_a_failed_import_is_an_interrupt_not_a_backend_error():
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as interrupt:
+            raise SystemError("<built-in function __import__> returned a result with an exception set") from interrupt
+    except SystemError as wrapped:
+        assert backend._caused_by_interrupt(wrapped)
+    assert not backend._caused_by_interrupt(RuntimeError("no libLLVM"))

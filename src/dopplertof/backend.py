@@ -362,6 +362,18 @@ def default_variant(mono: bool = False) -> str:
     return f"{backend}_ad_{'mono' if mono else 'rgb'}"
 
 
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in ``exc``'s chain (Mitsuba's extension modules report
+    one raised during their import as a SystemError)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def set_variant(variant: str | None = None, mono: bool = False) -> str:
     """Activate a Mitsuba variant for dopplertof.
 
@@ -390,6 +402,8 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
         try:
             mi.set_variant(name)
         except Exception as exc:  # noqa: BLE001 - turn Dr.Jit's message into one line
+            if _caused_by_interrupt(exc):  # Ctrl-C during the variant's import: not a backend problem
+                raise KeyboardInterrupt from None
             raise BackendError(
                 f"cannot start Mitsuba variant {name!r} ({exc}); {_install_hint()}"
             ) from None
