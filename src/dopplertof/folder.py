@@ -17,9 +17,9 @@ file                   content
 
 Every file is written under a temporary name and renamed (:func:`dopplertof.io.atomic_path`),
 so a fault never leaves a partial file under a file's name; the temporary files a killed
-process leaves are removed when the folder is next prepared. A folder holding another render's files is refused
-unless ``overwrite``, which removes exactly the files that render's ``metadata.json`` (or
-checkpoint) names and nothing else.
+process leaves are removed when the folder is next prepared. A folder holding another
+render's files is refused unless ``overwrite``, which removes exactly the files that
+render's ``metadata.json`` (or checkpoint) names and nothing else.
 """
 
 from __future__ import annotations

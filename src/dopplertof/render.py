@@ -49,6 +49,7 @@ import numpy as np
 from .outputs import BY_NAME, ESTIMATES, TRUTH
 from .passes import MAX_COVARIANCE_CAMERAS, Accumulator, PassTracer, Reducer, schedule
 from .settings import DEFAULT_CHECKPOINT_INTERVAL_S, DEFAULT_EXPOSURE_S, RenderSettings, checked_checkpoint_interval, scene_layer
+from .validation import checked
 
 __all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S", "CheckpointWriteError"]
 
@@ -319,6 +320,7 @@ def render(
     if executor != "ray" and (address is not None or workers is not None):
         raise ValueError("address and workers apply to executor='ray'")
     checkpoint_interval_s = checked_checkpoint_interval(checkpoint_interval_s)
+    keep_checkpoint = checked("keep_checkpoint", keep_checkpoint, "bool")
     if cameras is not None:
         overrides["cameras"] = cameras
     base = scene_layer(scene) if settings is None else {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
