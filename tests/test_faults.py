@@ -362,6 +362,27 @@ def test_stopping_at_once_inside_an_update_keeps_the_last_checkpoint_not_a_torn_
     np.testing.assert_array_equal(resumed.stderr, whole.stderr)
 
 
+def test_a_stopped_animation_frame_continues_from_its_checkpoint(tmp_path):
+    from dopplertof import animate
+
+    scene = dt.scenes.build("cornell-box", resolution=16)  # 256 pixels x 8 spp: two passes of 1024 lanes per frame
+    settings = dt.RenderSettings(cameras=tuple(animate.default_cameras()), spp=8, lanes_per_pass=1024)
+    common = dict(frames=2, fps=30.0, settings=settings, progress=False, log=lambda line: None)
+    calls = iter(range(100))
+    with pytest.raises(KeyboardInterrupt):  # frame 0 whole, frame 1 stopped after its first pass
+        animate.render_animation(scene, str(tmp_path / "a"), stop=lambda: next(calls) == 3, **common)
+    assert animate.is_done(str(tmp_path / "a"), 0) and not animate.is_done(str(tmp_path / "a"), 1)
+    frame_1 = tmp_path / "a" / "frame_0001"
+    assert _passes_in_checkpoint(frame_1 / "checkpoint.npz") == 1
+    passes = []
+    animate.render_animation(scene, str(tmp_path / "a"), stop=lambda: passes.append(1) and False, **common)
+    assert len(passes) == 1  # frame 0 done, frame 1 continued with its second pass
+    animate.render_animation(scene, str(tmp_path / "b"), **common)
+    assert not [p for p in os.listdir(frame_1) if p.startswith("checkpoint")]
+    for name in ("measurement_3_h1_psi90deg.exr", "intensity.exr", "velocity_reconstructed.exr"):
+        np.testing.assert_array_equal(io.read_exr(frame_1 / name), io.read_exr(tmp_path / "b" / "frame_0001" / name), err_msg=name)
+
+
 def test_a_resume_with_other_settings_is_refused(tmp_path):
     scene = dt.scenes.build("cornell-box", resolution=16)  # 256 pixels x 8 spp: two passes of 1024 lanes
     checkpoint = str(tmp_path / "c.npz")
