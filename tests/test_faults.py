@@ -491,12 +491,12 @@ def test_experiment_output_and_cache_are_checked_before_rendering(tmp_path):
     assert not (tmp_path / "cache").exists() or not os.listdir(tmp_path / "cache")
 
 
-def test_sigint_during_start_up_is_one_error_line(tmp_path):
-    """SIGINT while Dr.Jit loads (its library is mapped: the command's own code runs, no pass has started)."""
+def _sigint_while_dr_jit_loads(args):
+    """Run the CLI with ``args``, send SIGINT while Dr.Jit's library is being loaded (the
+    command's own code runs, no pass has started); (exit status, stderr)."""
     import time
 
-    out = tmp_path / "o"
-    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *_KILLABLE, "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     maps = f"/proc/{proc.pid}/maps"
     if not os.path.exists(maps):
         proc.kill()
@@ -506,8 +506,26 @@ def test_sigint_during_start_up_is_one_error_line(tmp_path):
         assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
         time.sleep(0.001)
     proc.send_signal(signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=300)
-    assert proc.returncode == 130, stderr
+    _, stderr = proc.communicate(timeout=300)
+    return proc.returncode, stderr
+
+
+def test_sigint_during_start_up_is_one_error_line(tmp_path):
+    out = tmp_path / "o"
+    status, stderr = _sigint_while_dr_jit_loads([*_KILLABLE, "-o", str(out)])
+    assert status == 130, stderr
     lines = [line for line in stderr.splitlines() if line.strip() and not line.startswith("SIGINT: stopping")]
     assert lines == ["error: interrupted before the first pass finished; nothing written"], stderr
     assert not (out / "metadata.json").exists() and not (out / "checkpoint.npz").exists()
+
+
+@pytest.mark.parametrize("args, says", [
+    (["animate", "cornell-box", "--resolution", "16", "--spp", "4", "--frames", "2", "--quiet"], "interrupted: the finished frames are in"),
+    (["experiment", "velocity", "cornell-box", "--quick"], "error: aborted"),
+    (["dataset", "generate", "--samples", "2", "--resolution", "8", "--spp", "2"], "interrupted: 0 of"),
+], ids=["animate", "experiment", "dataset"])
+def test_sigint_during_start_up_of_other_commands_neither_crashes_nor_prints_a_traceback(tmp_path, args, says):
+    """Dr.Jit's extension crashed (SIGSEGV) when the KeyboardInterrupt came during its start-up."""
+    extra = ["--cache", str(tmp_path / "cache")] if args[0] == "experiment" else []
+    status, stderr = _sigint_while_dr_jit_loads([*args, "-o", str(tmp_path / "o"), *extra])
+    assert status == 130 and says in stderr and "Traceback" not in stderr, (status, stderr)

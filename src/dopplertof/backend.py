@@ -37,13 +37,16 @@ libLLVM search has one home.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import glob
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import threading
 
 MIN_LLVM_MAJOR = 16
 SUPPORTED_VARIANTS = ("llvm_ad_rgb", "llvm_ad_mono", "cuda_ad_rgb", "cuda_ad_mono")
@@ -283,9 +286,35 @@ def _install_hint() -> str:
 _DRJIT_OLD_LLVM_MESSAGE = "jit_llvm_init(): the located LLVM version"
 
 
+_HELD_SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s is not None)
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """Hold the Python-level handlers of SIGINT, SIGTERM and SIGHUP, and deliver what came
+    when the block ends: a KeyboardInterrupt raised while Dr.Jit's extension initialises
+    crashes the process (SIGSEGV)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received = []
+    saved = {s: signal.getsignal(s) for s in _HELD_SIGNALS}
+    saved = {s: h for s, h in saved.items() if callable(h)}
+    for s in saved:
+        signal.signal(s, lambda signum, frame: received.append(signum))
+    try:
+        yield
+    finally:
+        for s, handler in saved.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(received):
+            signal.raise_signal(s)
+
+
 def _import_mitsuba():
-    """``import mitsuba`` (which starts Dr.Jit), holding back Dr.Jit's own old-libLLVM message."""
-    if "drjit" in sys.modules:  # started already: nothing left to hold back
+    """``import mitsuba`` (which starts Dr.Jit), with signals held (:func:`_signals_held`) and
+    Dr.Jit's own old-libLLVM message held back."""
+    if "drjit" in sys.modules:  # started already: nothing left to protect or hold back
         import mitsuba
 
         return mitsuba
@@ -293,7 +322,7 @@ def _import_mitsuba():
 
     sys.stderr.flush()
     saved = os.dup(2)
-    with tempfile.TemporaryFile() as capture:
+    with _signals_held(), tempfile.TemporaryFile() as capture:
         os.dup2(capture.fileno(), 2)
         try:
             import mitsuba
@@ -362,18 +391,6 @@ def default_variant(mono: bool = False) -> str:
     return f"{backend}_ad_{'mono' if mono else 'rgb'}"
 
 
-def _caused_by_interrupt(exc: BaseException) -> bool:
-    """Whether a KeyboardInterrupt is in ``exc``'s chain (Mitsuba's extension modules report
-    one raised during their import as a SystemError)."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return False
-
-
 def set_variant(variant: str | None = None, mono: bool = False) -> str:
     """Activate a Mitsuba variant for dopplertof.
 
@@ -400,10 +417,9 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
         )
     if mi.variant() != name:
         try:
-            mi.set_variant(name)
+            with _signals_held():  # the variant's modules are extensions too
+                mi.set_variant(name)
         except Exception as exc:  # noqa: BLE001 - turn Dr.Jit's message into one line
-            if _caused_by_interrupt(exc):  # Ctrl-C during the variant's import: not a backend problem
-                raise KeyboardInterrupt from None
             raise BackendError(
                 f"cannot start Mitsuba variant {name!r} ({exc}); {_install_hint()}"
             ) from None
