@@ -122,7 +122,12 @@ def test_a_used_folder_is_refused_unless_overwrite(tmp_path):
     assert "mine.txt" in names and not any(n.startswith("measurement_") for n in names)
 
 
-# ------------------------------------------------------------------------------ signals and resume
+# ------------------------------------------------------------------------------ signals, faults and resume
+
+# 64² × 256 spp in 256 passes of 4096 lanes (two tiles of 2048 pixels × 2 spp), with a progress bar.
+_LONG_RENDER = ["render", "cornell-box", "--resolution", "64", "--spp", "256", "--lanes-per-pass", "4096", "--camera", "h=1", "--seed", "3"]
+_KILLABLE = [*_LONG_RENDER, "--quiet"]
+_EXRS = ("intensity.exr", "stderr.exr", "depth.exr", "velocity.exr", "measurement_0_h1_psi0deg.exr", "measurement_0_h1_psi0deg_stderr.exr")
 
 
 def _interrupt(tmp_path, sig, name, extra=()):
@@ -133,7 +138,7 @@ def _interrupt(tmp_path, sig, name, extra=()):
     import threading
 
     out = tmp_path / name
-    args = ["render", "cornell-box", "--resolution", "64", "--spp", "256", "--lanes-per-pass", "4096", "--camera", "h=1", "-o", str(out), "--seed", "3", *extra]
+    args = [*_LONG_RENDER, "-o", str(out), *extra]
     proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     seen, started = [], threading.Event()
 
@@ -166,16 +171,9 @@ def test_a_signal_keeps_the_work_and_resume_is_bit_identical(tmp_path, sig):
     resumed = _cli(*args, "--resume")
     assert resumed.returncode == 0, resumed.stderr
     assert not (out / "checkpoint.npz").exists()
-    whole = tmp_path / "whole"
-    full_args = [a if a != str(out) else str(whole) for a in args]
-    assert _cli(*full_args).returncode == 0
-    for name in ("intensity.exr", "stderr.exr", "depth.exr", "velocity.exr", "measurement_0_h1_psi0deg.exr", "measurement_0_h1_psi0deg_stderr.exr"):
-        np.testing.assert_array_equal(io.read_exr(out / name), io.read_exr(whole / name), err_msg=name)
+    _assert_same_as_an_uninterrupted_render(tmp_path, out)
 
 
-# 64² × 256 spp in 256 passes of 4096 lanes (two tiles of 2048 pixels × 2 spp).
-_KILLABLE = ["render", "cornell-box", "--resolution", "64", "--spp", "256", "--lanes-per-pass", "4096", "--camera", "h=1", "--seed", "3", "--quiet"]
-_EXRS = ("intensity.exr", "stderr.exr", "depth.exr", "velocity.exr", "measurement_0_h1_psi0deg.exr", "measurement_0_h1_psi0deg_stderr.exr")
 
 
 def _passes_in_checkpoint(path):
@@ -183,12 +181,12 @@ def _passes_in_checkpoint(path):
         return int(data["passes_done"][0])
 
 
-def _start_and_wait_for_a_checkpoint(out, extra=()):
+def _start_and_wait_for_a_checkpoint(out):
     """A render into ``out`` saving a checkpoint after every pass; returns the process once
     the first checkpoint is there."""
     import time
 
-    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *_KILLABLE, "-o", str(out), "--checkpoint-interval", "0", *extra],
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *_KILLABLE, "-o", str(out), "--checkpoint-interval", "0"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
     deadline = time.monotonic() + 300
     while not (out / "checkpoint.npz").exists():
@@ -272,8 +270,8 @@ def test_a_disk_that_fills_while_the_images_are_written_keeps_the_rendered_sums(
     import threading
 
     out = small_disk / "out"
-    args = [*_KILLABLE, "-o", str(out), "--checkpoint-interval", "3600"]
-    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *[a for a in args if a != "--quiet"]], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *_LONG_RENDER, "-o", str(out), "--checkpoint-interval", "3600"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
     progress = threading.Event()  # the bar shows once the folder is checked and the render runs
     stderr = []
 
