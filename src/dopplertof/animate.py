@@ -25,8 +25,9 @@ path                        content
 Resuming: a rerun skips the frames that have ``done.json`` and renders the others, so an
 interrupted run (Ctrl-C, SIGKILL, a full disk) continues where it stopped; the frame being
 rendered then continues from its ``checkpoint.npz`` (saved every 60 s of rendering and
-when stopped, removed once the frame is done), bit-identical to an uninterrupted frame. ``frames`` may change between runs (a longer clip extends a
-shorter one), the other settings may not, unless ``overwrite=True`` deletes the old frames.
+when stopped, removed once the frame is done), bit-identical to an uninterrupted frame.
+``frames`` may change between runs (a longer clip extends a shorter one), the other
+settings may not, unless ``overwrite=True`` deletes the old frames.
 """
 
 from __future__ import annotations
