@@ -130,31 +130,44 @@ _KILLABLE = [*_LONG_RENDER, "--quiet"]
 _EXRS = ("intensity.exr", "stderr.exr", "depth.exr", "velocity.exr", "measurement_0_h1_psi0deg.exr", "measurement_0_h1_psi0deg_stderr.exr")
 
 
-def _interrupt(tmp_path, sig, name, extra=()):
-    """Start a render (``extra``: more arguments), send ``sig`` once its progress bar shows
-    a finished pass; the finished process's status, its stderr, the output folder and the
-    arguments."""
+def _render_until_progress(args, pattern):
+    """Start the CLI with ``args``; return once its stderr (the progress bar) matches the
+    regular expression ``pattern``: (process, a function that waits for it to end and returns
+    its whole stderr)."""
     import re
     import threading
 
-    out = tmp_path / name
-    args = [*_LONG_RENDER, "-o", str(out), *extra]
     proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    seen, started = [], threading.Event()
+    seen, matched = [], threading.Event()
 
     def read():
         while (char := proc.stderr.read(1)):
             seen.append(char)
-            if not started.is_set() and re.search(r"\|\s*([1-9]\d*)/\d+", "".join(seen[-40:])):
-                started.set()
+            if not matched.is_set() and re.search(pattern, "".join(seen[-40:])):
+                matched.set()
 
     reader = threading.Thread(target=read, daemon=True)
     reader.start()
-    assert started.wait(timeout=300), "".join(seen)
+    assert matched.wait(timeout=300), "".join(seen)
+
+    def finish():
+        proc.wait(timeout=300)
+        reader.join(timeout=10)
+        return "".join(seen)
+
+    return proc, finish
+
+
+def _interrupt(tmp_path, sig, name, extra=()):
+    """Start a render (``extra``: more arguments), send ``sig`` once its progress bar shows
+    a finished pass; the finished process's status, its stderr, the output folder and the
+    arguments."""
+    out = tmp_path / name
+    args = [*_LONG_RENDER, "-o", str(out), *extra]
+    proc, finish = _render_until_progress(args, r"\|\s*([1-9]\d*)/\d+")
     proc.send_signal(sig)
-    proc.wait(timeout=300)
-    reader.join(timeout=10)
-    return proc.returncode, "".join(seen), out, [*args, "--quiet"]
+    stderr = finish()
+    return proc.returncode, stderr, out, [*args, "--quiet"]
 
 
 @pytest.mark.slow
@@ -267,34 +280,19 @@ def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_ide
 def test_a_disk_that_fills_while_the_images_are_written_keeps_the_rendered_sums(tmp_path, small_disk):
     """The render finishes, its checkpoint is saved, then the disk is too full for the images:
     one error line, and --resume writes them without rendering again."""
-    import threading
-
-    out = small_disk / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *_LONG_RENDER, "-o", str(out), "--checkpoint-interval", "3600"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
-    progress = threading.Event()  # the bar shows once the folder is checked and the render runs
-    stderr = []
-
-    def read():
-        while (char := proc.stderr.read(1)):
-            stderr.append(char)
-            if "/256" in "".join(stderr[-8:]):
-                progress.set()
-
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    assert progress.wait(timeout=300), "".join(stderr)
     from dopplertof.render import checkpoint_disk_bytes
 
+    out = small_disk / "out"
+    # The bar shows once the folder is checked and the render runs.
+    proc, finish = _render_until_progress([*_LONG_RENDER, "-o", str(out), "--checkpoint-interval", "3600"], r"/256")
     checkpoint_bytes = checkpoint_disk_bytes(64, 64, dt.RenderSettings(cameras=(dt.Camera(heterodyne=1),))) // 2  # one copy, + npz headers (< 64 KiB)
     free = os.statvfs(small_disk).f_bavail * os.statvfs(small_disk).f_frsize
     with open(small_disk / "filler", "wb") as filler:  # room for the checkpoint and 64 KiB more
         filler.write(b"\0" * (free - checkpoint_bytes - 65536))
-    proc.wait(timeout=300)
-    reader.join(timeout=10)
-    lines = [line for line in "".join(stderr).replace("\r", "\n").splitlines() if line.startswith("error:")]
-    assert proc.returncode == 2 and len(lines) == 1 and "No space left on device" in lines[0] and "--resume" in lines[0], "".join(stderr)
-    assert "Traceback" not in "".join(stderr)
+    stderr = finish()
+    lines = [line for line in stderr.replace("\r", "\n").splitlines() if line.startswith("error:")]
+    assert proc.returncode == 2 and len(lines) == 1 and "No space left on device" in lines[0] and "--resume" in lines[0], stderr
+    assert "Traceback" not in stderr
     assert _passes_in_checkpoint(out / "checkpoint.npz") == 256 and not (out / "metadata.json").exists()
     os.remove(small_disk / "filler")
     resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
