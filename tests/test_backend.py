@@ -194,3 +194,66 @@ def test_backend_failure_says_what_to_install_or_fix(bare, tmp_path, monkeypatch
     missing = tmp_path / "libLLVM-19.so"
     monkeypatch.setenv(backend.LLVM_PATH_ENV, str(missing))
     assert f"DRJIT_LIBLLVM_PATH={missing} is not a file" in backend._install_hint()
+
+
+def test_only_too_old_versions_are_named_in_the_hint(bare, tmp_path, monkeypatch):
+    old = _touch(tmp_path / "sys" / "libLLVM-15.so.1")
+    monkeypatch.setattr(backend, "_SYSTEM_LLVM_DIRS", (str(tmp_path / "sys"),))
+    assert backend._install_hint().endswith(f"{backend.LLVM_INSTALL_HINT} (found only LLVM 15 ({old}), too old)")
+
+
+@pytest.mark.parametrize("version, user_path, where", [((15, 0, 6), None, "found by Dr.Jit's own search"),
+                                                       ((14, 0, 0), "/x/libLLVM-14.so", "DRJIT_LIBLLVM_PATH=/x/libLLVM-14.so")])
+def test_a_loaded_llvm_older_than_16_is_refused(version, user_path, where):
+    with pytest.raises(backend.BackendError, match=f"libLLVM {'.'.join(map(str, version))} \\({where}\\).*apt-get install libllvm19"):
+        backend.check_loaded_llvm(version, user_path)
+    backend.check_loaded_llvm((16, 0, 0), user_path)
+    backend.check_loaded_llvm((-1, -1, -1), user_path)  # none loaded: CUDA only
+
+
+def _system_llvm(major):
+    path = f"/usr/lib/x86_64-linux-gnu/libLLVM-{major}.so.1"
+    if not os.path.isfile(path):
+        pytest.skip(f"needs {path}")
+    return {**os.environ, backend.LLVM_PATH_ENV: path}
+
+
+@pytest.mark.parametrize("major", [15, 14])
+def test_an_old_libllvm_is_one_error_line_on_the_command_line(tmp_path, major):
+    """LLVM 15 starts Dr.Jit and aborts on the first kernel (exit 134) unless refused first;
+    LLVM 14 Dr.Jit refuses itself, with a message of its own that we hold back."""
+    env = _system_llvm(major)
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, "-m", "dopplertof.cli", "render", "cornell-box", "--resolution", "8", "--spp", "2", "-o", str(out), "--quiet"],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert run.returncode == 2, run.stderr[-2000:]
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and f"LLVM {major}" in lines[0], run.stderr[-2000:]
+    assert "libllvm19" in lines[0] or "point it at a newer one" in lines[0]
+    assert not (out / "metadata.json").exists()
+
+
+def test_an_old_libllvm_is_an_exception_from_the_api():
+    env = _system_llvm(15)
+    code = ("import dopplertof as dt\n"
+            "try:\n    dt.render(dt.scenes.build('cornell-box', resolution=8), spp=2)\n"
+            "except dt.backend.BackendError as exc:\n    print(exc)\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "Dr.Jit loaded libLLVM 15" in run.stdout and "libllvm19" in run.stdout, run.stdout
+
+
+def test_a_ctrl_c_while_dr_jit_starts_arrives_after_it():
+    """A KeyboardInterrupt raised inside Dr.Jit's extension initialisation crashes the
+    process (SIGSEGV): set_variant holds SIGINT until the import is done."""
+    code = (
+        "import os, signal, sys, threading\n"
+        "import dopplertof.backend as backend\n"
+        "threading.Timer(0.02, os.kill, (os.getpid(), signal.SIGINT)).start()\n"
+        "try:\n    backend.set_variant('llvm_ad_rgb')\n    print('not interrupted')\n"
+        "except KeyboardInterrupt:\n    print('interrupted after the import:', 'mitsuba' in sys.modules and 'drjit' in sys.modules)\n"
+        "import mitsuba as mi\nprint(backend.set_variant('llvm_ad_rgb'), mi.variant())\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
+    assert run.stdout.splitlines() == ["interrupted after the import: True", "llvm_ad_rgb llvm_ad_rgb"], run.stdout

@@ -412,3 +412,11 @@ def test_readme_tables_come_from_the_one_home():
     readme = (Path(__file__).parents[1] / "README.md").read_text()
     assert config_mod.markdown_table() in readme
     assert schema.markdown_table() in readme
+
+
+def test_the_subpackage_is_reached_from_the_package_alone():
+    """The README's ``dt.dataset.generate``/``dt.dataset.open`` after a bare ``import dopplertof``,
+    without loading the renderer for it."""
+    code = "import sys, dopplertof as dt; print(callable(dt.dataset.generate), callable(dt.dataset.open), 'drjit' in sys.modules)"
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.stdout.split() == ["True", "True", "False"], run.stderr

@@ -342,8 +342,17 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
     -------
     (VelocityResult, list of written paths, dict: :func:`summary` with, against the
     ground truth, :func:`velocity_error` and ``depth_wrapped_fraction``)
+
+    Raises
+    ------
+    ValueError
+        ``folder`` is not a usable render folder, or ``output`` cannot be written (a file,
+        under a file, read-only: :func:`dopplertof.folder.check_writable`), before any work.
     """
+    from .folder import check_writable
+
     cameras, measurements, truth, stderr, covariance = read_render_folder(folder)
+    check_writable(output or folder)
     result = reconstruct(measurements, cameras, method, stderr, covariance, max_velocity_stderr)
     depth_truth = read_depth_truth(folder)
     written = write_reconstruction(output or folder, result, truth, depth_truth_m=depth_truth)
@@ -382,6 +391,8 @@ def reconstruct_command(folder, output, method, max_velocity_stderr):
         result, written, info = reconstruct_folder(folder, output, method, limit)
     except (ValueError, FileNotFoundError) as exc:
         fail(str(exc))
+    except OSError as exc:  # the disk filled, or the folder went away, while writing
+        fail(f"cannot write {output or folder!r}: {exc.strerror or exc}")
     error = f"; {describe_error(info)}" if "n_valid" in info else ""
     click.echo(f"reconstructed velocity ({result.method}) of {folder}{error}; {describe_summary(info)}")
     for path in written:

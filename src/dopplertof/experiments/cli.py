@@ -69,6 +69,7 @@ def _setting(name, value, quick):
 def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo, use_ray=False, address=None):
     """(scene, output folder, cache, max depth) shared by the experiments."""
     from .. import scenes
+    from ..folder import check_writable
     from ..raytools import require_ray
     from .common import ReferenceCache, default_cache_dir, open_scene
 
@@ -80,7 +81,13 @@ def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo,
         resolution = _setting("resolution", resolution, quick)
     scene = open_scene(scene_arg, resolution)
     folder = output or os.path.join("out", "experiments", name, scene.label)
-    cache = ReferenceCache(cache or default_cache_dir(), {"executor": "ray", "address": address} if use_ray else None)
+    cache_folder = cache or default_cache_dir()
+    check_writable(folder)  # before any rendering, not when its results are due
+    try:
+        check_writable(cache_folder)
+    except ValueError as exc:
+        raise ValueError(f"reference cache: {exc}") from None
+    cache = ReferenceCache(cache_folder, {"executor": "ray", "address": address} if use_ray else None)
     width, height = scene.scene.resolution
     echo(f"{name} on {scene.label} ({width}x{height}); output in {os.path.abspath(folder)}/")
     return scene, folder, cache, (max_depth if max_depth is not None else scene.max_depth)
