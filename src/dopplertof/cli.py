@@ -129,10 +129,10 @@ def render(scene, output, camera_specs, sensor_spec, resolution, defines, overwr
     """
     # First: a signal during start-up then stops the render before its first pass.
     with StopOnSignal() as stop:
-        _render(stop, scene, output, camera_specs, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, options)
+        _render(stop, scene, output, camera_specs, sensor_spec, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, options)
 
 
-def _render(stop, scene, output, camera_specs, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, options):
+def _render(stop, scene, output, camera_specs, sensor_spec, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, options):
     from . import folder as out_folder
     from .backend import BackendError
     from .raytools import require_ray
