@@ -365,7 +365,7 @@ def test_a_stopped_animation_frame_continues_from_its_checkpoint(tmp_path):
     settings = dt.RenderSettings(cameras=tuple(animate.default_cameras()), spp=8, lanes_per_pass=1024)
     common = dict(frames=2, fps=30.0, settings=settings, progress=False, log=lambda line: None)
     calls = iter(range(100))
-    with pytest.raises(KeyboardInterrupt):  # frame 0 whole, frame 1 stopped after its first pass
+    with pytest.raises(animate.AnimationStopped):  # frame 0 whole, frame 1 stopped after its first pass
         animate.render_animation(scene, str(tmp_path / "a"), stop=lambda: next(calls) == 3, **common)
     assert animate.is_done(str(tmp_path / "a"), 0) and not animate.is_done(str(tmp_path / "a"), 1)
     frame_1 = tmp_path / "a" / "frame_0001"

@@ -175,7 +175,7 @@ def _render(stop, scene, output, camera_specs, sensor_spec, resolution, defines,
         result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=checkpoint, checkpoint_interval_s=checkpoint_interval_s,
                             keep_checkpoint=True, stop=stop, sensor=sensor, **executor)  # fmt: skip
         if result.info["passes_done"] == 0:
-            click.echo(f"{stop.name}: stopped before the first pass finished; nothing written", err=True)
+            click.echo("error: interrupted before the first pass finished; nothing written", err=True)
             sys.exit(stop.exit_status)
         metadata = {"scene": scene_description(scene, resolution, defines), "film": [width, height], "command": sys.argv}
         written = out_folder.write_result(result, output, metadata)

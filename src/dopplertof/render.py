@@ -334,8 +334,9 @@ def render(
     Raises
     ------
     KeyboardInterrupt
-        Only a Ctrl-C (SIGINT) that arrives before the first pass finished; after that the
-        render returns the finished passes as for ``stop``.
+        Only a Ctrl-C (SIGINT) that leaves nothing to return: before the first pass
+        finished, or half-way through adding a pass with no checkpoint to fall back to;
+        otherwise the render returns the finished passes as for ``stop``.
     CheckpointWriteError
         A checkpoint could not be written (full disk, ...): the render stops there; the
         message says which earlier checkpoint is kept.
@@ -442,11 +443,11 @@ def render(
             finally:
                 traced.close()  # a Ray render's workers stop here
     except KeyboardInterrupt:
-        if sum(passes_done()) == 0:
-            raise  # a Ctrl-C with nothing to return
         interrupted = True
         if any(acc.applying for acc in accs):  # stopped at once while adding a pass: back to the last checkpoint
             accs = saved_sums()
+        if sum(passes_done()) == 0:
+            raise  # a Ctrl-C with nothing to return
     finally:
         if bar is not None:
             bar.close()
