@@ -40,6 +40,15 @@ all of them: the second path of a pair replays the first at an independent time.
 DEFAULT_MAX_DEPTH = FIELDS["max_depth"].default
 """Path depth when the scene gives none: the render default."""
 
+SWEEP_REPLICATES = 2
+"""Replicates per pixel of the sweeps' renders (the render default is 16). Per-interval
+stratification spreads a pixel's times over the groups of one replicate
+(:mod:`dopplertof.tracing.lanes`), so 16 replicates of a 64-spp render stratify each
+interval in only 2 strata, too few for mirrored sampling, whose pair mean at h = 1 varies
+as cos 2πt, to gain anything. The original scripts stratify over all spp/2 groups of a
+render; 2 replicates stratify over half of them and still give an unbiased image-average
+standard error (``stderr_rms``), which is all the sweeps use."""
+
 _DEFAULT_SHIFT = {"antithetic": 0.5, "antithetic_mirror": 0.0}
 """The original scripts' antithetic shift per method (a = T/2, and the plain mirror 1 − t)."""
 
@@ -137,7 +146,7 @@ class Estimator:
 
     def render_settings(self) -> dict:
         """Render settings (:class:`~dopplertof.settings.RenderSettings` fields) of this estimator."""
-        settings = {"time_sampling": self.time_sampling, "n_times": N_TIMES, "stratify_intervals": True, "correlation": self.correlation}
+        settings = {"time_sampling": self.time_sampling, "n_times": N_TIMES, "correlation": self.correlation}
         if self.time_sampling in _DEFAULT_SHIFT:
             settings["antithetic_shift"] = self.antithetic_shift
         RenderSettings.build(settings)  # validates the combination now
@@ -159,15 +168,17 @@ def check_spp(name: str, spp: int) -> int:
     return spp
 
 
-def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int, seed: int, max_depth: int, progress=False, **executor):
+def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int, seed: int, max_depth: int, progress=False, replicates=None, **executor):
     """(RenderResult, wall seconds) of one render; an interrupted render raises KeyboardInterrupt.
 
+    ``replicates``: the render's ``replicates`` (None: the render default);
     ``executor``: :func:`~dopplertof.render.render`'s ``executor``, ``address``, ``workers``.
     """
     start = time.perf_counter()
+    extra = {} if replicates is None else {"replicates": replicates}
     result = render(
         scene.scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth, progress=progress,
-        **scene.render_settings, **estimator.render_settings(), **executor,
+        **scene.render_settings, **estimator.render_settings(), **extra, **executor,
     )  # fmt: skip
     if result.interrupted:
         raise KeyboardInterrupt
@@ -230,7 +241,7 @@ class ReferenceCache:
         self.executor = dict(executor or {})
 
     @staticmethod
-    def key(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, estimator: Estimator) -> str:
+    def key(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, estimator: Estimator, replicates=None) -> str:
         """SHA-256 of everything that determines the reference's pixels."""
         import mitsuba as mi
 
@@ -241,6 +252,7 @@ class ReferenceCache:
             "spp": spp,
             "seed": seed,
             "max_depth": max_depth,
+            "replicates": replicates,
             "scene_settings": scene.render_settings,
             "estimator": settings,
             "variant": mi.variant(),
@@ -274,16 +286,17 @@ class ReferenceCache:
         return final
 
 
-def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, cache: ReferenceCache, echo: Echo) -> RenderResult:
-    """The high-spp reference of ``cameras``: from the cache, else rendered and stored."""
+def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, cache: ReferenceCache, echo: Echo, replicates=None) -> RenderResult:
+    """The high-spp reference of ``cameras``: from the cache, else rendered and stored
+    (``replicates`` as for :func:`timed_render`)."""
     seed = reference_seed(seed)
-    key = cache.key(scene, cameras, spp, seed, max_depth, REFERENCE_ESTIMATOR)
+    key = cache.key(scene, cameras, spp, seed, max_depth, REFERENCE_ESTIMATOR, replicates)
     cached = cache.load(key, cameras)
     if cached is not None:
         echo(f"reference: loaded from cache {cache.path(key)}")
         return cached
     echo(f"reference: rendering {REFERENCE_ESTIMATOR.label} at {spp} spp (seed {seed}) ...")
-    result, seconds = timed_render(scene, cameras, REFERENCE_ESTIMATOR, spp, seed, max_depth, progress=sys.stderr.isatty(), **cache.executor)
+    result, seconds = timed_render(scene, cameras, REFERENCE_ESTIMATOR, spp, seed, max_depth, progress=sys.stderr.isatty(), replicates=replicates, **cache.executor)
     path = cache.store(key, result)
     echo(f"reference: rendered in {seconds:.1f} s, cached as {path}")
     return result

@@ -29,6 +29,7 @@ from .common import (
     Echo,
     Estimator,
     ExperimentScene,
+    SWEEP_REPLICATES,
     ReferenceCache,
     camera_grid,
     check_spp,
@@ -65,6 +66,7 @@ class SweepSettings:
     spp, reference_spp : paths per pixel of the compared renders and of the reference
     seed : seed of the compared renders (the reference uses another)
     max_depth : path depth
+    replicates : replicates per pixel of every render (default :data:`~.common.SWEEP_REPLICATES`)
     """
 
     h_values: tuple
@@ -73,6 +75,7 @@ class SweepSettings:
     reference_spp: int
     seed: int
     max_depth: int
+    replicates: int = SWEEP_REPLICATES
 
     def __post_init__(self):
         check_spp("spp", self.spp)
@@ -122,10 +125,10 @@ def _error_rows(scene, estimator, result, reference, seconds) -> list[dict]:
 def _sweep(scene: ExperimentScene, estimators: Sequence[Estimator], settings: SweepSettings, cache: ReferenceCache, echo: Echo):
     """Render every estimator and the reference; rows of :data:`RESULT_COLUMNS`."""
     cameras = camera_grid(scene.base_camera, settings.h_values, settings.phases_rad)
-    reference = reference_render(scene, cameras, settings.reference_spp, settings.seed, settings.max_depth, cache, echo)
+    reference = reference_render(scene, cameras, settings.reference_spp, settings.seed, settings.max_depth, cache, echo, settings.replicates)
     rows = []
     for number, estimator in enumerate(estimators, 1):
-        result, seconds = timed_render(scene, cameras, estimator, settings.spp, settings.seed, settings.max_depth)
+        result, seconds = timed_render(scene, cameras, estimator, settings.spp, settings.seed, settings.max_depth, replicates=settings.replicates)
         shift = f" shift {estimator.shift_label:g}" if estimator.shift_label != "" else ""
         echo(f"[{number}/{len(estimators)}] {estimator.label}{shift}: {seconds:.1f} s")
         rows.extend(_error_rows(scene, estimator, result, reference, seconds))
@@ -156,6 +159,7 @@ def _metadata(scene, settings, estimators, cache, experiment) -> dict:
         "reference_seed": reference_seed(settings.seed),
         "reference_estimator": "antithetic/replay, shift 0.5",
         "max_depth": settings.max_depth,
+        "replicates": settings.replicates,
         "estimators": [{"time_sampling": e.time_sampling, "correlation": e.correlation, "shift": e.shift_label} for e in estimators],
         "cache": str(cache.folder),
     }
