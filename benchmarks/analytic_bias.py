@@ -2,11 +2,12 @@
 """Bias of the analytic (closed-form, biased by design) time integration against an unbiased render.
 
 For each scene it renders an unbiased reference (antithetic times, replayed paths, high spp)
-and ``time_sampling="analytic"`` (replay: the partner path replays the primal at the
-exposure's end), both with the cameras h ∈ {0, 1} × ψ ∈ {0, π/2} from the same paths, and
-measures per camera and image region the relative bias of the region's sum::
+and ``time_sampling="analytic"`` with each correlation (``replay``: the partner path replays
+the primal at the exposure's end; ``reconnection``: it goes through the primal's vertices),
+all with the cameras h ∈ {0, 1} × ψ ∈ {0, π/2} from the same paths, and measures per
+camera and image region the relative bias of the region's sum::
 
-    python benchmarks/analytic_bias.py            # 64x64, analytic 256 spp, reference 8192 spp, depth 4 (~2 min, 2 cores)
+    python benchmarks/analytic_bias.py            # 64x64, analytic 256 spp, reference 16384 spp, depth 4 (~2 min, 2 cores)
     python benchmarks/analytic_bias.py --quick    # 16x16, 64 / 1024 spp (< 30 s)
 
 Definitions:
@@ -27,8 +28,8 @@ lit by a ceiling area light with a thin bar sliding sideways at 40 m/s in front 
 wall, so that its silhouette and its shadow sweep about 1.6 pixels (at 64²) during the
 exposure: occlusion changes.
 
-Outputs: a CSV with one row per (scene, camera, region); the table of the h = 1 cameras
-(ψ averaged) is printed.
+Outputs: a CSV with one row per (scene, correlation, camera, region); the table of the
+bias at h = 1 and h = 0 (ψ averaged) is printed.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ MOVING_THRESHOLD_M_S = 1e-3
 REFERENCE_SEED = 1_000_003
 OCCLUDER_SPEED_M_S = 40.0
 EXPOSURE_S = 1.5e-3
-DEFAULTS = {"resolution": 64, "spp": 256, "ref_spp": 8192}
+DEFAULTS = {"resolution": 64, "spp": 256, "ref_spp": 16384}
 QUICK = {"resolution": 16, "spp": 64, "ref_spp": 1024}
 
 
@@ -90,7 +91,7 @@ def regions(scene, reference):
     return masks
 
 
-def bias_rows(name, analytic, reference, masks):
+def bias_rows(name, correlation, analytic, reference, masks):
     rows = []
     for i, (h, psi) in enumerate(CAMERAS):
         a = analytic.measurements[i].astype(np.float64)
@@ -100,7 +101,7 @@ def bias_rows(name, analytic, reference, masks):
             scale = float(np.abs(r[mask]).sum())
             difference = float((a[mask] - r[mask]).sum())
             rows.append(dict(
-                scene=name, h=h, psi=psi, region=region, pixels=int(mask.sum()),
+                scene=name, correlation=correlation, h=h, psi=psi, region=region, pixels=int(mask.sum()),
                 bias_pct=100.0 * difference / scale, bias_se_pct=100.0 * math.sqrt(float(var[mask].sum())) / scale,
                 sum_ratio_minus_1=float(a[mask].sum()) / float(r[mask].sum()) - 1.0,
             ))  # fmt: skip
@@ -114,6 +115,7 @@ def parse_args(argv):
     p.add_argument("--ref-spp", type=int, default=None, help=f"paths per pixel of the reference (default {DEFAULTS['ref_spp']}; quick {QUICK['ref_spp']})")
     p.add_argument("--max-depth", type=int, default=4, help="path depth (default 4)")
     p.add_argument("--scenes", nargs="+", choices=SCENE_NAMES, default=list(SCENE_NAMES))
+    p.add_argument("--correlations", nargs="+", choices=("replay", "reconnection", "adaptive"), default=["replay", "reconnection"])
     _common.add_output_options(p, "analytic_bias", "small settings (< 30 s)", plot=False)
     args = p.parse_args(argv)
     _common.fill_defaults(args, QUICK if args.quick else DEFAULTS)
@@ -125,7 +127,7 @@ def parse_args(argv):
 def main(argv=None):
     args = parse_args(argv)
     settings = (
-        f"settings: {args.resolution}x{args.resolution}, analytic + replay {args.spp} spp (seed 0), reference antithetic + replay "
+        f"settings: {args.resolution}x{args.resolution}, analytic + {' / '.join(args.correlations)} {args.spp} spp (seed 0), reference antithetic + replay "
         f"{args.ref_spp} spp (seed {REFERENCE_SEED}), max_depth {args.max_depth}, cameras h in (0, 1) x psi in (0, pi/2)"
     )
     run = _common.Run("analytic_bias", args, argv, settings)
@@ -133,23 +135,25 @@ def main(argv=None):
     rows = []
     for name in args.scenes:
         scene, start = build_scene(name, args.resolution)
-        common = dict(cameras=cameras, max_depth=args.max_depth, exposure_start=start, correlation="replay")
-        reference = dopplertof.render(scene, spp=args.ref_spp, seed=REFERENCE_SEED, time_sampling="antithetic", **common)
-        analytic = dopplertof.render(scene, spp=args.spp, seed=0, time_sampling="analytic", **common)
-        rows += bias_rows(name, analytic, reference, regions(scene, reference))
+        common = dict(cameras=cameras, max_depth=args.max_depth, exposure_start=start)
+        reference = dopplertof.render(scene, spp=args.ref_spp, seed=REFERENCE_SEED, time_sampling="antithetic", correlation="replay", **common)
+        masks = regions(scene, reference)
+        for correlation in args.correlations:
+            analytic = dopplertof.render(scene, spp=args.spp, seed=0, time_sampling="analytic", correlation=correlation, **common)
+            rows += bias_rows(name, correlation, analytic, reference, masks)
         run.log(f"[{name}] rendered")
     print()
-    print("relative bias of the region's sum at h = 1 (mean over ψ = 0, π/2), % of Σ|reference| (± noise)")
-    print("| scene | region | pixels | bias | h = 0 bias |")
-    print("|---|---|---:|---:|---:|")
-    for key in dict.fromkeys((r["scene"], r["region"]) for r in rows):
-        chosen = {h: [r for r in rows if (r["scene"], r["region"]) == key and r["h"] == h] for h in (0.0, 1.0)}
+    print("relative bias of the region's sum, mean over ψ = 0, π/2, % of Σ|reference| (± noise)")
+    print("| scene | correlation | region | pixels | h = 1 | h = 0 |")
+    print("|---|---|---|---:|---:|---:|")
+    for key in dict.fromkeys((r["scene"], r["correlation"], r["region"]) for r in rows):
+        chosen = {h: [r for r in rows if (r["scene"], r["correlation"], r["region"]) == key and r["h"] == h] for h in (0.0, 1.0)}
         cells = []
         for h in (1.0, 0.0):
             bias = np.mean([r["bias_pct"] for r in chosen[h]])
             noise = math.sqrt(np.mean([r["bias_se_pct"] ** 2 for r in chosen[h]]) / len(chosen[h]))
             cells.append(f"{bias:+.2f} % ± {noise:.2f}")
-        print(f"| {key[0]} | {key[1]} | {chosen[1.0][0]['pixels']} | {cells[0]} | {cells[1]} |")
+        print(f"| {' | '.join(key)} | {chosen[1.0][0]['pixels']} | {cells[0]} | {cells[1]} |")
     return run.finish(rows, list(rows[0]))
 
 
