@@ -236,7 +236,7 @@ _PHASE_STEPS_HELP = f"Phases ψ = 2π·linspace(0, 1, N) averaged over (default 
 @click.option("--h-steps", type=int, default=None, help=_H_STEPS_HELP)
 @click.option("--phase-steps", type=int, default=None, help=_PHASE_STEPS_HELP)
 def paper_fig12_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, time_samplings, correlations, h_steps, phase_steps):
-    """Paper Fig. 12: RMSE and PSNR of each time sampling, with and without path correlation, versus ω_r."""
+    """The paper's Figure 12: RMSE and PSNR of each time sampling, with and without path correlation, versus ω_r."""
     from .paper import fig12_estimators, run_fig12
 
     estimators = fig12_estimators(time_samplings, correlations)
@@ -249,7 +249,7 @@ def paper_fig12_command(scene, output, spp, reference_spp, resolution, seed, max
 @click.option("--h-steps", type=int, default=None, help=_H_STEPS_HELP)
 @click.option("--phase-steps", type=int, default=None, help=_PHASE_STEPS_HELP)
 def paper_fig9_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, waveforms, h_steps, phase_steps):
-    """Paper Fig. 9: each waveform's RMSE versus ω_r, with and without further stratification."""
+    """The paper's Figure 9: each waveform's RMSE versus ω_r, with and without further stratification."""
     from ..modulation import WAVEFORMS
     from .paper import run_fig9
 
@@ -268,7 +268,7 @@ def paper_fig9_command(scene, output, spp, reference_spp, resolution, seed, max_
 @click.option("--h-steps", type=int, default=None, help=_H_STEPS_HELP)
 @click.option("--phase-steps", type=int, default=None, help=_PHASE_STEPS_HELP)
 def paper_fig15_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, shift_steps, h_steps, phase_steps):
-    """Paper Fig. 15: RMSE of antithetic and mirrored sampling (replayed paths) over the shift a and ω_r."""
+    """The paper's Figure 15: RMSE of antithetic and mirrored sampling (replayed paths) over the shift a and ω_r."""
     from .paper import FIG15_METHODS
     from .sweeps import evenly_spaced, run_shifts
 
