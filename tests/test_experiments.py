@@ -359,3 +359,15 @@ def test_folded_phases_render_psi_beyond_pi_as_psi_minus_pi():
     rendered, index = sweeps.folded_phases([2 * math.pi * k / 10 for k in range(11)])
     assert rendered == pytest.approx([0.0, 0.2 * math.pi, 0.4 * math.pi, 0.6 * math.pi, 0.8 * math.pi])
     assert index == [0, 1, 2, 3, 4, 0, 1, 2, 3, 4, 0]
+
+
+def test_estimators_stratify_their_intervals_by_the_settings_default():
+    """Further stratification has one default, the settings'; an estimator only overrides it when told."""
+    from dopplertof.settings import FIELDS
+
+    assert FIELDS["stratify_intervals"].default is True
+    for method in METHODS:
+        estimator = Estimator(method, "replay")
+        assert "stratify_intervals" not in estimator.render_settings() and estimator.stratified
+    off = Estimator("antithetic", "replay", stratify_intervals=False)
+    assert off.render_settings()["stratify_intervals"] is False and off.label.endswith("no further stratification")

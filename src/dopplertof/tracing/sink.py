@@ -53,10 +53,11 @@ class Sink:
         * otherwise (the contribution is missing at one end: shadowed, the partner path
           gone; or the paths reach different surfaces: an occlusion change) the start's
           contribution fades linearly out and the end's in, each at its own L: the
-          expectation over a switch at a uniformly distributed time. The original ramped a
-          contribution missing at the end to zero with L held and dropped one missing at
-          the start; holding it constant instead was 2–5× further from the unbiased
-          estimate (README, ``benchmarks/analytic_bias.py``).
+          expectation over a switch at a uniformly distributed time.
+
+        The original ramped a contribution missing at the end to zero (L held) and dropped
+        one missing at the start; holding it constant was this package's earlier rule. Both
+        are further from the unbiased estimate (README, ``benchmarks/analytic_bias.py``).
         """
         import drjit as dr
         import mitsuba as mi
