@@ -245,7 +245,7 @@ def paper_fig12_command(scene, output, spp, reference_spp, resolution, seed, max
 
 
 @_experiment_command("paper-fig9", (PAPER, PAPER_QUICK), _PAPER_DEPTH_HELP)
-@click.option("--waveform", "waveforms", multiple=True, help="Waveform; repeatable (default all four).")
+@click.option("--waveform", "waveforms", multiple=True, help="Waveform; repeatable (default all four: sinusoidal, rectangular, triangular, trapezoidal).")
 @click.option("--h-steps", type=int, default=None, help=_H_STEPS_HELP)
 @click.option("--phase-steps", type=int, default=None, help=_PHASE_STEPS_HELP)
 def paper_fig9_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, waveforms, h_steps, phase_steps):
@@ -256,9 +256,8 @@ def paper_fig9_command(scene, output, spp, reference_spp, resolution, seed, max_
     unknown = [w for w in waveforms if w not in WAVEFORMS]
     if unknown:
         raise ValueError(f"unknown --waveform {unknown[0]!r}; choose one of {', '.join(WAVEFORMS)}")
-    chosen = tuple(dict.fromkeys(waveforms or WAVEFORMS))
     dyn, folder, cache, settings = _paper_settings(
-        scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, h_steps, phase_steps, "paper-fig9", chosen,
+        scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, h_steps, phase_steps, "paper-fig9", dict.fromkeys(waveforms),
     )  # fmt: skip
     _report(run_fig9(dyn, folder, settings, cache, click.echo))
 

@@ -27,6 +27,7 @@ Colours as the original's: uniform black, stratified red, antithetic green, mirr
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Sequence
@@ -89,13 +90,14 @@ def run_fig12(scene: ExperimentScene, folder, estimators: Sequence[Estimator], s
 
 
 def run_fig9(scene: ExperimentScene, folder, settings: SweepSettings, cache: ReferenceCache, echo: Echo) -> list[Path]:
-    """Fig. 9: per waveform of ``settings.waveforms`` (all of :data:`~dopplertof.modulation.WAVEFORMS`
-    by default, from the command), :data:`FIG9_ESTIMATORS`' RMSE × T
-    against ω_r, with further stratification (solid) and without (dashed).
+    """Fig. 9: per waveform of ``settings.waveforms`` (default all of
+    :data:`~dopplertof.modulation.WAVEFORMS`), :data:`FIG9_ESTIMATORS`' RMSE × T against
+    ω_r, with further stratification (solid) and without (dashed).
 
     Writes ``results.csv``, ``summary.csv``, ``metadata.json`` and ``fig9.png``.
     """
     folder = Path(folder)
+    settings = settings if settings.waveforms else dataclasses.replace(settings, waveforms=WAVEFORMS)
     rows, _ = _sweep(scene, FIG9_ESTIMATORS, settings, cache, echo)
     written = _write_tables(folder, rows, _metadata(scene, settings, FIG9_ESTIMATORS, cache, "paper-fig9"))
     summary = mean_over(rows, SUMMARY_GROUP, METRICS)
