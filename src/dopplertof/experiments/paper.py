@@ -4,8 +4,9 @@ The original scripts (``main_experiment.py``, ``main_plot.py``; reference
 ``sensor-design.md`` §1.2) sweep the heterodyne ratio ω_r (our ``h``) and the phase ψ over
 ``linspace(0, 1, 11)`` each (ψ in units of 2π, so 0 and 2π both count), render every
 method at 1024 spp against an antithetic + full-replay reference at 131 072 spp, with
-max_depth 4 (Cornell box) or 8, T = 1.5 ms and 30 MHz (the command defaults, :data:`~.cli.PAPER`), and plot the RMSE of the exposure
-integral (image × T), averaged over ψ, against ω_r on a log scale. Here every camera of a
+max_depth 4 (Cornell box) or 8, T = 1.5 ms and 30 MHz (the command defaults,
+:data:`~.cli.PAPER`), and plot the RMSE of the exposure integral (image × T), averaged
+over ψ, against ω_r on a log scale. Here every camera of a
 sweep comes from one render per method (:func:`~.sweeps._sweep`, which renders a phase
 ψ ≥ π as ψ − π: the same errors), the reference is cached, and a pixel is the luminance
 measurement (the original took the RGB arrays).
@@ -57,7 +58,7 @@ def protocol_max_depth(scene: ExperimentScene) -> int:
     """The scene's own max_depth, else 4 for :data:`SHALLOW_SCENES` and 8 for the others."""
     if scene.max_depth is not None:
         return scene.max_depth
-    return 4 if scene.label in SHALLOW_SCENES else 8
+    return 4 if scene.identity.get("builtin") in SHALLOW_SCENES else 8
 
 
 def protocol_phases(steps: int) -> tuple:
