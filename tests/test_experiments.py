@@ -282,7 +282,7 @@ def test_time_sampling_orderings_at_h_1_on_a_small_cornell_box(tmp_path, cache_d
     Measured over seeds 0-5 (mean ± std): stratified ÷ uniform 0.25 ± 0.02, mirror ÷
     uniform 0.32 ± 0.02, antithetic ÷ stratified 0.13 ± 0.03. Each bound below is at least
     5 standard deviations from its mean. With each interval stratified in only 2 strata
-    (the render default of 16 replicates at 64 spp) the mirror was 0.97 × uniform."""
+    (the render default of 16 replicates at 64 spp) the mirror was 0.97 × uniform (at 32²)."""
     scene = open_scene("cornell-box", 16)
     estimators = [Estimator(method, "replay") for method in METHODS]
     settings = sweeps.SweepSettings((1.0,), sweeps.phase_offsets(4), 64, 4096, 0, 4)
