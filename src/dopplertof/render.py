@@ -78,6 +78,7 @@ class RenderResult:
     interrupted: bool = False
     info: dict = field(default_factory=dict)  # render time (s), passes, executor, exposure windows [[start, T], ...] (s)
     sensor: object = None  # the dopplertof.Sensor rendered (render(..., sensor=)); its frames' electrons are maps["raw"]
+    record: object = None  # the scene's response record (render(..., record=True)): dopplertof.design.Record
 
     def __getattr__(self, name):
         maps = self.__dict__.get("maps", {})
@@ -220,7 +221,7 @@ def _traced_locally(scene, settings, passes):
 
 def render(
     scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None, stop=None,
-    executor="local", address=None, workers=None, sensor=None, **overrides,
+    executor="local", address=None, workers=None, sensor=None, record=None, **overrides,
 ) -> RenderResult:  # fmt: skip
     """Render the intensity, ground truth and D-ToF measurements of a dynamic scene.
 
@@ -260,6 +261,10 @@ def render(
         ``cameras``): the measurements are those of ``sensor.cameras()`` and the result's
         ``raw`` (frames, taps, H, W) the noiseless electrons of every frame and tap
         (:mod:`dopplertof.sensors.frames`); ``sensor.read_out(result, seed=)`` adds the noise.
+    record : True, dict or :class:`dopplertof.design.RecordSpec`, optional. Also keep the
+        scene's response record of every exposure window (``result.record``), from which
+        :func:`dopplertof.design.evaluate` reads out any sensor in its band
+        (:mod:`dopplertof.design.record`). Rendered locally, without checkpoints.
 
     Returns
     -------
@@ -303,6 +308,14 @@ def render(
     else:
         raise TypeError(f"settings must be a dopplertof.RenderSettings or a dict of setting names, got {type(settings).__name__}")
     settings = RenderSettings.build(*layers, overrides)
+    if record is not None and record is not False:
+        from .design.record import as_spec
+
+        record = as_spec(record)
+        if executor != "local" or checkpoint is not None:
+            raise ValueError("record: a response record is rendered locally and without checkpoints (executor='local', checkpoint=None)")
+    else:
+        record = None
 
     width, height = scene.resolution
     n_pixels = width * height
@@ -371,5 +384,10 @@ def render(
     maps = _merge_windows(finished, windows, len(settings.cameras), (height, width))
     if sensor is not None:
         maps["raw"] = sensor.raw(maps["measurements"])
-    return RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info, sensor=sensor)
+    result = RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info, sensor=sensor)
+    if record is not None and not interrupted:  # an interrupted render returns what it has, without a record
+        from .design.record import record_scene
+
+        result.record = record_scene(scene, settings, record)
+    return result
 

@@ -91,6 +91,11 @@ class RawFrame(Camera):
         return f"f={self.modulation_frequency:g},{super().label()}"
 
 
+def mean_light_camera(start_s, exposure_s) -> Camera:
+    """The camera that measures a window's mean luminance Ī (constant weight 1)."""
+    return Camera(exposure=exposure_s, exposure_start=start_s, heterodyne=0.0, g1=0.0, g0=1.0, light_code=_CONSTANT, sensor_code=_CONSTANT)
+
+
 def _sensor_range(frame: Camera) -> tuple[float, float]:
     return frame.sensor_code.extremes() if frame.coded else (-1.0, 1.0)  # every named sensor waveform spans [-1, 1]
 
@@ -156,7 +161,7 @@ class Sensor:
         if self.taps == 4:
             out += [dataclasses.replace(f, phase=f.phase + j * math.pi / 2) for j in (1, 2, 3) for f in self.frames]
         for start, exposure in self._windows():
-            out.append(Camera(exposure=exposure, exposure_start=start, heterodyne=0.0, g1=0.0, g0=1.0, light_code=_CONSTANT, sensor_code=_CONSTANT))
+            out.append(mean_light_camera(start, exposure))
         return out
 
     @property

@@ -1,0 +1,161 @@
+"""Sensor design: the response record (render once, read out any sensor in its band)."""
+
+import math
+
+import numpy as np
+import pytest
+
+import dopplertof as dt
+from dopplertof import codes
+from dopplertof.design import RecordSpec, evaluate
+from dopplertof.sensors import RawFrame, Sensor, Silicon
+
+T = 1e-3
+LATE_START_S, LATE_T = 0.4e-3, 0.8e-3  # a second exposure window (a capture schedule)
+SILICON = Silicon(radiance_unit=1e-3, demodulation_contrast=((10e6, 0.9), (150e6, 0.7)))
+SPEC = RecordSpec(band_hz=(10e6, 120e6), step_hz=10e6, beats=(0.0, 1.0, 2.0, 3.0, 0.5, -1.0), cameras_per_render=64)
+RENDER = dict(spp=8, max_depth=3, seed=11)
+
+
+@pytest.fixture(scope="module")
+def cornell():
+    return dt.scenes.cornell_box(resolution=12, exposure=T)
+
+
+@pytest.fixture(scope="module")
+def recorded(cornell):
+    """A record of the two windows, in the order every random sensor below uses them."""
+    cameras = [dt.Camera(exposure=T, exposure_start=0.0), dt.Camera(exposure=LATE_T, exposure_start=LATE_START_S)]
+    return dt.render(cornell, cameras=cameras, record=SPEC, **RENDER)
+
+
+def _random_frame(rng, window):
+    start, exposure = window
+    kind = rng.choice(["sinusoid", "fourier", "chips"])
+    psi = float(rng.uniform(-math.pi, math.pi))
+    if kind == "sinusoid":
+        return RawFrame(
+            modulation_frequency=10e6 * int(rng.integers(1, 13)), heterodyne=float(rng.choice([0.0, 1.0, 2.0, 3.0, 0.5, -1.0])),
+            phase=psi, exposure=exposure, exposure_start=start, g1=float(rng.uniform(0.2, 1.0)), g0=0.5,
+        )  # fmt: skip
+    if kind == "fourier":  # a band-limited code pair of order 2 or 3 (harmonics m f, beats m h)
+        order = int(rng.integers(2, 4))
+        light = [0.5] + list(0.5 * rng.uniform(0.2, 1.0, order) * np.exp(1j * rng.uniform(0, 2 * math.pi, order)) / order)
+        sensor = [0.0] + list(0.9 * rng.uniform(0.2, 1.0, order) * np.exp(1j * rng.uniform(0, 2 * math.pi, order)) / order)
+        f = 10e6 * int(rng.integers(1, 120 // (10 * order) + 1))
+        return RawFrame(
+            modulation_frequency=f, heterodyne=float(rng.choice([0.0, 1.0])), phase=psi, exposure=exposure, exposure_start=start,
+            light_code=codes.fourier(light), sensor_code=codes.fourier(sensor), g1=1.0, g0=0.2,
+        )  # fmt: skip
+    # binary chips through a source of finite bandwidth: its correlation has 3 harmonics
+    chips = rng.integers(0, 2, 8).astype(float)
+    chips[:2] = (0.0, 1.0)  # not constant
+    f = 10e6 * int(rng.integers(1, 5))
+    return RawFrame(
+        modulation_frequency=f, heterodyne=1.0, phase=psi, exposure=exposure, exposure_start=start,
+        light_code=chips, sensor_code=2 * chips[::-1] - 1, light_bandwidth=3 * f, g1=1.0, g0=0.0,
+    )  # fmt: skip
+
+
+def _random_sensor(rng):
+    windows = [(0.0, T), (LATE_START_S, LATE_T)]
+    n = int(rng.integers(1, 4))
+    # the first frame opens the first window: the windows keep the record's order, hence its seeds
+    frames = [_random_frame(rng, windows[0])] + [_random_frame(rng, windows[int(rng.integers(0, 2))]) for _ in range(n - 1)]
+    chips = any(f.coded and f.sensor_code.samples is not None for f in frames)  # a mean: no 4-tap layout
+    return Sensor(frames=frames, taps=int(rng.choice([1, 2] if chips else [1, 2, 4])), noise=SILICON)
+
+
+def test_a_record_reads_out_twenty_random_sensors_as_their_direct_renders(cornell, recorded):
+    record = recorded.record
+    rng = np.random.default_rng(2026)
+    kinds = set()
+    # the declared non-integer and negative beats, then random sensors
+    fixed = Sensor(frames=[RawFrame(modulation_frequency=50e6, heterodyne=h, phase=0.4, exposure=T, exposure_start=0.0) for h in (0.5, -1.0)], noise=SILICON)
+    for index in range(21):
+        sensor = fixed if index == 0 else _random_sensor(rng)
+        kinds |= {("code" if f.coded else "sin", f.heterodyne % 1 != 0) for f in sensor.frames} | {f.exposure_start for f in sensor.frames} | {sensor.taps}
+        direct = dt.render(cornell, sensor=sensor, **RENDER)
+        read = evaluate(record, sensor)
+        scale = np.abs(direct.measurements).max()
+        assert scale > 0
+        np.testing.assert_allclose(read.measurements, direct.measurements, rtol=0, atol=1e-4 * scale, err_msg=f"sensor {index}: {sensor}")
+        np.testing.assert_allclose(read.raw, direct.raw, rtol=0, atol=1e-4 * np.abs(direct.raw).max(), err_msg=f"sensor {index}")
+        # the signal is not the mean light alone: the modulated part is seen
+        assert np.abs(direct.measurements[: sensor.frame_cameras]).max() > 1e-3 * scale
+    # codes, non-integer heterodyne, both windows and every tap layout were tried
+    assert {("code", False), ("sin", True), ("sin", False), 0.0, LATE_START_S, 1, 2, 4} <= kinds
+
+
+def test_the_record_keeps_the_truth_and_states_its_size(recorded):
+    record = recorded.record
+    assert record.phasors.shape == (2, 12, 6, 12, 12) and record.phasors.dtype == np.complex64
+    assert record.nbytes == 12 * 12 * SPEC.bytes_per_pixel(n_windows=2)
+    np.testing.assert_array_equal(record.maps["depth"], recorded.depth)
+    np.testing.assert_array_equal(record.maps["velocity"], recorded.velocity)
+    # 256² of 10–300 MHz at 1 MHz, beats 0 and 1: within the issue's 2 GB
+    assert 256 * 256 * RecordSpec(band_hz=(10e6, 300e6), step_hz=1e6).bytes_per_pixel() < 2 * 2**30
+
+
+def test_a_record_written_and_read_gives_the_same_readout(recorded, tmp_path):
+    path = dt.io.write_record(tmp_path / "scene.record.npz", recorded.record)
+    back = dt.io.read_record(path)
+    assert back.windows == recorded.record.windows and back.spec == recorded.record.spec and back.spp == recorded.record.spp
+    sensor = Sensor(frames=[RawFrame(modulation_frequency=40e6, heterodyne=1.0, phase=0.3, exposure=T, exposure_start=0.0)], noise=SILICON)
+    np.testing.assert_array_equal(evaluate(back, sensor).raw, evaluate(recorded.record, sensor).raw)
+    (tmp_path / "other.npz").write_bytes(b"not a record")
+    with pytest.raises(ValueError, match="other.npz"):
+        dt.io.read_record(tmp_path / "other.npz")
+    np.savez(tmp_path / "arrays.npz", phasors=np.zeros(3))
+    with pytest.raises(ValueError, match="not a dopplertof response record"):
+        dt.io.read_record(tmp_path / "arrays.npz")
+
+
+@pytest.mark.parametrize(
+    "camera, message",
+    [
+        (dt.Camera(modulation_frequency=35e6, exposure=T, exposure_start=0.0), "frequency 35000000 Hz"),
+        (dt.Camera(modulation_frequency=130e6, exposure=T, exposure_start=0.0), r"frequency 130000000 Hz.*\[1e\+07, 1.2e\+08\]"),
+        (dt.Camera(modulation_frequency=30e6, heterodyne=0.25, exposure=T, exposure_start=0.0), "beat 0.25"),
+        (dt.Camera(modulation_frequency=30e6, exposure=T, exposure_start=0.2e-3), "window"),
+        (dt.Camera(modulation_frequency=30e6, exposure=T, waveform="rectangular", exposure_start=0.0), "rectangular waveform has unbounded"),
+        (dt.Camera(modulation_frequency=30e6, exposure=T, low_pass=False, exposure_start=0.0), "full-waveform"),
+        (dt.Camera(modulation_frequency=30e6, exposure=T, light_code=[0, 1] * 4, sensor_code=[1, -1] * 4, exposure_start=0.0), "light_bandwidth"),
+        # harmonics 1..4 of 40 MHz: 160 MHz is beyond the band
+        (dt.Camera(modulation_frequency=40e6, exposure=T, light_code=[0, 1] * 4, sensor_code=[1, -1] * 4, light_bandwidth=160e6, exposure_start=0.0), "frequency 1.2e\\+08 Hz|frequency 160000000 Hz"),
+    ],
+)
+def test_a_record_refuses_what_it_cannot_give(recorded, camera, message):
+    with pytest.raises(ValueError, match=message) as info:
+        evaluate(recorded.record, [camera])
+    assert "camera 0" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "spec, message",
+    [
+        (dict(band_hz=(100e6, 10e6)), "band_hz"),
+        (dict(band_hz=(11e6, 19e6)), "no multiple"),
+        (dict(step_hz=0.0), "step_hz"),
+        (dict(band_hz=(1.0, 1e9), step_hz=1.0), "4096"),
+        (dict(beats=(0, 0)), "twice"),
+        (dict(beats="01"), "beats"),
+        (dict(bandwidth=1), "unknown key"),
+        ("yes", "record must be True"),
+    ],
+)
+def test_a_record_spec_refuses_bad_values(cornell, spec, message):
+    with pytest.raises(ValueError, match=message):
+        dt.render(cornell, spp=2, record=spec)
+
+
+def test_a_record_is_rendered_locally_without_checkpoints(cornell, tmp_path):
+    with pytest.raises(ValueError, match="locally and without checkpoints"):
+        dt.render(cornell, spp=2, record=True, checkpoint=tmp_path / "c.npz")
+
+
+def test_evaluate_refuses_what_is_not_a_record_or_a_sensor(recorded):
+    with pytest.raises(ValueError, match="'record' must be"):
+        evaluate(recorded, [dt.Camera()])
+    with pytest.raises(ValueError, match="'sensor' must be"):
+        evaluate(recorded.record, "mlx75027")
