@@ -54,6 +54,10 @@ MAX_BEATS = 64
 NEGLIGIBLE_HARMONIC = 1e-9
 # How close (relative) a frequency or beat must be to the grid to be on it.
 GRID_TOLERANCE = 1e-9
+# Beat step δ (cycles per exposure) of the central difference that gives the first moments:
+# its truncation error, (2πδ)²/6 ≈ 7e-6 relative, and the Float32 rounding of the lanes'
+# sums divided by 4πδ, about 1e-5 relative, are both far below a render's noise.
+MOMENT_BEAT_STEP = 1e-3
 
 
 @dataclass(frozen=True)
@@ -70,12 +74,17 @@ class RecordSpec:
         the one-beat heterodyne.
     cameras_per_render : int. Probe cameras traced per kernel (bounds the kernel's state:
         4 bytes per camera and lane). Default 32.
+    doppler : bool. Also record the first moments R₁(F, ν) = ⟨lum · u e^{i2πνu} e^{i2πFL/c}⟩,
+        the derivative of every measurement with respect to the paths' rate L̇ that
+        precision maps need (:func:`dopplertof.design.crb`); they triple the probes and
+        double the size. Default False.
     """
 
     band_hz: tuple = (10e6, 300e6)
     step_hz: float = 10e6
     beats: tuple = (0.0, 1.0)
     cameras_per_render: int = 32
+    doppler: bool = False
 
     def __post_init__(self):
         band = self.band_hz
@@ -108,6 +117,7 @@ class RecordSpec:
         if per < 1:
             raise ValueError(f"record: 'cameras_per_render' must be >= 1, got {per!r}")
         object.__setattr__(self, "cameras_per_render", per)
+        object.__setattr__(self, "doppler", checked("doppler", self.doppler, "bool", "record"))
 
     @property
     def frequencies_hz(self) -> np.ndarray:
@@ -118,11 +128,12 @@ class RecordSpec:
         return np.arange(first, last + 1, dtype=np.float64) * self.step_hz
 
     def bytes_per_pixel(self, n_windows: int = 1) -> int:
-        """Record size per pixel (bytes): complex64 R(F, ν) and float32 Ī per window."""
-        return n_windows * (8 * self.frequencies_hz.size * len(self.beats) + 4)
+        """Record size per pixel (bytes): complex64 R(F, ν) (and R₁ with ``doppler``) and
+        float32 Ī per window."""
+        return n_windows * (8 * (2 if self.doppler else 1) * self.frequencies_hz.size * len(self.beats) + 4)
 
     def as_dict(self) -> dict:
-        return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render}
+        return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler}
 
 
 def as_spec(value) -> RecordSpec:
@@ -135,7 +146,7 @@ def as_spec(value) -> RecordSpec:
     if isinstance(value, dict):
         unknown = sorted(set(value) - {f.name for f in dataclasses.fields(RecordSpec)})
         if unknown:
-            raise ValueError(f"record: unknown key(s) {unknown}; use band_hz, step_hz, beats, cameras_per_render")
+            raise ValueError(f"record: unknown key(s) {unknown}; use band_hz, step_hz, beats, cameras_per_render, doppler")
         return RecordSpec(**value)
     raise ValueError(f"record must be True, a dict of RecordSpec fields or a dopplertof.design.RecordSpec, got {value!r}")
 
@@ -148,6 +159,7 @@ class Record:
     ----------
     phasors : complex64 (windows, frequencies, beats, H, W). R(F, ν) per window and pixel.
     luminance : float32 (windows, H, W). Ī, the window's mean luminance.
+    moments : complex64 like ``phasors``, or None. R₁(F, ν) (``spec.doppler``).
     spec : :class:`RecordSpec`.
     windows : tuple of (start_s, exposure_s). The recorded exposure windows, in render order.
     settings : RenderSettings of the render (its cameras dropped; the windows are above).
@@ -163,6 +175,7 @@ class Record:
     maps: dict
     spp: int
     info: dict = field(default_factory=dict)
+    moments: np.ndarray | None = None
 
     RECORD_FORMAT = "dopplertof-record-1"
 
@@ -175,6 +188,8 @@ class Record:
         settings.pop("cameras")
         meta = {"format": self.RECORD_FORMAT, "spec": self.spec.as_dict(), "windows": [list(w) for w in self.windows], "settings": settings, "spp": self.spp, "info": self.info}
         arrays = {"phasors": self.phasors, "luminance": self.luminance, "metadata": np.array(json.dumps(meta, default=float))}
+        if self.moments is not None:
+            arrays["moments"] = self.moments
         arrays.update({f"map.{name}": value for name, value in self.maps.items()})
         return arrays
 
@@ -195,15 +210,18 @@ class Record:
             expected = (len(windows), spec.frequencies_hz.size, len(spec.beats))
             if phasors.dtype != np.complex64 or phasors.shape[:3] != expected or luminance.shape != (len(windows), *phasors.shape[3:]):
                 raise ValueError(f"arrays of shape {phasors.shape} and {luminance.shape} do not match the record's grid {expected}")
+            moments = np.asarray(arrays["moments"]) if spec.doppler else None
+            if moments is not None and (moments.dtype != np.complex64 or moments.shape != phasors.shape):
+                raise ValueError(f"moments of shape {moments.shape} do not match the phasors {phasors.shape}")
             settings = RenderSettings.build(meta["settings"])
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{where}: not a dopplertof response record ({exc})") from None
         maps = {name[4:]: np.asarray(value) for name, value in arrays.items() if name.startswith("map.")}
-        return cls(phasors, luminance, spec, windows, settings, maps, int(meta["spp"]), dict(meta["info"]))
+        return cls(phasors, luminance, spec, windows, settings, maps, int(meta["spp"]), dict(meta["info"]), moments)
 
     @property
     def nbytes(self) -> int:
-        return int(self.phasors.nbytes + self.luminance.nbytes)
+        return int(self.phasors.nbytes + self.luminance.nbytes + (0 if self.moments is None else self.moments.nbytes))
 
     def window_index(self, camera: Camera, where: str) -> int:
         window = camera.window(self.settings.exposure_start)
@@ -236,16 +254,23 @@ class Record:
 
 
 def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
-    """(camera, frequency index, beat index, part) of one window: Ī first (part None), then
-    the real (ψ = 0) and imaginary (ψ = −π/2: cos(Δ − π/2) = sin Δ) part of every R(F, ν)."""
+    """(camera, frequency index, beat index, part, side) of one window: Ī first (part None),
+    then the real (ψ = 0) and imaginary (ψ = −π/2: cos(Δ − π/2) = sin Δ) part of every
+    R(F, ν) (side 0) and, with ``doppler``, of R(F, ν ± δ) (side ±1, δ =
+    :data:`MOMENT_BEAT_STEP`), whose central difference is 2πi δ · 2 R₁."""
     from ..sensors.frames import mean_light_camera
 
-    out = [(mean_light_camera(start_s, exposure_s), None, None, None)]
+    out = [(mean_light_camera(start_s, exposure_s), None, None, None, 0)]
+    sides = (0, 1, -1) if spec.doppler else (0,)
     for j, frequency in enumerate(spec.frequencies_hz):
         for b, beat in enumerate(spec.beats):
-            for part, phase in ((0, 0.0), (1, -0.5 * math.pi)):
-                camera = Camera(modulation_frequency=float(frequency), exposure=exposure_s, exposure_start=start_s, heterodyne=beat, phase=phase, g1=2.0, g0=0.0)
-                out.append((camera, j, b, part))
+            for side in sides:
+                for part, phase in ((0, 0.0), (1, -0.5 * math.pi)):
+                    camera = Camera(
+                        modulation_frequency=float(frequency), exposure=exposure_s, exposure_start=start_s,
+                        heterodyne=beat + side * MOMENT_BEAT_STEP, phase=phase, g1=2.0, g0=0.0,
+                    )  # fmt: skip
+                    out.append((camera, j, b, part, side))
     return out
 
 
@@ -262,6 +287,7 @@ def record_scene(scene, settings, spec: RecordSpec) -> Record:
     width, height = scene.resolution
     n_freq, n_beats = spec.frequencies_hz.size, len(spec.beats)
     phasors = np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64)
+    sides = {side: np.zeros((len(windows), n_freq, n_beats, height, width), np.complex128) for side in ((1, -1) if spec.doppler else ())}
     luminance = np.zeros((len(windows), height, width), np.float32)
     probes = [_probes(spec, *w) for w in windows]
     per_window = max(1, spec.cameras_per_render // len(windows))
@@ -273,16 +299,21 @@ def record_scene(scene, settings, spec: RecordSpec) -> Record:
         spp = min(spp, result.spp)
         if maps is None:
             maps = {k: v for k, v in result.maps.items() if not k.startswith("measurement")}
-        for (camera, j, b, part), value in zip(chunk, result.measurements):
+        for (camera, j, b, part, side), value in zip(chunk, result.measurements):
             w = windows.index(camera.window(settings.exposure_start))
             if part is None:
                 luminance[w] = value
-            elif part == 0:
-                phasors[w, j, b].real = value
+                continue
+            target = phasors if side == 0 else sides[side]
+            if part == 0:
+                target[w, j, b].real = value
             else:
-                phasors[w, j, b].imag = value
+                target[w, j, b].imag = value
     info = {"render_seconds": seconds, "renders": math.ceil(len(probes[0]) / per_window), "probe_cameras": len(probes[0]) * len(windows)}
-    return Record(phasors, luminance, spec, tuple(windows), settings.replace(cameras=()), maps, spp, info)
+    moments = None
+    if spec.doppler:
+        moments = ((sides[1] - sides[-1]) / (4j * math.pi * MOMENT_BEAT_STEP)).astype(np.complex64)
+    return Record(phasors, luminance, spec, tuple(windows), settings.replace(cameras=()), maps, spp, info, moments)
 
 
 # ----------------------------------------------------------------------------------------
@@ -307,15 +338,25 @@ def harmonics(camera: Camera, where: str) -> tuple[float, list[tuple[int, comple
     return 0.0, [(1, complex(0.5 * camera.g1))]
 
 
-def measure(record: Record, camera: Camera, where: str = "camera") -> np.ndarray:
-    """The measurement (H, W) of ``camera`` read out of ``record`` (module docstring)."""
+def readout_terms(record: Record, camera: Camera, where: str = "camera") -> tuple[int, float, list[tuple]]:
+    """(window, c₀, [(m, a_m e^{imψ}, frequency index, beat index)]) of ``camera``: where
+    in ``record`` its harmonics are read (module docstring); ValueError naming ``where``
+    for what the record does not hold."""
     constant, terms = harmonics(camera, where)
     w = record.window_index(camera, where)
+    located = [
+        (m, a * np.exp(1j * m * camera.phase), record.frequency_index(m * camera.modulation_frequency, where), record.beat_index(m * camera.heterodyne, where))
+        for m, a in terms
+    ]  # fmt: skip
+    return w, constant, located
+
+
+def measure(record: Record, camera: Camera, where: str = "camera") -> np.ndarray:
+    """The measurement (H, W) of ``camera`` read out of ``record`` (module docstring)."""
+    w, constant, terms = readout_terms(record, camera, where)
     out = constant * record.luminance[w].astype(np.float64)
-    for m, a in terms:
-        j = record.frequency_index(m * camera.modulation_frequency, where)
-        b = record.beat_index(m * camera.heterodyne, where)
-        out += (a * np.exp(1j * m * camera.phase) * record.phasors[w, j, b]).real
+    for _, coefficient, j, b in terms:
+        out += (coefficient * record.phasors[w, j, b]).real
     return out
 
 

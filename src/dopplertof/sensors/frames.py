@@ -174,9 +174,12 @@ class Sensor:
         """Distinct (exposure_start, exposure) of the frames, in order (None: the render's start)."""
         return list(dict.fromkeys((f.exposure_start, f.exposure) for f in self.frames))
 
-    def raw(self, measurements) -> np.ndarray:
+    def raw(self, measurements, clip: bool = True) -> np.ndarray:
         """Noiseless signal electrons (frames, taps, H, W) from the measurements of
-        :meth:`cameras` (a render's ``measurements``, in that order; module docstring)."""
+        :meth:`cameras` (a render's ``measurements``, in that order; module docstring).
+
+        ``clip=False``: the linear map itself, in float64 and unclipped (applied to the
+        derivatives of the measurements it gives the electrons' derivatives)."""
         m = np.asarray(measurements, dtype=np.float64)
         n_frames, windows = len(self.frames), self._windows()
         expected = self.frame_cameras + len(windows)
@@ -195,6 +198,8 @@ class Sensor:
                 raw[index, 0] = 0.5 * kappa_t * (light + contrast * m[index])
                 if self.taps == 2:
                     raw[index, 1] = 0.5 * kappa_t * (light - contrast * m[index])
+        if not clip:
+            return raw
         # A noisy render can make |M| exceed D where little light arrives: no charge is negative.
         return np.maximum(raw, 0.0).astype(np.float32)
 
