@@ -257,3 +257,101 @@ def test_a_record_with_first_moments_is_written_and_read_whole(plane_record, tmp
     back = dt.io.read_record(dt.io.write_record(tmp_path / "plane.npz", plane_record))
     np.testing.assert_array_equal(back.moments, plane_record.moments)
     assert back.nbytes == plane_record.nbytes == PLANE_RES**2 * plane_record.spec.bytes_per_pixel()
+
+
+# ----------------------------------------------------------------------------------------
+# Gradients with respect to sensor parameters, against central differences
+
+GRAD_BEATS = (0.0, 1.0, 2.0, 0.99, 1.01, 1.98, 2.02)  # h = 1 ± 0.01 for its central difference
+
+
+@pytest.fixture(scope="module")
+def gradient_case():
+    from dopplertof import oracles
+
+    scene = oracles.moving_plane_scene(PLANE_SPEED_M_S, resolution=6)
+    spec = dict(band_hz=(PLANE_F, 3 * PLANE_F), step_hz=PLANE_F, beats=GRAD_BEATS, doppler=True, cameras_per_render=128)
+    record = dt.render(scene, spp=16, max_depth=2, seed=1, record=spec).record
+    sensor_code, light_code = codes.fourier([0, 0.6, 0.3j]), codes.fourier([0.5, 0.3, 0.1 + 0.1j])
+    frames = [
+        RawFrame(modulation_frequency=PLANE_F, heterodyne=h, phase=p, exposure=oracles.PLANE_EXPOSURE_S, light_code=light_code, sensor_code=sensor_code, g1=1.0, g0=0.2)
+        for h, p in ((0.0, 0.0), (1.0, 0.3), (1.0, 1.9))
+    ]  # fmt: skip
+    return record, Sensor(frames=frames, noise=PLANE_SILICON)
+
+
+def _with(sensor, frame, **change):
+    frames = list(sensor.frames)
+    frames[frame] = dataclasses.replace(frames[frame], **change)
+    return dataclasses.replace(sensor, frames=frames)
+
+
+def _central_differences(record, sensor, objective, kind, frame):
+    """The objective's central differences, read out of the record at perturbed parameters
+    (exact there: the record holds the perturbed beats and every code in its band)."""
+    from dopplertof.design import gradient
+
+    def value(s):
+        return gradient(record, s, objective, parameters=[]).value
+
+    original = sensor.frames[frame]
+    if kind in ("phase", "heterodyne"):
+        step = 1e-4 if kind == "phase" else 0.01
+        x = getattr(original, kind)
+        return (value(_with(sensor, frame, **{kind: x + step})) - value(_with(sensor, frame, **{kind: x - step}))) / (2 * step)
+    c = np.asarray(getattr(original, kind).fourier)
+    out = []
+    for n in range(1, c.size):
+        parts = []
+        for unit in (1.0, 1j):
+            up, down = c.copy(), c.copy()
+            up[n] += 1e-4 * unit
+            down[n] -= 1e-4 * unit
+            parts.append((value(_with(sensor, frame, **{kind: codes.fourier(up)})) - value(_with(sensor, frame, **{kind: codes.fourier(down)}))) / 2e-4)
+        out.append(parts[0] + 1j * parts[1])
+    return np.asarray(out)
+
+
+@pytest.mark.parametrize("objective", ["raw", "velocity_crb", "depth_crb"])
+def test_gradients_match_central_differences_for_every_parameter_kind(gradient_case, objective):
+    from dopplertof.design import gradient
+
+    record, sensor = gradient_case
+    result = gradient(record, sensor, objective)
+    kinds = {kind for kind, _ in result.by_parameter}
+    assert kinds == ({"phase", "sensor_code", "light_code", "heterodyne"} if objective == "raw" else {"phase", "sensor_code", "light_code"})
+    for (kind, frame), analytic in result.by_parameter.items():
+        if kind == "heterodyne" and sensor.frames[frame].heterodyne == 0:
+            continue  # h = 0 ± 0.01 is not in the record's beats
+        numeric = _central_differences(record, sensor, objective, kind, frame)
+        assert np.abs(numeric).max() > 0, (kind, frame)
+        error = np.abs(np.asarray(analytic) - numeric).max() / np.abs(numeric).max()
+        assert error <= 0.01, (kind, frame, error)
+
+
+@pytest.mark.parametrize(
+    "objective, parameters, message",
+    [
+        ("velocity_crb", [("modulation_frequency", 0)], "path-length-weighted"),
+        ("raw", [("exposure", 1)], "another window"),
+        ("velocity_crb", [("heterodyne", 1)], "second moments"),
+        ("raw", [("phase", 3)], "frames 0 to 2"),
+        ("raw", [("gain", 0)], "unknown parameter 'gain'"),
+        ("raw", ["phase"], r"\(kind, frame index\)"),
+        ("snr", None, "unknown objective 'snr'"),
+    ],
+)
+def test_gradient_refuses_what_it_cannot_differentiate(gradient_case, objective, parameters, message):
+    from dopplertof.design import gradient
+
+    record, sensor = gradient_case
+    with pytest.raises(ValueError, match=message):
+        gradient(record, sensor, objective, parameters)
+
+
+def test_code_gradients_need_fourier_coefficients(recorded):
+    from dopplertof.design import gradient
+
+    chips = RawFrame(modulation_frequency=10e6, exposure=T, exposure_start=0.0, light_code=[0, 1] * 4, sensor_code=[1, -1] * 4, light_bandwidth=30e6)
+    with pytest.raises(ValueError, match="Fourier coefficients"):
+        gradient(recorded, Sensor(frames=[chips], noise=SILICON), "raw", [("sensor_code", 0)])

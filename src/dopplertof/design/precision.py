@@ -85,48 +85,66 @@ def record_of(record_or_result, what: str) -> Record:
 def derivatives(record: Record, camera, reference_time_s: float, where: str = "camera"):
     """(M, ∂M/∂L, ∂M/∂L̇), each (H, W) float64, of ``camera`` read out of ``record``
     (module docstring); ``record`` must hold the first moments (``doppler=True``)."""
+    w, constant, terms = readout_terms(record, camera, where)
+    return contract(record, w, constant, terms, camera.wavenumber, reference_time_s, where)
+
+
+def contract(record: Record, w: int, constant: float, terms, wavenumber: float, reference_time_s: float, where: str):
+    """(M, ∂M/∂L, ∂M/∂L̇) of the weight c₀ + Re Σ a_m e^{imΔ} with ``terms`` located in window
+    ``w`` of ``record`` as :func:`~dopplertof.design.record.readout_terms` gives them."""
     if record.moments is None:
         raise ValueError(f"{where}: the record holds no first moments; render it with record=dict(doppler=True, ...) for derivatives with respect to the velocity")
-    w, constant, terms = readout_terms(record, camera, where)
     start_s, exposure_s = record.windows[w]
     m = constant * record.luminance[w].astype(np.float64)
     d_length = np.zeros_like(m)
     d_rate = np.zeros_like(m)
     for order, coefficient, j, b in terms:
         r, r1 = record.phasors[w, j, b].astype(np.complex128), record.moments[w, j, b].astype(np.complex128)
-        ik = 1j * order * camera.wavenumber * coefficient
+        ik = 1j * order * wavenumber * coefficient
         m += (coefficient * r).real
         d_length += (ik * r).real
         d_rate += (ik * ((start_s - reference_time_s) * r + exposure_s * r1)).real
     return m, d_length, d_rate
 
 
-def fisher_information(sensor, measurements, jacobians) -> np.ndarray:
-    """Fisher information (H, W, P, P) of P parameters from a sensor's camera measurements
-    (cameras, H, W) and their derivatives (P, cameras, H, W), through the sensor's taps and
-    noise chain (module docstring)."""
+def tap_terms(sensor, measurements, jacobians):
+    """(∂μ (P, frames, taps, H, W), 1/σ² (frames, taps, H, W), μ) of a sensor's taps from its
+    camera measurements (cameras, H, W) and their derivatives (P, cameras, H, W); taps at or
+    above the full well get weight 0 (module docstring)."""
     raw = sensor.raw(measurements, clip=False)
     zero = sensor.expected_electrons(np.zeros_like(raw))
     mean_e = sensor.expected_electrons(np.maximum(raw, 0.0))
     weight = np.where(mean_e < sensor.noise.full_well_e, 1.0 / sensor.noise.tap_variance_e2(mean_e), 0.0)
     # The electrons are affine in the measurements: their derivatives are the linear part.
     d_e = np.stack([sensor.expected_electrons(sensor.raw(d, clip=False)) - zero for d in jacobians])
+    return d_e, weight, mean_e
+
+
+def fisher_information(sensor, measurements, jacobians) -> np.ndarray:
+    """Fisher information (H, W, P, P) of P parameters from a sensor's camera measurements
+    (cameras, H, W) and their derivatives (P, cameras, H, W), through the sensor's taps and
+    noise chain (module docstring)."""
+    d_e, weight, _ = tap_terms(sensor, measurements, jacobians)
     return np.einsum("aftyx,bftyx,ftyx->yxab", d_e, d_e, weight)
+
+
+def inverse_fisher(fisher: np.ndarray):
+    """(F⁻¹, ok) per pixel: ok where F is regular (module docstring), F⁻¹ meaningless elsewhere."""
+    diagonal = np.einsum("...ii->...i", fisher)
+    ok = np.all(diagonal > 0, axis=-1) & np.all(np.isfinite(fisher), axis=(-2, -1))
+    scale = 1.0 / np.sqrt(np.where(ok[..., None], diagonal, 1.0))
+    # normalised to a unit diagonal, so that the test of singularity does not depend on units
+    normalised = np.where(ok[..., None, None], fisher * scale[..., :, None] * scale[..., None, :], np.eye(fisher.shape[-1]))
+    ok &= np.linalg.det(normalised) > SINGULAR_DETERMINANT
+    eye = np.broadcast_to(np.eye(fisher.shape[-1]), fisher.shape)
+    inverse = np.linalg.inv(np.where(ok[..., None, None], normalised, eye)) * scale[..., :, None] * scale[..., None, :]
+    return inverse, ok
 
 
 def bounds(fisher: np.ndarray) -> np.ndarray:
     """√diag(F⁻¹) (H, W, P) per pixel; inf where F is singular (module docstring)."""
-    diagonal = np.einsum("...ii->...i", fisher)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scale = 1.0 / np.sqrt(diagonal)
-        normalised = fisher * scale[..., :, None] * scale[..., None, :]
-    ok = np.all(diagonal > 0, axis=-1) & np.all(np.isfinite(normalised), axis=(-2, -1))
-    eye = np.broadcast_to(np.eye(fisher.shape[-1]), fisher.shape)
-    normalised = np.where(ok[..., None, None], normalised, eye)
-    ok &= np.linalg.det(normalised) > SINGULAR_DETERMINANT
-    inverse = np.linalg.inv(np.where(ok[..., None, None], normalised, eye))
-    out = np.sqrt(np.clip(np.einsum("...ii->...i", inverse), 0.0, None)) * np.where(ok[..., None], scale, np.inf)
-    return np.where(ok[..., None], out, np.inf)
+    inverse, ok = inverse_fisher(fisher)
+    return np.where(ok[..., None], np.sqrt(np.clip(np.einsum("...ii->...i", inverse), 0.0, None)), np.inf)
 
 
 def crb(record_or_result, sensor, *, reference_time_s: float | None = None) -> Precision:
@@ -155,15 +173,31 @@ def crb(record_or_result, sensor, *, reference_time_s: float | None = None) -> P
     record = record_of(record_or_result, "crb")
     if not isinstance(sensor, Sensor):
         raise ValueError(f"crb: 'sensor' must be a dopplertof.Sensor, got {sensor!r}")
-    t_ref = record.windows[0][0] if reference_time_s is None else float(reference_time_s)
-    columns = [derivatives(record, c, t_ref, f"crb: camera {i} ({c.label()})") for i, c in enumerate(sensor.cameras())]
-    m, d_length, d_rate = (np.stack(x) for x in zip(*columns))
+    t_ref = reference_time(record, reference_time_s)
+    m, d_length, d_rate = sensor_derivatives(record, sensor, t_ref, "crb")
     # ∂M/∂s = M: the scale multiplies every measurement, the mean light's too.
     fisher = fisher_information(sensor, m, [m, d_length, d_rate])
     sigma = bounds(fisher)
+    return Precision((0.5 * sigma[..., 2]).astype(np.float32), (0.5 * sigma[..., 1]).astype(np.float32), fisher, t_ref, moving_pixels(record))
+
+
+def reference_time(record: Record, reference_time_s) -> float:
+    """The time depths refer to: ``reference_time_s``, default the first window's start."""
+    return record.windows[0][0] if reference_time_s is None else float(reference_time_s)
+
+
+def moving_pixels(record: Record) -> np.ndarray:
+    """Pixels (H, W) whose ground-truth radial velocity is finite and non-zero."""
     velocity = record.maps.get("velocity")
-    moving = np.isfinite(velocity) & (velocity != 0) if velocity is not None else np.zeros(m.shape[1:], bool)
-    return Precision((0.5 * sigma[..., 2]).astype(np.float32), (0.5 * sigma[..., 1]).astype(np.float32), fisher, t_ref, moving)
+    if velocity is None:
+        return np.zeros(record.luminance.shape[1:], bool)
+    return np.isfinite(velocity) & (velocity != 0)
+
+
+def sensor_derivatives(record: Record, sensor, t_ref: float, what: str):
+    """(M, ∂M/∂L, ∂M/∂L̇), each (cameras, H, W), of every camera of ``sensor``."""
+    columns = [derivatives(record, c, t_ref, f"{what}: camera {i} ({c.label()})") for i, c in enumerate(sensor.cameras())]
+    return tuple(np.stack(x) for x in zip(*columns))
 
 
 def achieved_rmse(record_or_result, sensor, *, draws: int = 200, seed: int = 0, method: str = "ratio") -> np.ndarray:
