@@ -14,7 +14,7 @@ from dopplertof.sensors import RawFrame, Sensor, Silicon
 T = 1e-3
 LATE_START_S, LATE_T = 0.4e-3, 0.8e-3  # a second exposure window (a capture schedule)
 SILICON = Silicon(radiance_unit=1e-3, demodulation_contrast=((10e6, 0.9), (150e6, 0.7)))
-SPEC = RecordSpec(band_hz=(10e6, 120e6), step_hz=10e6, beats=(0.0, 1.0, 2.0, 3.0, 0.5, -1.0), cameras_per_render=64)
+SPEC = RecordSpec(band_hz=(10e6, 120e6), step_hz=10e6, beats=(0.0, 1.0, 2.0, 3.0, 0.5, -1.0), cameras_per_render=128, doppler=True)
 RENDER = dict(spp=8, max_depth=3, seed=11)
 
 
@@ -90,7 +90,7 @@ def test_a_record_reads_out_twenty_random_sensors_as_their_direct_renders(cornel
 
 def test_the_record_keeps_the_truth_and_states_its_size(recorded):
     record = recorded.record
-    assert record.phasors.shape == (2, 12, 6, 12, 12) and record.phasors.dtype == np.complex64
+    assert record.phasors.shape == record.moments.shape == (2, 12, 6, 12, 12) and record.phasors.dtype == np.complex64
     assert record.nbytes == 12 * 12 * SPEC.bytes_per_pixel(n_windows=2)
     np.testing.assert_array_equal(record.maps["depth"], recorded.depth)
     np.testing.assert_array_equal(record.maps["velocity"], recorded.velocity)
@@ -245,8 +245,9 @@ def test_the_ratio_estimator_reaches_the_bound_and_never_beats_it(plane_record):
 def test_precision_needs_a_record_with_first_moments(recorded, plane_record):
     from dopplertof.design import crb
 
+    without = dt.design.Record(**{**recorded.record.__dict__, "moments": None})
     with pytest.raises(ValueError, match="no first moments"):
-        crb(recorded, Sensor(frames=[RawFrame(modulation_frequency=30e6, exposure=T, exposure_start=0.0)], noise=SILICON))
+        crb(without, Sensor(frames=[RawFrame(modulation_frequency=30e6, exposure=T, exposure_start=0.0)], noise=SILICON))
     with pytest.raises(ValueError, match="needs a response record"):
         crb(np.zeros((2, 2)), _plane_sensor())
     with pytest.raises(ValueError, match="'sensor' must be"):
@@ -355,3 +356,59 @@ def test_code_gradients_need_fourier_coefficients(recorded):
     chips = RawFrame(modulation_frequency=10e6, exposure=T, exposure_start=0.0, light_code=[0, 1] * 4, sensor_code=[1, -1] * 4, light_bandwidth=30e6)
     with pytest.raises(ValueError, match="Fourier coefficients"):
         gradient(recorded, Sensor(frames=[chips], noise=SILICON), "raw", [("sensor_code", 0)])
+
+
+# ----------------------------------------------------------------------------------------
+# Sweeps and optimisation
+
+
+def test_an_optimisation_from_a_poor_start_reaches_the_best_grid_value(tmp_path):
+    from dopplertof import oracles
+    from dopplertof.design.search import optimize, record_spec, sweep
+    from dopplertof.sensors import preset
+
+    scene = oracles.moving_plane_scene(PLANE_SPEED_M_S, resolution=6)
+    frames = [RawFrame(modulation_frequency=10e6, heterodyne=h, phase=p, exposure=oracles.PLANE_EXPOSURE_S) for h, p in ((0.0, 0.0), (1.0, 0.0), (1.0, math.pi / 2))]
+    poor = preset("dtof-prototype", frames, radiance_unit=1.0)
+    spec, cameras = record_spec(poor, [], optimize=["modulation_frequency"])
+    assert spec.band_hz == (10e6, 100e6) and spec.step_hz == 1e6  # the chip's range, 1 MHz apart
+    record = dt.render(scene, cameras=cameras, spp=16, max_depth=2, seed=3, record=spec).record
+    grid = sweep(record, poor, [("modulation_frequency", np.arange(10e6, 100e6 + 1, 5e6))])
+    best_grid = min(r["objective"] for r in grid if r["status"] == "ok")
+    best, history = optimize(record, poor, ["modulation_frequency", "phase"])
+    assert history[-1]["objective"] < 0.5 * history[0]["objective"]  # a real improvement
+    assert history[-1]["objective"] <= 1.05 * best_grid
+    assert dt.design.crb(record, best).summary()["velocity_crb_mean"] == pytest.approx(history[-1]["objective"])
+
+
+def test_a_sweep_lists_what_the_chip_refuses(recorded):
+    from dopplertof.design.search import sweep
+    from dopplertof.sensors import preset
+
+    frames = [RawFrame(modulation_frequency=40e6, heterodyne=h, phase=p, exposure=T, exposure_start=0.0) for h, p in ((0.0, 0.0), (1.0, 0.0), (1.0, 1.0))]
+    prototype = preset("dtof-prototype", frames, radiance_unit=1e-3)  # 10-100 MHz
+    rows = sweep(recorded.record, prototype, [("modulation_frequency", np.array([40e6, 110e6]))])
+    assert rows[0]["status"] == "ok" and rows[0]["objective"] > 0
+    assert rows[1]["status"].startswith("refused") and "1.1e+08 Hz outside" in rows[1]["status"] and math.isnan(rows[1]["objective"])
+
+
+@pytest.mark.parametrize("text, message", [("f=1:2", "KEY=LO:HI:N"), ("gain=1:2:3", "unknown key 'gain'"), ("f=2:1:3", "LO <= HI"), ("f10", "expected KEY=LO:HI:N")])
+def test_a_sweep_refuses_bad_grids(text, message):
+    from dopplertof.design.search import parse_sweep
+
+    with pytest.raises(ValueError, match=message):
+        parse_sweep(text)
+
+
+def test_a_sensor_written_as_toml_is_read_back_the_same(tmp_path):
+    from dopplertof.sensors import preset
+    from dopplertof.sensors.files import load_sensor, sensor_toml
+
+    custom = Sensor(
+        frames=[RawFrame(modulation_frequency=20e6, heterodyne_hz=500.0, exposure=T, light_code=codes.fourier([0.5, 0.3j]), sensor_code=[1, -1] * 4, light_bandwidth=40e6)],
+        noise=SILICON,
+    )  # fmt: skip
+    for sensor in (preset("mlx75027"), preset("dtof-prototype"), custom):
+        path = tmp_path / f"{sensor.name}.toml"
+        path.write_text(sensor_toml(sensor))
+        assert load_sensor(str(path)) == sensor

@@ -35,6 +35,7 @@ def scene_description(scene_arg: str, resolution, defines) -> dict:
 _LAZY_COMMANDS = {
     "animate": ("dopplertof.animate", "animate_command", "Render SCENE as a clip: one D-ToF exposure per frame, with velocity."),
     "dataset": ("dopplertof.dataset.cli", "dataset_group", "Datasets for learning: randomized scenes rendered into WebDataset shards."),
+    "design": ("dopplertof.design.cli", "design_command", "Sweep and optimise a sensor's parameters on a scene from one render."),
     "experiment": ("dopplertof.experiments.cli", "experiment", "Reproduce the paper's experiments (time sampling, shifts, velocity)."),
     "reconstruct": ("dopplertof.render_folder", "reconstruct_command", "Reconstruct radial velocity (and depth) from a render folder."),
 }

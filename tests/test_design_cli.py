@@ -1,0 +1,51 @@
+"""``dopplertof design``: sweeps and optimisation from the command line (a real subprocess)."""
+
+import csv
+import subprocess
+import sys
+
+import pytest
+
+FAST = ["--resolution", "8", "--spp", "4", "--max-depth", "2"]
+
+
+def _run(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "dopplertof.cli", *args], capture_output=True, text=True, cwd=cwd, timeout=600)
+
+
+def test_design_sweeps_optimises_and_writes_a_sensor_that_render_reads(tmp_path):
+    out = tmp_path / "design"
+    done = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "--optimize", "phase", "-o", str(out), *FAST)
+    assert done.returncode == 0, done.stderr
+    assert "best of the sweep: modulation_frequency=" in done.stdout and "optimised (phase)" in done.stdout
+    with open(out / "sweep.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [float(r["modulation_frequency"]) for r in rows] == [20e6, 40e6, 60e6] and all(r["status"] == "ok" for r in rows)
+    assert all(float(r["velocity_crb_mean"]) > 0 for r in rows)
+    assert (out / "sweep_modulation_frequency.png").stat().st_size > 0 and (out / "optimize.csv").exists()
+    # the record is reused: the same sweep without a render gives the same numbers
+    again = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "--record", str(out / "record.npz"), "-o", str(tmp_path / "again"))
+    assert again.returncode == 0, again.stderr
+    assert (tmp_path / "again" / "sweep.csv").read_text() == (out / "sweep.csv").read_text()
+    rendered = _run("render", "cornell-box", "--sensor", str(out / "best_sensor.toml"), "-o", str(tmp_path / "render"), "--quiet", *FAST)
+    assert rendered.returncode == 0, rendered.stderr
+    assert (tmp_path / "render" / "raw_electrons.npy").exists()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--sensor", "dtof-prototype"], "give --sweep"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1:2"], "KEY=LO:HI:N"),
+        (["--sensor", "dtof-prototype", "--sweep", "gain=1:2:2"], "unknown key 'gain'"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--sweep", "f=3e7:4e7:2"], "each key once"),
+        (["--sensor", "nosuchchip", "--sweep", "f=1e7:2e7:2"], "neither a preset"),
+        (["--sensor", "dtof-prototype", "--optimize", "gain"], "'gain' is not one of"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--record", "missing.npz"], "missing.npz"),
+    ],
+)
+def test_design_refuses_bad_input_with_one_error_line(tmp_path, args, message):
+    done = _run("design", "cornell-box", *args, "-o", str(tmp_path / "o"), *FAST, cwd=tmp_path)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], done.stderr
