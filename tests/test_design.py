@@ -412,3 +412,32 @@ def test_a_sensor_written_as_toml_is_read_back_the_same(tmp_path):
         path = tmp_path / f"{sensor.name}.toml"
         path.write_text(sensor_toml(sensor))
         assert load_sensor(str(path)) == sensor
+
+
+# ----------------------------------------------------------------------------------------
+# Render only as long as it matters
+
+
+def test_until_noise_stops_at_the_first_pass_that_reaches_the_ratio():
+    from dopplertof.design.convergence import noise_ratio, quantile
+    from dopplertof.sensors import preset
+
+    sensor = preset("dtof-prototype", radiance_unit=1e-3)
+    # 16 spp per pass (1024 lanes over 64 pixels), a replicate per pass: the error is known after every pass
+    result = dt.render(dt.scenes.cornell_box(resolution=8), sensor=sensor, spp=2048, lanes_per_pass=1024, replicates=128, max_depth=3, seed=2, until_noise=0.3)
+    info = result.info["until_noise"]
+    history = info["history"][0]
+    assert not result.interrupted and result.spp == info["spp"][0] == history[-1][0] < 2048
+    assert history[-1][1] <= 0.3 < history[-2][1] and history[-1][0] - history[-2][0] == 16  # stopped within one pass
+    # the ratio reached, recomputed from the result itself
+    assert quantile(noise_ratio(sensor, result.measurements, result.measurement_stderr)) == pytest.approx(info["reached"][0], rel=1e-5)
+    # and it falls as 1/sqrt(spp): the error bound follows the render
+    (spp_a, a), (spp_b, b) = history[len(history) // 2], history[-1]
+    assert b / a == pytest.approx(math.sqrt(spp_a / spp_b), rel=0.2)
+
+
+def test_until_noise_needs_a_sensor_and_a_positive_ratio(cornell):
+    with pytest.raises(ValueError, match="needs a sensor"):
+        dt.render(cornell, spp=2, until_noise=0.5)
+    with pytest.raises(ValueError, match="needs a sensor"):
+        dt.render(cornell, spp=2, sensor=Sensor(frames=[RawFrame(exposure=T)], noise=SILICON), until_noise=0.0)

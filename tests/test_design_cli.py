@@ -49,3 +49,23 @@ def test_design_refuses_bad_input_with_one_error_line(tmp_path, args, message):
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], done.stderr
+
+
+def test_render_until_noise_reports_the_spp_it_took(tmp_path):
+    sensor = tmp_path / "dim.toml"
+    sensor.write_text('preset = "dtof-prototype"\n\n[silicon]\nradiance_unit = 1e-3\n')
+    args = ["--sensor", str(sensor), "--resolution", "8", "--max-depth", "2", "--spp", "1024", "--lanes-per-pass", "1024", "--replicates", "64", "--quiet"]
+    done = _run("render", "cornell-box", "--until-noise", "0.5", "-o", str(tmp_path / "r"), *args)
+    assert done.returncode == 0, done.stderr
+    line = next(x for x in done.stdout.splitlines() if x.startswith("until-noise"))
+    assert "until-noise 0.5 reached" in line
+    spp = int(line.split(" at ")[1].split()[0])
+    assert 0 < spp < 1024 and f"rendered cornell-box at {spp} spp" in done.stdout
+
+
+@pytest.mark.parametrize("args, message", [(["--until-noise", "0.5"], "give --sensor"), (["--sensor", "dtof-prototype", "--until-noise", "-1"], "ratio > 0")])
+def test_render_until_noise_refuses_bad_input(tmp_path, args, message):
+    done = _run("render", "cornell-box", *args, "-o", str(tmp_path / "o"), *FAST)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], done.stderr

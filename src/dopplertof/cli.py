@@ -107,6 +107,7 @@ def scenes():
 @click.option("-o", "--output", "output", default=None, help="Output folder (default: out/<scene name>).")
 @click.option("--camera", "camera_specs", multiple=True, help="A camera, e.g. 'h=1,psi=0' or 'h=0,psi=90deg,f=30e6'. Repeatable. Keys: h, psi (rad or 90deg), f (Hz), T (s), start (s: when its exposure opens), waveform, g1, g0, low_pass.")
 @click.option("--sensor", "sensor_spec", default=None, metavar="PRESET|FILE.toml", help="Render a sensor's raw frames instead of --camera: a preset (mlx75027, opt8241, imx556, kinect-v2, dtof-prototype) or a TOML file (dopplertof.sensors.files). Writes raw_electrons.npy, raw_dn.npy and the schedule in metadata.json.")
+@click.option("--until-noise", "until_noise", type=float, default=None, metavar="RATIO", help="With --sensor: stop once the Monte Carlo error of the raw frames is at most RATIO x the sensor's own noise in 95%% of the pixels (--spp is then the most it may take).")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file (overrides its <default>). Repeatable.")
 @click.option("--overwrite", is_flag=True, help="Replace the files of another render in the output folder (only those).")
@@ -116,7 +117,7 @@ def scenes():
 @click.option("--address", default=None, help="Ray cluster address (with --ray; default: the running Ray, else a local one).")
 @click.option("--workers", type=click.IntRange(min=1), default=None, help="Ray workers, each with CPUs / workers threads (with --ray; default: one per CPU, with a cuda variant one per GPU).")
 @settings_options()
-def render(scene, output, camera_specs, sensor_spec, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, **options):
+def render(scene, output, camera_specs, sensor_spec, until_noise, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, **options):
     """Render SCENE (an XML file or a built-in scene name) into OUTPUT.
 
     SIGINT, SIGTERM and SIGHUP stop after the pass in progress: the partial result and a
@@ -141,6 +142,8 @@ def render(scene, output, camera_specs, sensor_spec, resolution, defines, overwr
                 raise ValueError(f"{name} needs --ray")
         if use_ray:
             require_ray()
+        if until_noise is not None and sensor_spec is None:
+            raise ValueError("--until-noise compares the render's error with a sensor's noise: give --sensor")
         sensor = None
         if sensor_spec is not None:
             from .sensors.files import load_sensor
@@ -158,7 +161,7 @@ def render(scene, output, camera_specs, sensor_spec, resolution, defines, overwr
         out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=out_folder.estimated_bytes(width, height, len(settings.cameras)))
         executor = {"executor": "ray", "address": address, "workers": workers} if use_ray else {}
         with StopOnSignal() as stop:
-            result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=os.path.join(output, out_folder.CHECKPOINT), stop=stop, sensor=sensor, **executor)
+            result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=os.path.join(output, out_folder.CHECKPOINT), stop=stop, sensor=sensor, until_noise=until_noise, **executor)
         if result.info["passes_done"] == 0:
             click.echo(f"{stop.name}: stopped before the first pass finished; nothing written", err=True)
             sys.exit(stop.exit_status)
@@ -177,6 +180,10 @@ def render(scene, output, camera_specs, sensor_spec, resolution, defines, overwr
             f"{os.path.abspath(output)}/ (continue with --resume)", err=True,
         )  # fmt: skip
         sys.exit(stop.exit_status)
+    if until_noise is not None:
+        reached = max(result.info["until_noise"]["reached"])
+        verdict = "reached" if reached <= until_noise else f"not reached within --spp {settings.spp}"
+        click.echo(f"until-noise {until_noise:g} {verdict}: Monte Carlo error {reached:.3g} x the sensor's noise (95% of pixels) at {result.spp} spp")
     click.echo(f"rendered {scene} at {result.spp} spp; images in {os.path.abspath(output)}/")
     for path in written:
         click.echo(f"  {path}")

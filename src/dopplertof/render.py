@@ -208,6 +208,29 @@ def _merge_windows(finished: list[dict], windows, n_cameras: int, shape: tuple[i
 
 
 # ----------------------------------------------------------------------------------------
+# Stopping when the Monte Carlo error is below the sensor's noise
+
+
+def _noise_ratio_reached(acc, window, sensor, shape) -> float | None:
+    """The ``until_noise`` ratio the frames of ``window`` reach now
+    (:mod:`dopplertof.design.convergence`); None while tiles of the film differ in samples."""
+    import copy
+
+    from .design.convergence import noise_ratio, quantile
+
+    samples = acc.state["samples"]
+    if samples.min() != samples.max():
+        return None
+    n_cameras = len(sensor.cameras())
+    maps = copy.deepcopy(acc).finish(*shape, len(window.cameras))  # finish consumes the sums
+    measurements, errors = np.zeros((n_cameras, *shape)), np.zeros((n_cameras, *shape))
+    measurements[list(window.indices)] = maps["measurements"]
+    errors[list(window.indices)] = maps[BY_NAME["measurements"].stderr_name]
+    frames = [i for i in range(len(sensor.frames)) if i in window.indices]
+    return quantile(noise_ratio(sensor, measurements, errors, frames))
+
+
+# ----------------------------------------------------------------------------------------
 # render()
 
 EXECUTORS = ("local", "ray")
@@ -221,7 +244,7 @@ def _traced_locally(scene, settings, passes):
 
 def render(
     scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None, stop=None,
-    executor="local", address=None, workers=None, sensor=None, record=None, **overrides,
+    executor="local", address=None, workers=None, sensor=None, record=None, until_noise=None, **overrides,
 ) -> RenderResult:  # fmt: skip
     """Render the intensity, ground truth and D-ToF measurements of a dynamic scene.
 
@@ -265,6 +288,11 @@ def render(
         scene's response record of every exposure window (``result.record``), from which
         :func:`dopplertof.design.evaluate` reads out any sensor in its band
         (:mod:`dopplertof.design.record`). Rendered locally, without checkpoints.
+    until_noise : float, optional. With ``sensor``: stop a window's passes once the Monte
+        Carlo standard error of its raw frames is at most this many times the sensor's own
+        noise in 95 % of its pixels (:mod:`dopplertof.design.convergence`); ``spp`` is
+        then the most it may take, ``result.spp`` what it took and ``result.info["until_noise"]``
+        the ratio reached and the spp of each window, and the (spp, ratio) after each pass.
 
     Returns
     -------
@@ -308,6 +336,10 @@ def render(
     else:
         raise TypeError(f"settings must be a dopplertof.RenderSettings or a dict of setting names, got {type(settings).__name__}")
     settings = RenderSettings.build(*layers, overrides)
+    if until_noise is not None:
+        until_noise = checked("until_noise", until_noise, "float")
+        if sensor is None or not until_noise > 0:
+            raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...) and a ratio > 0")
     if record is not None and record is not False:
         from .design.record import as_spec
 
@@ -341,6 +373,7 @@ def render(
 
         bar = tqdm(total=len(passes) * len(windows), initial=sum(passes_done()), unit="pass", desc="render", leave=False)
     interrupted = False
+    reached = {}  # window index -> [(spp, until_noise ratio reached)] after each pass
     start = time.perf_counter()
     try:
         for index, (acc, done) in enumerate(zip(accs, passes_done())):
@@ -362,6 +395,12 @@ def render(
                     acc.apply(p, next(traced))
                     if bar is not None:
                         bar.update(1)
+                    if until_noise is not None:
+                        value = _noise_ratio_reached(acc, windows[index], sensor, (height, width))
+                        if value is not None:
+                            reached.setdefault(index, []).append((int(acc.state["samples"].min()), value))
+                            if value <= until_noise:
+                                break
             finally:
                 traced.close()  # a Ray render's workers stop here
     except KeyboardInterrupt:
@@ -380,6 +419,9 @@ def render(
     spp_done = min(int(acc.state["samples"].min()) for acc in accs)
     info = {"render_seconds": time.perf_counter() - start, "passes": len(passes) * len(windows), "passes_done": done,
             "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows]}  # fmt: skip
+    if until_noise is not None:
+        info["until_noise"] = {"ratio": until_noise, "reached": [reached[k][-1][1] if k in reached else float("inf") for k in range(len(windows))],
+                               "spp": [int(acc.state["samples"].min()) for acc in accs], "history": [reached.get(k, []) for k in range(len(windows))]}  # fmt: skip
     finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
     maps = _merge_windows(finished, windows, len(settings.cameras), (height, width))
     if sensor is not None:
