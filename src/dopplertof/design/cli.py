@@ -22,6 +22,8 @@ import click
 from ..clitools import fail, given_settings, settings_options
 from .search import OBJECTIVES, OPTIMIZE_KEYS
 
+KEY_UNITS = {"modulation_frequency": "Hz", "exposure": "s", "heterodyne": "beat cycles per exposure"}
+
 
 @click.command("design")
 @click.argument("scene")
@@ -115,7 +117,7 @@ def _plots(output, rows, keys, objective, unit) -> list[str]:
         FigureCanvasAgg(figure)
         axes = figure.add_subplot()
         axes.plot([x for x, _ in line], [y for _, y in line], "o-")
-        axes.set_xlabel(key)
+        axes.set_xlabel(f"{key} ({KEY_UNITS[key]})")
         axes.set_ylabel(f"mean {objective} ({unit})")
         axes.set_yscale("log")
         axes.grid(True, alpha=0.3)
