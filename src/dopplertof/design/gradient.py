@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .precision import contract, inverse_fisher, moving_pixels, record_of, reference_time, sensor_derivatives, tap_terms
-from .record import Record, readout_terms
+from .precision import contract, fisher_from_taps, inverse_fisher, moving_pixels, record_of, reference_time, sensor_derivatives, tap_terms
+from .record import Record, measure, readout_terms
 
 PARAMETER_KINDS = ("phase", "heterodyne", "sensor_code", "light_code")
 OBJECTIVES = ("raw", "velocity_crb", "depth_crb")
@@ -96,16 +96,17 @@ def gradient(record_or_result, sensor, objective: str = "velocity_crb", paramete
     cameras = sensor.cameras()
     t_ref = reference_time(record, reference_time_s)
     if objective == "raw":
-        measurements = np.stack([_measure(record, c, i) for i, c in enumerate(cameras)])
+        measurements = np.stack([measure(record, c, f"gradient: camera {i} ({c.label()})") for i, c in enumerate(cameras)])
         value = sensor.raw(measurements, clip=False)
         out = {}
         for kind, frame in parameters:
             tangents = _tangents(record, sensor, kind, frame, t_ref, need_rate=False)
-            out[(kind, frame)] = _stack([sensor.raw(t[0], clip=False) - sensor.raw(np.zeros_like(t[0]), clip=False) for t in tangents], kind)
+            # raw is linear in the measurements; a tangent leaves the mean light (Ī) alone
+            out[(kind, frame)] = _stack([sensor.raw(t[0], clip=False) for t in tangents], kind)
         return Gradient(objective, value, out)
     m, d_length, d_rate = sensor_derivatives(record, sensor, t_ref, "gradient")
     jac, weight, _ = tap_terms(sensor, m, [m, d_length, d_rate])
-    fisher = np.einsum("aftyx,bftyx,ftyx->yxab", jac, jac, weight)
+    fisher = fisher_from_taps(jac, weight)
     index = 2 if objective == "velocity_crb" else 1
     covariance, ok = inverse_fisher(fisher)
     bound = np.where(ok, 0.5 * np.sqrt(np.clip(covariance[..., index, index], 0.0, None)), np.inf)
@@ -119,10 +120,8 @@ def gradient(record_or_result, sensor, objective: str = "velocity_crb", paramete
         for t_m, t_length, t_rate in _tangents(record, sensor, kind, frame, t_ref, need_rate=True):
             d_jac = tap_terms(sensor, m, [t_m, t_length, t_rate])[0]
             d_weight = -(weight**2) * shot * d_jac[0]  # σ² = μ + read² + q²/12: dσ² = dμ
-            d_fisher = (
-                np.einsum("aftyx,bftyx,ftyx->yxab", d_jac, jac, weight) + np.einsum("aftyx,bftyx,ftyx->yxab", jac, d_jac, weight)
-                + np.einsum("aftyx,bftyx,ftyx->yxab", jac, jac, d_weight)
-            )  # fmt: skip
+            cross = np.einsum("aftyx,bftyx,ftyx->yxab", d_jac, jac, weight)
+            d_fisher = cross + np.swapaxes(cross, -1, -2) + fisher_from_taps(jac, d_weight)
             d_cov = -np.einsum("...ij,...jk,...kl->...il", covariance, d_fisher, covariance)[..., index, index]
             d_bound = d_cov / np.where(mask, 8.0 * bound, 1.0)  # d(½√C) = dC / (4√C), √C = 2 · bound
             columns.append(float(np.mean(d_bound[mask])))
@@ -136,12 +135,6 @@ def _stack(columns, kind):
         return columns[0]
     values = np.asarray(columns)
     return values[0::2] + 1j * values[1::2]
-
-
-def _measure(record, camera, index):
-    from .record import measure
-
-    return measure(record, camera, f"gradient: camera {index} ({camera.label()})")
 
 
 def _parameters(sensor, objective, parameters):

@@ -125,6 +125,11 @@ def fisher_information(sensor, measurements, jacobians) -> np.ndarray:
     (cameras, H, W) and their derivatives (P, cameras, H, W), through the sensor's taps and
     noise chain (module docstring)."""
     d_e, weight, _ = tap_terms(sensor, measurements, jacobians)
+    return fisher_from_taps(d_e, weight)
+
+
+def fisher_from_taps(d_e, weight) -> np.ndarray:
+    """Σ_taps ∂μ_a ∂μ_b w (H, W, P, P) of :func:`tap_terms`' derivatives and weights."""
     return np.einsum("aftyx,bftyx,ftyx->yxab", d_e, d_e, weight)
 
 
