@@ -6,6 +6,8 @@ import sys
 
 import pytest
 
+import dopplertof as dt
+
 FAST = ["--resolution", "8", "--spp", "4", "--max-depth", "2"]
 
 
@@ -15,9 +17,11 @@ def _run(*args, cwd=None):
 
 def test_design_sweeps_optimises_and_writes_a_sensor_that_render_reads(tmp_path):
     out = tmp_path / "design"
-    done = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "--optimize", "phase", "-o", str(out), *FAST)
+    done = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "--optimize", "phase", "--rmse-draws", "20", "-o", str(out), *FAST)
     assert done.returncode == 0, done.stderr
-    assert "best of the sweep: modulation_frequency=" in done.stdout and "optimised (phase)" in done.stdout
+    assert "best of the sweep: modulation_frequency=" in done.stdout and "optimised (phase)" in done.stdout and "estimator RMSE" in done.stdout
+    for name in ("velocity_crb", "depth_crb", "velocity_rmse"):
+        assert dt.io.read_exr(out / f"{name}.exr").shape == (8, 8)
     with open(out / "sweep.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert [float(r["modulation_frequency"]) for r in rows] == [20e6, 40e6, 60e6] and all(r["status"] == "ok" for r in rows)

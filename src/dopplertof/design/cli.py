@@ -8,7 +8,10 @@ optimises it, and writes into DIR:
 * ``sweep.csv`` and ``sweep_<key>.png``: the objective at every grid point (refused
   variants with the reason), and a plot of it against each swept key;
 * ``optimize.csv``: the optimiser's steps;
-* ``best_sensor.toml``: the best configuration, a file ``dopplertof render --sensor`` reads.
+* ``best_sensor.toml``: the best configuration, a file ``dopplertof render --sensor`` reads;
+* ``velocity_crb.exr``, ``depth_crb.exr`` (m/s, m): its per-pixel bounds, and with
+  ``--rmse-draws N`` ``velocity_rmse.exr``: what the velocity estimator reaches over N noise
+  draws (:func:`~dopplertof.design.achieved_rmse`), side by side.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import os
 import sys
 
 import click
+import numpy as np
 
 from ..clitools import fail, given_settings, settings_options
 from .search import OBJECTIVES, OPTIMIZE_KEYS
@@ -32,18 +36,20 @@ KEY_UNITS = {"modulation_frequency": "Hz", "exposure": "s", "heterodyne": "beat 
 @click.option("--optimize", "optimize_keys", multiple=True, type=click.Choice(OPTIMIZE_KEYS), help="Minimise the objective over this parameter from the sensor's own value. Repeatable.")
 @click.option("--objective", type=click.Choice(OBJECTIVES), default="velocity_crb", show_default=True, help="Mean Cramér-Rao bound over the moving pixels: velocity (m/s) or depth (m).")
 @click.option("--record", "record_path", default=None, help="Use this record (record.npz of an earlier run) instead of rendering one.")
+@click.option("--rmse-draws", type=click.IntRange(min=0), default=0, show_default=True, help="Also the velocity estimator's per-pixel RMSE (dopplertof.reconstruct.velocity, method auto) for the best sensor over this many noise draws (0: not computed).")
 @click.option("-o", "--output", required=True, help="Output folder.")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file. Repeatable.")
 @settings_options(exclude=("exposure",))
-def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, record_path, output, resolution, defines, **options):
+def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, record_path, rmse_draws, output, resolution, defines, **options):
     """Sweep and optimise SENSOR's parameters on SCENE from one render (its response record)."""
-    from ..io import read_record, write_record
+    from ..io import read_record, write_exr, write_record
     from ..render import render
     from ..scene import SceneError
     from ..scenes import open_scene
     from ..sensors.files import load_sensor, sensor_toml
     from ..settings import RenderSettings, scene_layer
+    from .precision import achieved_rmse, crb
     from .search import optimize, parse_sweep, record_spec, sweep, variant
 
     try:
@@ -83,6 +89,15 @@ def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, re
         with open(path, "w", encoding="utf-8") as f:
             f.write(sensor_toml(best))
         written.append(path)
+        precision = crb(record, best)
+        written += [str(write_exr(os.path.join(output, f"{name}.exr"), getattr(precision, name))) for name in ("velocity_crb", "depth_crb")]
+        summary = precision.summary()
+        line = f"best sensor: velocity_crb {summary['velocity_crb_median']:.4g} m/s, depth_crb {summary['depth_crb_median']:.4g} m (medians over {summary['moving_pixels']} moving pixels)"
+        if rmse_draws:
+            rmse = achieved_rmse(record, best, draws=rmse_draws)
+            written.append(str(write_exr(os.path.join(output, "velocity_rmse.exr"), rmse)))
+            line += f"; estimator RMSE {float(np.nanmedian(rmse[precision.moving])):.4g} m/s over {rmse_draws} draws"
+        click.echo(line)
     except (ValueError, SceneError, FileNotFoundError) as exc:
         fail(str(exc))
     except OSError as exc:

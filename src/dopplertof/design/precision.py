@@ -205,7 +205,7 @@ def sensor_derivatives(record: Record, sensor, t_ref: float, what: str):
     return tuple(np.stack(x) for x in zip(*columns))
 
 
-def achieved_rmse(record_or_result, sensor, *, draws: int = 200, seed: int = 0, method: str = "ratio") -> np.ndarray:
+def achieved_rmse(record_or_result, sensor, *, draws: int = 200, seed: int = 0, method: str = "auto") -> np.ndarray:
     """Per-pixel RMSE (H, W, m/s) of :func:`dopplertof.reconstruct.velocity` (``method``)
     over ``draws`` read-outs of ``sensor``, about its value on the noiseless measurements.
 

@@ -391,8 +391,8 @@ def evaluate(record: Record, sensor):
         cameras, sensor = list(sensor), None
     else:
         raise ValueError(f"evaluate: 'sensor' must be a dopplertof.Sensor or a list of dopplertof.Camera, got {sensor!r}")
-    measurements = np.stack([measure(record, c, f"camera {i} ({c.label()})") for i, c in enumerate(cameras)]).astype(np.float32)
-    maps = dict(record.maps, measurements=measurements)
+    measurements = np.stack([measure(record, c, f"camera {i} ({c.label()})") for i, c in enumerate(cameras)])
+    maps = dict(record.maps, measurements=measurements.astype(np.float32))
     if sensor is not None:
         maps["raw"] = sensor.raw(measurements)
     settings = record.settings.replace(cameras=tuple(cameras))
