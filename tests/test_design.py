@@ -441,3 +441,14 @@ def test_until_noise_needs_a_sensor_and_a_positive_ratio(cornell):
         dt.render(cornell, spp=2, until_noise=0.5)
     with pytest.raises(ValueError, match="needs a sensor"):
         dt.render(cornell, spp=2, sensor=Sensor(frames=[RawFrame(exposure=T)], noise=SILICON), until_noise=0.0)
+
+
+def test_a_record_larger_than_the_memory_is_refused_before_rendering(cornell, monkeypatch):
+    import sys
+
+    monkeypatch.setattr(sys.modules["dopplertof.render"], "available_memory_bytes", lambda: 10**5)  # 0.1 MB; the record needs 0.28
+    rendered = []
+    monkeypatch.setattr(sys.modules["dopplertof.render"], "_traced_locally", lambda *a: rendered.append(a))
+    with pytest.raises(ValueError, match=r"record: 30 frequencies x 2 beats x 1 window\(s\) on a 12x12 film need about 0.00026 GiB; 9.3e-05 GiB"):
+        dt.render(cornell, spp=2, record=dict(band_hz=(10e6, 300e6), step_hz=10e6, beats=(0, 1), doppler=True), exposure=T)
+    assert rendered == []

@@ -104,18 +104,23 @@ def host_bytes_per_pixel(n_cameras: int) -> int:
     return 8 * (4 * estimates + truth + pairs) + 4 * (2 * estimates + truth + 6 + n_cameras * n_cameras)
 
 
+def available_memory_bytes() -> int | None:
+    """The memory available to this process (bytes; Linux's MemAvailable), None elsewhere."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            return next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
+    except (OSError, StopIteration, ValueError):
+        return None  # not Linux: no check
+
+
 def check_film_memory(width: int, height: int, n_cameras: int, n_windows: int = 1) -> None:
     """ValueError for an empty film, or one whose buffers need more than the available memory
     (each exposure window of a capture schedule keeps sums of its own)."""
     if width < 1 or height < 1:
         raise ValueError(f"the film must be at least 1x1 pixels, got {width}x{height}")
     need = width * height * (host_bytes_per_pixel(n_cameras) + (n_windows - 1) * host_bytes_per_pixel(0))
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            available = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
-    except (OSError, StopIteration, ValueError):
-        return  # not Linux: no check
-    if need > available:
+    available = available_memory_bytes()
+    if available is not None and need > available:
         raise ValueError(f"a {width}x{height} film with {n_cameras} camera(s) needs about {need / 2**30:.1f} GiB of memory for its buffers; {available / 2**30:.1f} GiB are available")
 
 
@@ -342,10 +347,12 @@ def render(
             raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...) and a ratio > 0")
     if record is not None and record is not False:
         from .design.record import as_spec
+        from .design.record import check_memory as check_record_memory
 
         record = as_spec(record)
         if executor != "local" or checkpoint is not None:
             raise ValueError("record: a response record is rendered locally and without checkpoints (executor='local', checkpoint=None)")
+        check_record_memory(record, *scene.resolution, len(settings.windows))
     else:
         record = None
 

@@ -274,6 +274,21 @@ def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
     return out
 
 
+def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int) -> None:
+    """ValueError where the record of ``spec`` on a ``width`` × ``height`` film of
+    ``n_windows`` windows (with ``doppler``, also its two sides until their difference is
+    taken) needs more than the available memory."""
+    from ..render import available_memory_bytes
+
+    need = width * height * spec.bytes_per_pixel(n_windows) * (2 if spec.doppler else 1)
+    available = available_memory_bytes()
+    if available is not None and need > available:
+        raise ValueError(
+            f"record: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats x {n_windows} window(s) on a {width}x{height} film need about "
+            f"{need / 2**30:.2g} GiB; {available / 2**30:.2g} GiB are available: use a coarser step_hz, a narrower band or fewer beats"
+        )  # fmt: skip
+
+
 def record_scene(scene, settings, spec: RecordSpec) -> Record:
     """Render the record of ``scene`` for the windows of ``settings`` (same seed, same paths).
 
@@ -286,8 +301,10 @@ def record_scene(scene, settings, spec: RecordSpec) -> Record:
     windows = [(w.start_s, w.exposure_s) for w in settings.windows]
     width, height = scene.resolution
     n_freq, n_beats = spec.frequencies_hz.size, len(spec.beats)
+    check_memory(spec, width, height, len(windows))
     phasors = np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64)
-    sides = {side: np.zeros((len(windows), n_freq, n_beats, height, width), np.complex128) for side in ((1, -1) if spec.doppler else ())}
+    # complex64 holds the float32 maps exactly; their difference is exact (Sterbenz) where they are close
+    sides = {side: np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64) for side in ((1, -1) if spec.doppler else ())}
     luminance = np.zeros((len(windows), height, width), np.float32)
     probes = [_probes(spec, *w) for w in windows]
     per_window = max(1, spec.cameras_per_render // len(windows))
