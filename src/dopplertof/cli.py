@@ -181,9 +181,11 @@ def render(scene, output, camera_specs, sensor_spec, until_noise, resolution, de
         )  # fmt: skip
         sys.exit(stop.exit_status)
     if until_noise is not None:
-        reached = max(result.info["until_noise"]["reached"])
+        stopped = result.info["until_noise"]
+        reached = max(stopped["reached"])
         verdict = "reached" if reached <= until_noise else f"not reached within --spp {settings.spp}"
-        click.echo(f"until-noise {until_noise:g} {verdict}: Monte Carlo error {reached:.3g} x the sensor's noise (95% of pixels) at {result.spp} spp")
+        spp = f"{result.spp} spp" if len(stopped["spp"]) == 1 else f"{', '.join(map(str, stopped['spp']))} spp (per exposure window)"
+        click.echo(f"until-noise {until_noise:g} {verdict}: Monte Carlo error {reached:.3g} x the sensor's noise (95% of pixels) at {spp}")
     click.echo(f"rendered {scene} at {result.spp} spp; images in {os.path.abspath(output)}/")
     for path in written:
         click.echo(f"  {path}")
