@@ -73,3 +73,24 @@ def test_render_until_noise_refuses_bad_input(tmp_path, args, message):
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], done.stderr
+
+
+def test_design_interrupted_writes_nothing_and_says_so(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "o"
+    # a record long enough to be interrupted while it renders
+    process = subprocess.Popen(
+        [sys.executable, "-m", "dopplertof.cli", "design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:10", "--resolution", "64", "--spp", "256", "-o", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    deadline = time.time() + 120
+    while time.time() < deadline and "rendering the record" not in process.stderr.readline():
+        pass
+    time.sleep(1.0)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert stderr.strip().splitlines()[-1] == "error: interrupted before the record was finished; nothing written"
+    assert not (out / "record.npz").exists() and not (out / "sweep.csv").exists()

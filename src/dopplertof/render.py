@@ -292,7 +292,9 @@ def render(
     record : True, dict or :class:`dopplertof.design.RecordSpec`, optional. Also keep the
         scene's response record of every exposure window (``result.record``), from which
         :func:`dopplertof.design.evaluate` reads out any sensor in its band
-        (:mod:`dopplertof.design.record`). Rendered locally, without checkpoints.
+        (:mod:`dopplertof.design.record`). Rendered locally, without checkpoints; a render
+        stopped early has no record (None), and a Ctrl-C while the record is rendered
+        raises KeyboardInterrupt.
     until_noise : float, optional. With ``sensor``: stop a window's passes once the Monte
         Carlo standard error of its raw frames is at most this many times the sensor's own
         noise in 95 % of its pixels (:mod:`dopplertof.design.convergence`); ``spp`` is

@@ -98,6 +98,9 @@ def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, re
             written.append(str(write_exr(os.path.join(output, "velocity_rmse.exr"), rmse)))
             line += f"; estimator RMSE {float(np.nanmedian(rmse[precision.moving])):.4g} m/s over {rmse_draws} draws"
         click.echo(line)
+    except KeyboardInterrupt:
+        click.echo("error: interrupted before the record was finished; nothing written", err=True)
+        sys.exit(130)
     except (ValueError, SceneError, FileNotFoundError) as exc:
         fail(str(exc))
     except OSError as exc:

@@ -294,7 +294,8 @@ def record_scene(scene, settings, spec: RecordSpec) -> Record:
 
     The probe cameras of every window are traced in chunks of ``spec.cameras_per_render``;
     each chunk holds the same number of every window's probes, in the windows' order, so
-    each window keeps its seed (:func:`dopplertof.tracing.lanes.window_seed`).
+    each window keeps its seed (:func:`dopplertof.tracing.lanes.window_seed`). A Ctrl-C
+    raises KeyboardInterrupt: there is no partial record.
     """
     from ..render import render
 
@@ -312,6 +313,8 @@ def record_scene(scene, settings, spec: RecordSpec) -> Record:
     for first in range(0, len(probes[0]), per_window):
         chunk = [p for window in probes for p in window[first : first + per_window]]
         result = render(scene, cameras=[p[0] for p in chunk], settings=settings)
+        if result.interrupted:  # a Ctrl-C: a record of partial chunks would silently mix sample counts
+            raise KeyboardInterrupt
         seconds += result.info["render_seconds"]
         spp = min(spp, result.spp)
         if maps is None:
