@@ -31,6 +31,8 @@ def test_design_sweeps_optimises_and_writes_a_sensor_that_render_reads(tmp_path)
     again = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "--record", str(out / "record.npz"), "-o", str(tmp_path / "again"))
     assert again.returncode == 0, again.stderr
     assert (tmp_path / "again" / "sweep.csv").read_text() == (out / "sweep.csv").read_text()
+    refused = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "--record", str(out / "record.npz"), "-o", str(out))
+    assert refused.returncode == 2 and refused.stderr.strip() == f"error: {str(out)!r} holds an earlier design run (record.npz, sweep.csv, optimize.csv, best_sensor.toml, velocity_crb.exr, depth_crb.exr, velocity_rmse.exr, sweep_modulation_frequency.png); choose another folder or --overwrite"
     rendered = _run("render", "cornell-box", "--sensor", str(out / "best_sensor.toml"), "-o", str(tmp_path / "render"), "--quiet", *FAST)
     assert rendered.returncode == 0, rendered.stderr
     assert (tmp_path / "render" / "raw_electrons.npy").exists()

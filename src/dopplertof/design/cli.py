@@ -17,6 +17,7 @@ optimises it, and writes into DIR:
 from __future__ import annotations
 
 import csv
+import glob
 import os
 import sys
 
@@ -26,6 +27,7 @@ import numpy as np
 from ..clitools import fail, given_settings, settings_options
 from .search import OBJECTIVES, OPTIMIZE_KEYS
 
+OUTPUTS = ("record.npz", "sweep.csv", "optimize.csv", "best_sensor.toml", "velocity_crb.exr", "depth_crb.exr", "velocity_rmse.exr")
 KEY_UNITS = {"modulation_frequency": "Hz", "exposure": "s", "heterodyne": "beat cycles per exposure"}
 
 
@@ -38,10 +40,11 @@ KEY_UNITS = {"modulation_frequency": "Hz", "exposure": "s", "heterodyne": "beat 
 @click.option("--record", "record_path", default=None, help="Use this record (record.npz of an earlier run) instead of rendering one.")
 @click.option("--rmse-draws", type=click.IntRange(min=0), default=0, show_default=True, help="Also the velocity estimator's per-pixel RMSE (dopplertof.reconstruct.velocity, method auto) for the best sensor over this many noise draws (0: not computed).")
 @click.option("-o", "--output", required=True, help="Output folder.")
+@click.option("--overwrite", is_flag=True, help="Replace the files of an earlier design run in the output folder.")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file. Repeatable.")
 @settings_options(exclude=("exposure",))
-def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, record_path, rmse_draws, output, resolution, defines, **options):
+def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, record_path, rmse_draws, output, overwrite, resolution, defines, **options):
     """Sweep and optimise SENSOR's parameters on SCENE from one render (its response record)."""
     from ..io import read_record, write_exr, write_record
     from ..render import render
@@ -59,6 +62,11 @@ def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, re
         sweeps = [parse_sweep(s) for s in sweep_specs]
         if len({k for k, _ in sweeps}) != len(sweeps):
             raise ValueError("--sweep: each key once")
+        earlier = [name for name in OUTPUTS if os.path.exists(os.path.join(output, name))]
+        earlier += sorted(os.path.basename(p) for p in glob.glob(os.path.join(glob.escape(output), "sweep_*.png")))
+        if earlier and not overwrite:
+            raise ValueError(f"{output!r} holds an earlier design run ({', '.join(earlier)}); choose another folder or --overwrite")
+        os.makedirs(output, exist_ok=True)  # before the render: an unwritable folder fails first
         if record_path is not None:
             record = read_record(record_path)
         else:
@@ -67,7 +75,6 @@ def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, re
             settings = RenderSettings.build(scene_layer(dyn, scene), {**given_settings(options), "cameras": cameras}, where=scene)
             click.echo(f"rendering the record: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp", err=True)
             record = render(dyn, settings=settings, record=spec).record
-        os.makedirs(output, exist_ok=True)
         written = [] if record_path is not None else [str(write_record(os.path.join(output, "record.npz"), record))]
         unit = "m/s" if objective == "velocity_crb" else "m"
         best = sensor
