@@ -14,15 +14,18 @@ parameter              ∂M                                               needs
 ``light_code`` c^g_n   Re g₁ e^{inψ} c^s_n/2 R(nf, nh) (∂/∂Re; −i ×     the record
                        that for ∂/∂Im)
 ``heterodyne`` h       Re Σ a_m e^{imψ} 2πi m R₁(mf, mh)                first moments
+``modulation_           Re Σ a_m e^{imψ} m ∂R/∂F(mf, mh), and the        slopes (and for
+frequency`` f (Hz)     silicon's contrast slope c'(f)/c × M             bounds, ∂R₁/∂F)
 =====================  ===============================================  ==================
 
 and so are those of ∂M/∂L and ∂M/∂L̇ (:mod:`dopplertof.design.precision`), so the Fisher
 information and the bounds are differentiated in forward mode (dF from the derivatives of
 the taps' means and variances, d(F⁻¹) = −F⁻¹ dF F⁻¹). The code gradients are with respect
 to the harmonics n ≥ 1 of Fourier codes (the code's mean also sets the mean light and the
-taps' shares: not differentiated here). Not available, and refused by name: the heterodyne
-gradient of a bound (it needs second moments), and the modulation frequency, exposure and
-exposure start (their readouts leave the record's grid and windows).
+taps' shares: not differentiated here); the frequency's ignores the jumps of a band-limited
+light code's harmonic count. Not available, and refused by name: the heterodyne gradient of
+a bound (it needs second moments), the exposure and the exposure start (their readouts leave
+the record's windows).
 """
 
 from __future__ import annotations
@@ -35,10 +38,9 @@ import numpy as np
 from .precision import contract, fisher_from_taps, inverse_fisher, moving_pixels, record_of, reference_time, sensor_derivatives, tap_terms
 from .record import Record, measure, readout_terms
 
-PARAMETER_KINDS = ("phase", "heterodyne", "sensor_code", "light_code")
+PARAMETER_KINDS = ("phase", "heterodyne", "modulation_frequency", "sensor_code", "light_code")
 OBJECTIVES = ("raw", "velocity_crb", "depth_crb")
 _REFUSED = {
-    "modulation_frequency": "its derivative needs path-length-weighted phasors the record does not hold",
     "exposure": "another exposure is another window, which the record does not hold",
     "exposure_start": "another start is another window, which the record does not hold",
 }
@@ -131,7 +133,7 @@ def gradient(record_or_result, sensor, objective: str = "velocity_crb", paramete
 
 def _stack(columns, kind):
     """Code gradients as complex ∂/∂Re + i ∂/∂Im per harmonic; scalars as they are."""
-    if kind in ("phase", "heterodyne"):
+    if not kind.endswith("_code"):
         return columns[0]
     values = np.asarray(columns)
     return values[0::2] + 1j * values[1::2]
@@ -186,6 +188,11 @@ def _tangents(record: Record, sensor, kind, frame, t_ref, need_rate):
         w, _, terms = readout_terms(record, camera, where)
         if kind == "phase":
             tangent_terms = [[(m, 1j * m * a, j, b) for m, a, j, b in terms]]
+        elif kind == "modulation_frequency":
+            t = _frequency_tangent(record, sensor, w, camera, terms, t_ref, need_rate, where)
+            for part in range(3):
+                out[0][part][index] = t[part]
+            continue
         elif kind == "heterodyne":
             derivative = _heterodyne_tangent(record, w, camera, terms)
             out[0][0][index], out[0][1][index] = derivative
@@ -210,6 +217,55 @@ def _without_rate(record, w, located, wavenumber):
         m += (coefficient * r).real
         d_length += (1j * order * wavenumber * coefficient * r).real
     return m, d_length, np.zeros_like(m)
+
+
+def _frequency_tangent(record, sensor, w, camera, terms, t_ref, need_rate, where):
+    """∂/∂f of (M, ∂M/∂L, ∂M/∂L̇) of ``camera`` (module docstring): the phasors' slopes, k's
+    own derivative 2π/c in the path-length derivatives, and the contrast slope c'/c, which
+    scales the frame's share of the raw electrons as a change of M would."""
+    from ..modulation import SPEED_OF_LIGHT_M_S
+
+    if record.slopes is None or (need_rate and record.moment_slopes is None):
+        need = "slopes=True, doppler=True" if need_rate else "slopes=True"
+        raise ValueError(f"{where}: the record holds no frequency slopes; render it with record=dict({need}, ...)")
+    start_s, exposure_s = record.windows[w]
+    dk = 2 * math.pi / SPEED_OF_LIGHT_M_S
+    k = camera.wavenumber
+    shape = record.luminance.shape[1:]
+    d_m, d_length, d_rate = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+    for order, coefficient, j, b in terms:
+        r, r_f = record.phasors[w, j, b].astype(np.complex128), record.slopes[w, j, b].astype(np.complex128)
+        d_m += (coefficient * order * r_f).real
+        d_length += (coefficient * 1j * order * (dk * r + k * order * r_f)).real
+        if need_rate:
+            r1, r1_f = record.moments[w, j, b].astype(np.complex128), record.moment_slopes[w, j, b].astype(np.complex128)
+            x = (start_s - t_ref) * r + exposure_s * r1
+            x_f = (start_s - t_ref) * r_f + exposure_s * r1_f
+            d_rate += (coefficient * 1j * order * (dk * x + k * order * x_f)).real
+    slope = _contrast_slope(sensor.noise, camera.modulation_frequency) / sensor.noise.contrast(camera.modulation_frequency)
+    if slope:
+        base = contract(record, w, 0.0, terms, k, t_ref, where) if need_rate else _without_rate(record, w, terms, k)
+        base = (base[0] + _constant_part(record, w, camera, where), base[1], base[2])
+        d_m, d_length, d_rate = d_m + slope * base[0], d_length + slope * base[1], d_rate + slope * base[2]
+    return d_m, d_length, d_rate
+
+
+def _constant_part(record, w, camera, where):
+    """c₀ Ī of ``camera``: the part of M without harmonics."""
+    from .record import harmonics
+
+    return harmonics(camera, where)[0] * record.luminance[w].astype(np.float64)
+
+
+def _contrast_slope(silicon, frequency_hz: float) -> float:
+    """dc/df (1/Hz) of the demodulation contrast: its table's slope (central within 1 Hz,
+    as a central difference sees it at a knot); 0 for a constant."""
+    table = silicon.demodulation_contrast
+    if isinstance(table, float):
+        return 0.0
+    xs, ys = np.array(table).T
+    low, high = max(frequency_hz - 1.0, xs[0]), min(frequency_hz + 1.0, xs[-1])
+    return float((np.interp(high, xs, ys) - np.interp(low, xs, ys)) / (high - low))
 
 
 def _heterodyne_tangent(record, w, camera, terms):

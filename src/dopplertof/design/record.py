@@ -58,6 +58,13 @@ GRID_TOLERANCE = 1e-9
 # its truncation error, (2πδ)²/6 ≈ 7e-6 relative, and the Float32 rounding of the lanes'
 # sums divided by 4πδ, about 1e-5 relative, are both far below a render's noise.
 MOMENT_BEAT_STEP = 1e-3
+# Frequency step δF (Hz) of the central difference that gives the slopes ∂R/∂F: a phase step
+# 2π δF L / c of 1e-2 rad at 5 m (truncation 2e-5 relative), large enough that the Float32
+# rounding of the mixed difference ∂R₁/∂F stays near 1e-3 relative.
+SLOPE_FREQUENCY_STEP_HZ = 1e5
+# What a record may hold beside R: the first moments R₁ (``doppler``), the slopes ∂R/∂F
+# (``slopes``) and ∂R₁/∂F (both).
+DERIVED = ("moments", "slopes", "moment_slopes")
 
 
 @dataclass(frozen=True)
@@ -78,6 +85,10 @@ class RecordSpec:
         the derivative of every measurement with respect to the paths' rate L̇ that
         precision maps need (:func:`dopplertof.design.crb`); they triple the probes and
         double the size. Default False.
+    slopes : bool. Also record the slopes ∂R/∂F (and, with ``doppler``, ∂R₁/∂F): the
+        derivative of every measurement with respect to the modulation frequency, which
+        frequency gradients need (:func:`dopplertof.design.gradient`); they triple the
+        probes again and double the size again. Default False.
     """
 
     band_hz: tuple = (10e6, 300e6)
@@ -85,6 +96,7 @@ class RecordSpec:
     beats: tuple = (0.0, 1.0)
     cameras_per_render: int = 32
     doppler: bool = False
+    slopes: bool = False
 
     def __post_init__(self):
         band = self.band_hz
@@ -118,6 +130,7 @@ class RecordSpec:
             raise ValueError(f"record: 'cameras_per_render' must be >= 1, got {per!r}")
         object.__setattr__(self, "cameras_per_render", per)
         object.__setattr__(self, "doppler", checked("doppler", self.doppler, "bool", "record"))
+        object.__setattr__(self, "slopes", checked("slopes", self.slopes, "bool", "record"))
 
     @property
     def frequencies_hz(self) -> np.ndarray:
@@ -128,12 +141,13 @@ class RecordSpec:
         return np.arange(first, last + 1, dtype=np.float64) * self.step_hz
 
     def bytes_per_pixel(self, n_windows: int = 1) -> int:
-        """Record size per pixel (bytes): complex64 R(F, ν) (and R₁ with ``doppler``) and
-        float32 Ī per window."""
-        return n_windows * (8 * (2 if self.doppler else 1) * self.frequencies_hz.size * len(self.beats) + 4)
+        """Record size per pixel (bytes): complex64 R(F, ν) (and R₁ with ``doppler``, their
+        slopes with ``slopes``) and float32 Ī per window."""
+        arrays = (2 if self.doppler else 1) * (2 if self.slopes else 1)
+        return n_windows * (8 * arrays * self.frequencies_hz.size * len(self.beats) + 4)
 
     def as_dict(self) -> dict:
-        return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler}
+        return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler, "slopes": self.slopes}
 
 
 def as_spec(value) -> RecordSpec:
@@ -146,7 +160,7 @@ def as_spec(value) -> RecordSpec:
     if isinstance(value, dict):
         unknown = sorted(set(value) - {f.name for f in dataclasses.fields(RecordSpec)})
         if unknown:
-            raise ValueError(f"record: unknown key(s) {unknown}; use band_hz, step_hz, beats, cameras_per_render, doppler")
+            raise ValueError(f"record: unknown key(s) {unknown}; use band_hz, step_hz, beats, cameras_per_render, doppler, slopes")
         return RecordSpec(**value)
     raise ValueError(f"record must be True, a dict of RecordSpec fields or a dopplertof.design.RecordSpec, got {value!r}")
 
@@ -160,6 +174,8 @@ class Record:
     phasors : complex64 (windows, frequencies, beats, H, W). R(F, ν) per window and pixel.
     luminance : float32 (windows, H, W). Ī, the window's mean luminance.
     moments : complex64 like ``phasors``, or None. R₁(F, ν) (``spec.doppler``).
+    slopes, moment_slopes : complex64 like ``phasors``, or None. ∂R/∂F and ∂R₁/∂F (1/Hz;
+        ``spec.slopes``, the second also ``spec.doppler``).
     spec : :class:`RecordSpec`.
     windows : tuple of (start_s, exposure_s). The recorded exposure windows, in render order.
     settings : RenderSettings of the render (its cameras dropped; the windows are above).
@@ -176,6 +192,8 @@ class Record:
     spp: int
     info: dict = field(default_factory=dict)
     moments: np.ndarray | None = None
+    slopes: np.ndarray | None = None
+    moment_slopes: np.ndarray | None = None
 
     RECORD_FORMAT = "dopplertof-record-1"
 
@@ -188,8 +206,9 @@ class Record:
         settings.pop("cameras")
         meta = {"format": self.RECORD_FORMAT, "spec": self.spec.as_dict(), "windows": [list(w) for w in self.windows], "settings": settings, "spp": self.spp, "info": self.info}
         arrays = {"phasors": self.phasors, "luminance": self.luminance, "metadata": np.array(json.dumps(meta, default=float))}
-        if self.moments is not None:
-            arrays["moments"] = self.moments
+        for name in DERIVED:
+            if getattr(self, name) is not None:
+                arrays[name] = getattr(self, name)
         arrays.update({f"map.{name}": value for name, value in self.maps.items()})
         return arrays
 
@@ -210,18 +229,19 @@ class Record:
             expected = (len(windows), spec.frequencies_hz.size, len(spec.beats))
             if phasors.dtype != np.complex64 or phasors.shape[:3] != expected or luminance.shape != (len(windows), *phasors.shape[3:]):
                 raise ValueError(f"arrays of shape {phasors.shape} and {luminance.shape} do not match the record's grid {expected}")
-            moments = np.asarray(arrays["moments"]) if spec.doppler else None
-            if moments is not None and (moments.dtype != np.complex64 or moments.shape != phasors.shape):
-                raise ValueError(f"moments of shape {moments.shape} do not match the phasors {phasors.shape}")
+            derived = {name: np.asarray(arrays[name]) if name in _derived_of(spec) else None for name in DERIVED}
+            for name, value in derived.items():
+                if value is not None and (value.dtype != np.complex64 or value.shape != phasors.shape):
+                    raise ValueError(f"{name} of shape {value.shape} do not match the phasors {phasors.shape}")
             settings = RenderSettings.build(meta["settings"])
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{where}: not a dopplertof response record ({exc})") from None
         maps = {name[4:]: np.asarray(value) for name, value in arrays.items() if name.startswith("map.")}
-        return cls(phasors, luminance, spec, windows, settings, maps, int(meta["spp"]), dict(meta["info"]), moments)
+        return cls(phasors, luminance, spec, windows, settings, maps, int(meta["spp"]), dict(meta["info"]), **derived)
 
     @property
     def nbytes(self) -> int:
-        return int(self.phasors.nbytes + self.luminance.nbytes + (0 if self.moments is None else self.moments.nbytes))
+        return int(self.phasors.nbytes + self.luminance.nbytes + sum(getattr(self, n).nbytes for n in DERIVED if getattr(self, n) is not None))
 
     def window_index(self, camera: Camera, where: str) -> int:
         window = camera.window(self.settings.exposure_start)
@@ -253,22 +273,33 @@ class Record:
 # Recording
 
 
+def _sides(spec: RecordSpec) -> list[tuple[int, int]]:
+    """(beat side, frequency side) of the probes: (0, 0) is R(F, ν); ±1 are the steps ±δ in
+    ν (``doppler``) and ±δF in F (``slopes``) whose central differences give R₁ and ∂R/∂F."""
+    beat = (0, 1, -1) if spec.doppler else (0,)
+    frequency = (0, 1, -1) if spec.slopes else (0,)
+    return [(b, f) for b in beat for f in frequency]
+
+
+def _derived_of(spec: RecordSpec) -> tuple[str, ...]:
+    """The names of :data:`DERIVED` a record of ``spec`` holds."""
+    return tuple(n for n, held in zip(DERIVED, (spec.doppler, spec.slopes, spec.doppler and spec.slopes)) if held)
+
+
 def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
     """(camera, frequency index, beat index, part, side) of one window: Ī first (part None),
-    then the real (ψ = 0) and imaginary (ψ = −π/2: cos(Δ − π/2) = sin Δ) part of every
-    R(F, ν) (side 0) and, with ``doppler``, of R(F, ν ± δ) (side ±1, δ =
-    :data:`MOMENT_BEAT_STEP`), whose central difference is 2πi δ · 2 R₁."""
+    then the real (ψ = 0) and imaginary (ψ = −π/2: cos(Δ − π/2) = sin Δ) part of R at every
+    (F + side[1] δF, ν + side[0] δ) (:func:`_sides`)."""
     from ..sensors.frames import mean_light_camera
 
-    out = [(mean_light_camera(start_s, exposure_s), None, None, None, 0)]
-    sides = (0, 1, -1) if spec.doppler else (0,)
+    out = [(mean_light_camera(start_s, exposure_s), None, None, None, (0, 0))]
     for j, frequency in enumerate(spec.frequencies_hz):
         for b, beat in enumerate(spec.beats):
-            for side in sides:
+            for side in _sides(spec):
                 for part, phase in ((0, 0.0), (1, -0.5 * math.pi)):
                     camera = Camera(
-                        modulation_frequency=float(frequency), exposure=exposure_s, exposure_start=start_s,
-                        heterodyne=beat + side * MOMENT_BEAT_STEP, phase=phase, g1=2.0, g0=0.0,
+                        modulation_frequency=float(frequency) + side[1] * SLOPE_FREQUENCY_STEP_HZ, exposure=exposure_s, exposure_start=start_s,
+                        heterodyne=beat + side[0] * MOMENT_BEAT_STEP, phase=phase, g1=2.0, g0=0.0,
                     )  # fmt: skip
                     out.append((camera, j, b, part, side))
     return out
@@ -276,11 +307,12 @@ def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
 
 def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int) -> None:
     """ValueError where the record of ``spec`` on a ``width`` × ``height`` film of
-    ``n_windows`` windows (with ``doppler``, also its two sides until their difference is
-    taken) needs more than the available memory."""
+    ``n_windows`` windows (and the probes' sides until their differences are taken) needs
+    more than the available memory."""
     from ..render import available_memory_bytes
 
-    need = width * height * spec.bytes_per_pixel(n_windows) * (2 if spec.doppler else 1)
+    arrays = len(_sides(spec)) + len(_derived_of(spec))  # every side is held until the derived arrays are made
+    need = width * height * n_windows * (8 * arrays * spec.frequencies_hz.size * len(spec.beats) + 4)
     available = available_memory_bytes()
     if available is not None and need > available:
         raise ValueError(
@@ -305,7 +337,7 @@ def record_scene(scene, settings, spec: RecordSpec) -> Record:
     check_memory(spec, width, height, len(windows))
     phasors = np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64)
     # complex64 holds the float32 maps exactly; their difference is exact (Sterbenz) where they are close
-    sides = {side: np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64) for side in ((1, -1) if spec.doppler else ())}
+    sides = {side: np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64) for side in _sides(spec) if side != (0, 0)}
     luminance = np.zeros((len(windows), height, width), np.float32)
     probes = [_probes(spec, *w) for w in windows]
     per_window = max(1, spec.cameras_per_render // len(windows))
@@ -324,16 +356,23 @@ def record_scene(scene, settings, spec: RecordSpec) -> Record:
             if part is None:
                 luminance[w] = value
                 continue
-            target = phasors if side == 0 else sides[side]
+            target = phasors if side == (0, 0) else sides[side]
             if part == 0:
                 target[w, j, b].real = value
             else:
                 target[w, j, b].imag = value
     info = {"render_seconds": seconds, "renders": math.ceil(len(probes[0]) / per_window), "probe_cameras": len(probes[0]) * len(windows)}
-    moments = None
+    sides[(0, 0)] = phasors
+    beat_step, frequency_step = 4j * math.pi * MOMENT_BEAT_STEP, 2.0 * SLOPE_FREQUENCY_STEP_HZ  # e^{±i2πδu}: ±i2πδ u; F ± δF
+    derived = {}
     if spec.doppler:
-        moments = ((sides[1] - sides[-1]) / (4j * math.pi * MOMENT_BEAT_STEP)).astype(np.complex64)
-    return Record(phasors, luminance, spec, tuple(windows), settings.replace(cameras=()), maps, spp, info, moments)
+        derived["moments"] = (sides[(1, 0)] - sides[(-1, 0)]) / beat_step
+    if spec.slopes:
+        derived["slopes"] = (sides[(0, 1)] - sides[(0, -1)]) / frequency_step
+    if spec.doppler and spec.slopes:
+        derived["moment_slopes"] = ((sides[(1, 1)] - sides[(-1, 1)]) - (sides[(1, -1)] - sides[(-1, -1)])) / (beat_step * frequency_step)
+    derived = {name: value.astype(np.complex64) for name, value in derived.items()}
+    return Record(phasors, luminance, spec, tuple(windows), settings.replace(cameras=()), maps, spp, info, **derived)
 
 
 # ----------------------------------------------------------------------------------------
