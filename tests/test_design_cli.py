@@ -17,21 +17,22 @@ def _run(*args, cwd=None):
 
 def test_design_sweeps_optimises_and_writes_a_sensor_that_render_reads(tmp_path):
     out = tmp_path / "design"
-    done = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "--optimize", "phase", "--rmse-draws", "20", "-o", str(out), *FAST)
+    done = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:120e6:6", "--optimize", "phase", "--rmse-draws", "20", "-o", str(out), *FAST)
     assert done.returncode == 0, done.stderr
     assert "best of the sweep: modulation_frequency=" in done.stdout and "optimised (phase)" in done.stdout and "estimator RMSE" in done.stdout
     for name in ("velocity_crb", "depth_crb", "velocity_rmse"):
         assert dt.io.read_exr(out / f"{name}.exr").shape == (8, 8)
     with open(out / "sweep.csv", newline="") as f:
         rows = list(csv.DictReader(f))
-    assert [float(r["modulation_frequency"]) for r in rows] == [20e6, 40e6, 60e6] and all(r["status"] == "ok" for r in rows)
-    assert all(float(r["velocity_crb_mean"]) > 0 for r in rows)
+    assert [float(r["modulation_frequency"]) for r in rows] == [20e6, 40e6, 60e6, 80e6, 100e6, 120e6]
+    assert all(r["status"] == "ok" and float(r["velocity_crb_mean"]) > 0 for r in rows[:5])
+    assert rows[5]["status"].startswith("refused: D-ToF prototype") and "outside 1e+07 to 1e+08 Hz" in rows[5]["status"]  # the chip's 100 MHz
     assert (out / "sweep_modulation_frequency.png").stat().st_size > 0 and (out / "optimize.csv").exists()
     # the record is reused: the same sweep without a render gives the same numbers
-    again = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "--record", str(out / "record.npz"), "-o", str(tmp_path / "again"))
+    again = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:120e6:6", "--record", str(out / "record.npz"), "-o", str(tmp_path / "again"))
     assert again.returncode == 0, again.stderr
     assert (tmp_path / "again" / "sweep.csv").read_text() == (out / "sweep.csv").read_text()
-    refused = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "--record", str(out / "record.npz"), "-o", str(out))
+    refused = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:120e6:6", "--record", str(out / "record.npz"), "-o", str(out))
     assert refused.returncode == 2 and refused.stderr.strip() == f"error: {str(out)!r} holds an earlier design run (record.npz, sweep.csv, optimize.csv, best_sensor.toml, velocity_crb.exr, depth_crb.exr, velocity_rmse.exr, sweep_modulation_frequency.png); choose another folder or --overwrite"
     rendered = _run("render", "cornell-box", "--sensor", str(out / "best_sensor.toml"), "-o", str(tmp_path / "render"), "--quiet", *FAST)
     assert rendered.returncode == 0, rendered.stderr

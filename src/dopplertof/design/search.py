@@ -85,7 +85,14 @@ def record_spec(sensor, sweeps, beats_extra=(), optimize=(), doppler=True):
     its frequency step, else 1 MHz): the cameras give its windows to ``render``."""
     from .record import RecordSpec, harmonics
 
-    variants = [variant(sensor, dict(zip([k for k, _ in sweeps], values))) for values in itertools.product(*[v for _, v in sweeps])] if sweeps else [sensor]
+    _check_size(sweeps)
+    variants = []
+    for values in itertools.product(*[v for _, v in sweeps]):
+        try:
+            variants.append(variant(sensor, dict(zip([k for k, _ in sweeps], values))))
+        except ValueError:
+            continue  # the chip refuses it: the sweep lists it as refused
+    variants = variants or [sensor]
     frequencies, beats, cameras = set(), {0.0, *beats_extra}, []
     for v in variants:
         for index, camera in enumerate(v.cameras()):
@@ -106,6 +113,12 @@ def record_spec(sensor, sweeps, beats_extra=(), optimize=(), doppler=True):
     return RecordSpec(band_hz=(float(min(frequencies)), float(max(frequencies))), step_hz=float(step), beats=tuple(sorted(beats)), doppler=doppler, cameras_per_render=128), cameras
 
 
+def _check_size(sweeps):
+    total = math.prod(len(v) for _, v in sweeps)
+    if total > MAX_SWEEP_POINTS:
+        raise ValueError(f"the sweep has {total} points, more than {MAX_SWEEP_POINTS}; use fewer values")
+
+
 def objective_value(record, sensor, objective: str) -> float:
     """The mean bound (:data:`OBJECTIVES`) over the moving pixels where it is finite."""
     if objective not in OBJECTIVES:
@@ -117,9 +130,7 @@ def sweep(record, sensor, sweeps, objective: str = "velocity_crb") -> list[dict]
     """One row per combination of the sweeps' values: the values, ``objective`` (NaN and
     ``status`` = the reason where the chip refuses the variant) and the mean and median
     bounds."""
-    total = math.prod(len(v) for _, v in sweeps)
-    if total > MAX_SWEEP_POINTS:
-        raise ValueError(f"the sweep has {total} points, more than {MAX_SWEEP_POINTS}; use fewer values")
+    _check_size(sweeps)
     keys = [k for k, _ in sweeps]
     rows = []
     for values in itertools.product(*[v for _, v in sweeps]):
