@@ -21,9 +21,9 @@ their harmonics, its beats and, for exposures, one window per exposure).
 :func:`sweep` evaluates the objective (:data:`OBJECTIVES`, m/s or m: the mean bound over the
 moving pixels, :func:`~dopplertof.design.crb`) on the grid of every combination.
 :func:`optimize` minimises it from the sensor's own values: the phases of the frames by
-projected gradient descent (:func:`~dopplertof.design.gradient`), the modulation frequency
+gradient descent (:func:`~dopplertof.design.gradient`; a step the chip refuses is no step), the modulation frequency
 by a pattern search on the record's frequency grid within the chip's range (the record
-gives the objective exactly there, but no frequency gradient).
+gives the objective exactly there and only there: a gradient step would leave the grid).
 """
 
 from __future__ import annotations
