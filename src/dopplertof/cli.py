@@ -36,6 +36,7 @@ def scene_description(scene_arg: str, resolution, defines) -> dict:
 _LAZY_COMMANDS = {
     "animate": ("dopplertof.animate", "animate_command", "Render SCENE as a clip: one D-ToF exposure per frame, with velocity."),
     "dataset": ("dopplertof.dataset.cli", "dataset_group", "Datasets for learning: randomized scenes rendered into WebDataset shards."),
+    "design": ("dopplertof.design.cli", "design_command", "Sweep and optimise a sensor's parameters on a scene from one render."),
     "experiment": ("dopplertof.experiments.cli", "experiment", "Reproduce the paper's experiments (time sampling, shifts, velocity)."),
     "reconstruct": ("dopplertof.render_folder", "reconstruct_command", "Reconstruct radial velocity (and depth) from a render folder."),
 }
@@ -107,6 +108,7 @@ def scenes():
 @click.option("-o", "--output", "output", default=None, help="Output folder (default: out/<scene name>).")
 @click.option("--camera", "camera_specs", multiple=True, help="A camera, e.g. 'h=1,psi=0' or 'h=0,psi=90deg,f=30e6'. Repeatable. Keys: h, psi (rad or 90deg), f (Hz), T (s), start (s: when its exposure opens), waveform, g1, g0, low_pass.")
 @click.option("--sensor", "sensor_spec", default=None, metavar="PRESET|FILE.toml", help="Render a sensor's raw frames instead of --camera: a preset (mlx75027, opt8241, imx556, kinect-v2, dtof-prototype) or a TOML file (dopplertof.sensors.files). Writes raw_electrons.npy, raw_dn.npy and the schedule in metadata.json.")
+@click.option("--until-noise", "until_noise", type=float, default=None, metavar="RATIO", help="With --sensor: stop once the Monte Carlo error of the raw frames is at most RATIO x the sensor's own noise in 95%% of the pixels (--spp is then the most it may take).")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file (overrides its <default>). Repeatable.")
 @click.option("--overwrite", is_flag=True, help="Replace the files of another render in the output folder (only those).")
@@ -118,7 +120,7 @@ def scenes():
 @click.option("--checkpoint-interval", "checkpoint_interval_s", type=float, default=DEFAULT_CHECKPOINT_INTERVAL_S, show_default=True,
               help="Seconds between checkpoints [s]: the sums are saved after the first pass that ends this long after the last save (0: every pass); a killed render loses at most this much.")
 @settings_options()
-def render(scene, output, camera_specs, sensor_spec, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, **options):
+def render(scene, output, camera_specs, sensor_spec, until_noise, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, **options):
     """Render SCENE (an XML file or a built-in scene name) into OUTPUT.
 
     SIGINT, SIGTERM and SIGHUP stop after the pass in progress: the partial result and a
@@ -129,10 +131,10 @@ def render(scene, output, camera_specs, sensor_spec, resolution, defines, overwr
     """
     # First: a signal during start-up then stops the render before its first pass.
     with StopOnSignal() as stop:
-        _render(stop, scene, output, camera_specs, sensor_spec, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, options)
+        _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, options)
 
 
-def _render(stop, scene, output, camera_specs, sensor_spec, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, options):
+def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, options):
     from . import folder as out_folder
     from .backend import BackendError
     from .raytools import require_ray
@@ -154,6 +156,8 @@ def _render(stop, scene, output, camera_specs, sensor_spec, resolution, defines,
                 raise ValueError(f"{name} needs --ray")
         if use_ray:
             require_ray()
+        if until_noise is not None and sensor_spec is None:
+            raise ValueError("--until-noise compares the render's error with a sensor's noise: give --sensor")
         sensor = None
         if sensor_spec is not None:
             from .sensors.files import load_sensor
@@ -173,7 +177,7 @@ def _render(stop, scene, output, camera_specs, sensor_spec, resolution, defines,
         executor = {"executor": "ray", "address": address, "workers": workers} if use_ray else {}
         # The checkpoint outlives the render until its images are written: a full disk then loses nothing.
         result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=checkpoint, checkpoint_interval_s=checkpoint_interval_s,
-                            keep_checkpoint=True, stop=stop, sensor=sensor, **executor)  # fmt: skip
+                            keep_checkpoint=True, stop=stop, sensor=sensor, until_noise=until_noise, **executor)  # fmt: skip
         if result.info["passes_done"] == 0:
             click.echo("error: interrupted before the first pass finished; nothing written", err=True)
             sys.exit(stop.exit_status)
@@ -197,6 +201,12 @@ def _render(stop, scene, output, camera_specs, sensor_spec, resolution, defines,
             f"{os.path.abspath(output)}/ (continue with --resume)", err=True,
         )  # fmt: skip
         sys.exit(stop.exit_status)
+    if until_noise is not None:
+        stopped = result.info["until_noise"]
+        reached = max(stopped["reached"])
+        verdict = "reached" if reached <= until_noise else f"not reached within --spp {settings.spp}"
+        spp = f"{result.spp} spp" if len(stopped["spp"]) == 1 else f"{', '.join(map(str, stopped['spp']))} spp (per exposure window)"
+        click.echo(f"until-noise {until_noise:g} {verdict}: Monte Carlo error {reached:.3g} x the sensor's noise (95% of pixels) at {spp}")
     click.echo(f"rendered {scene} at {result.spp} spp; images in {os.path.abspath(output)}/")
     for path in written:
         click.echo(f"  {path}")

@@ -11,6 +11,8 @@ Function                       Meaning
 ``write_npy``, ``read_npy``    ``numpy.save`` / ``numpy.load`` that create parent directories
 ``write_image``                ``write_exr`` or ``write_npy``, chosen by the file suffix
 ``write_json``, ``read_json``  metadata; numpy scalars and arrays become JSON numbers/lists
+``write_record``,              a scene's response record (:mod:`dopplertof.design.record`) as
+``read_record``                one ``.npz`` file: its arrays and its metadata
 =============================  ===============================================================
 
 All functions take a path as ``str`` or :class:`pathlib.Path`. Readers raise
@@ -438,3 +440,45 @@ def read_json(path: PathLike) -> Any:
         return json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise ValueError(f"cannot read '{path}' as JSON: {error}") from error
+
+
+def write_record(path: PathLike, record) -> Path:
+    """Save a response record (``render(..., record=True).record``) as one ``.npz`` file
+    (uncompressed: the phasors hardly compress), written atomically.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        Output file, used as given.
+    record : :class:`dopplertof.design.Record`
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+    """
+    arrays = record.to_arrays()
+    with atomic_path(path) as tmp, open(tmp, "wb") as file:  # a file object stops numpy appending ".npz"
+        np.savez(file, **arrays)
+    return Path(path)
+
+
+def read_record(path: PathLike):
+    """Load a response record saved by :func:`write_record`.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If the file is not a response record.
+    """
+    from .design.record import Record
+
+    path = _existing_file(path, "record")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in data.files}
+    except Exception as error:
+        raise ValueError(f"cannot read '{path}' as a response record: {error}") from error
+    return Record.from_arrays(arrays, where=str(path))

@@ -83,6 +83,7 @@ class RenderResult:
     interrupted: bool = False
     info: dict = field(default_factory=dict)  # render time (s), passes, executor, exposure windows [[start, T], ...] (s)
     sensor: object = None  # the dopplertof.Sensor rendered (render(..., sensor=)); its frames' electrons are maps["raw"]
+    record: object = None  # the scene's response record (render(..., record=True)): dopplertof.design.Record
 
     def __getattr__(self, name):
         maps = self.__dict__.get("maps", {})
@@ -122,18 +123,23 @@ def checkpoint_disk_bytes(width: int, height: int, settings: RenderSettings) -> 
     return 2 * width * height * sum(sums_bytes_per_pixel(len(w.cameras)) for w in settings.windows)
 
 
+def available_memory_bytes() -> int | None:
+    """The memory available to this process (bytes; Linux's MemAvailable), None elsewhere."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            return next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
+    except (OSError, StopIteration, ValueError):
+        return None  # not Linux: no check
+
+
 def check_film_memory(width: int, height: int, n_cameras: int, n_windows: int = 1) -> None:
     """ValueError for an empty film, or one whose buffers need more than the available memory
     (each exposure window of a capture schedule keeps sums of its own)."""
     if width < 1 or height < 1:
         raise ValueError(f"the film must be at least 1x1 pixels, got {width}x{height}")
     need = width * height * (host_bytes_per_pixel(n_cameras) + (n_windows - 1) * host_bytes_per_pixel(0))
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            available = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
-    except (OSError, StopIteration, ValueError):
-        return  # not Linux: no check
-    if need > available:
+    available = available_memory_bytes()
+    if available is not None and need > available:
         raise ValueError(f"a {width}x{height} film with {n_cameras} camera(s) needs about {need / 2**30:.1f} GiB of memory for its buffers; {available / 2**30:.1f} GiB are available")
 
 
@@ -264,6 +270,29 @@ def _merge_windows(finished: list[dict], windows, n_cameras: int, shape: tuple[i
 
 
 # ----------------------------------------------------------------------------------------
+# Stopping when the Monte Carlo error is below the sensor's noise
+
+
+def _noise_ratio_reached(acc, window, sensor, shape) -> float | None:
+    """The ``until_noise`` ratio the frames of ``window`` reach now
+    (:mod:`dopplertof.design.convergence`); None while tiles of the film differ in samples."""
+    import copy
+
+    from .design.convergence import noise_ratio, quantile
+
+    samples = acc.state["samples"]
+    if samples.min() != samples.max():
+        return None
+    n_cameras = len(sensor.cameras())
+    maps = copy.deepcopy(acc).finish(*shape, len(window.cameras))  # finish consumes the sums
+    measurements, errors = np.zeros((n_cameras, *shape)), np.zeros((n_cameras, *shape))
+    measurements[list(window.indices)] = maps["measurements"]
+    errors[list(window.indices)] = maps[BY_NAME["measurements"].stderr_name]
+    frames = [i for i in range(len(sensor.frames)) if i in window.indices]
+    return quantile(noise_ratio(sensor, measurements, errors, frames))
+
+
+# ----------------------------------------------------------------------------------------
 # render()
 
 EXECUTORS = ("local", "ray")
@@ -278,7 +307,7 @@ def _traced_locally(scene, settings, passes):
 def render(
     scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None,
     checkpoint_interval_s=DEFAULT_CHECKPOINT_INTERVAL_S, keep_checkpoint=False, stop=None,
-    executor="local", address=None, workers=None, sensor=None, **overrides,
+    executor="local", address=None, workers=None, sensor=None, record=None, until_noise=None, **overrides,
 ) -> RenderResult:  # fmt: skip
     """Render the intensity, ground truth and D-ToF measurements of a dynamic scene.
 
@@ -326,6 +355,17 @@ def render(
         ``cameras``): the measurements are those of ``sensor.cameras()`` and the result's
         ``raw`` (frames, taps, H, W) the noiseless electrons of every frame and tap
         (:mod:`dopplertof.sensors.frames`); ``sensor.read_out(result, seed=)`` adds the noise.
+    record : True, dict or :class:`dopplertof.design.RecordSpec`, optional. Also keep the
+        scene's response record of every exposure window (``result.record``), from which
+        :func:`dopplertof.design.evaluate` reads out any sensor in its band
+        (:mod:`dopplertof.design.record`). Rendered locally, without checkpoints; a render
+        stopped early has no record (None), and a Ctrl-C while the record is rendered
+        raises KeyboardInterrupt.
+    until_noise : float, optional. With ``sensor``: stop a window's passes once the Monte
+        Carlo standard error of its raw frames is at most this many times the sensor's own
+        noise in 95 % of its pixels (:mod:`dopplertof.design.convergence`); ``spp`` is
+        then the most it may take, ``result.spp`` what it took and ``result.info["until_noise"]``
+        the ratio reached and the spp of each window, and the (spp, ratio) after each pass.
 
     Returns
     -------
@@ -375,6 +415,20 @@ def render(
     else:
         raise TypeError(f"settings must be a dopplertof.RenderSettings or a dict of setting names, got {type(settings).__name__}")
     settings = RenderSettings.build(*layers, overrides)
+    if until_noise is not None:
+        until_noise = checked("until_noise", until_noise, "float")
+        if sensor is None or not until_noise > 0:
+            raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...) and a ratio > 0")
+    if record is not None and record is not False:
+        from .design.record import as_spec
+        from .design.record import check_memory as check_record_memory
+
+        record = as_spec(record)
+        if executor != "local" or checkpoint is not None:
+            raise ValueError("record: a response record is rendered locally and without checkpoints (executor='local', checkpoint=None)")
+        check_record_memory(record, *scene.resolution, len(settings.windows))
+    else:
+        record = None
 
     width, height = scene.resolution
     n_pixels = width * height
@@ -418,6 +472,7 @@ def render(
 
         bar = tqdm(total=len(passes) * len(windows), initial=sum(passes_done()), unit="pass", desc="render", leave=False)
     interrupted = False
+    reached = {}  # window index -> [(spp, until_noise ratio reached)] after each pass
     start = time.perf_counter()
     try:
         for index, (acc, done) in enumerate(zip(accs, passes_done())):
@@ -440,6 +495,12 @@ def render(
                     if bar is not None:
                         bar.update(1)
                     save(due=False)
+                    if until_noise is not None:
+                        value = _noise_ratio_reached(acc, windows[index], sensor, (height, width))
+                        if value is not None:
+                            reached.setdefault(index, []).append((int(acc.state["samples"].min()), value))
+                            if value <= until_noise:
+                                break
             finally:
                 traced.close()  # a Ray render's workers stop here
     except KeyboardInterrupt:
@@ -459,9 +520,17 @@ def render(
     spp_done = min(int(acc.state["samples"].min()) for acc in accs)
     info = {"render_seconds": time.perf_counter() - start, "passes": len(passes) * len(windows), "passes_done": done,
             "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows]}  # fmt: skip
+    if until_noise is not None:
+        info["until_noise"] = {"ratio": until_noise, "reached": [reached[k][-1][1] if k in reached else float("inf") for k in range(len(windows))],
+                               "spp": [int(acc.state["samples"].min()) for acc in accs], "history": [reached.get(k, []) for k in range(len(windows))]}  # fmt: skip
     finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
     maps = _merge_windows(finished, windows, len(settings.cameras), (height, width))
     if sensor is not None:
         maps["raw"] = sensor.raw(maps["measurements"])
-    return RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info, sensor=sensor)
+    result = RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info, sensor=sensor)
+    if record is not None and not interrupted:  # an interrupted render returns what it has, without a record
+        from .design.record import record_scene
+
+        result.record = record_scene(scene, settings, record)
+    return result
 
