@@ -96,7 +96,7 @@ def test_render_animate_and_plugin_build_the_same_settings(tmp_path, correlation
     common = ["--resolution", "4", "--spp", "2", "--correlation", correlation, "--quiet"]
     r = _cli("render", ORIGINAL_CORNELL, "-o", str(tmp_path / "r"), *common)
     assert r.returncode == 0, r.stderr
-    a = _cli("animate", ORIGINAL_CORNELL, "-o", str(tmp_path / "a"), "--frames", "1", *common, "--camera", "h=0,psi=0", "--camera", "h=1,psi=0")
+    a = _cli("animate", ORIGINAL_CORNELL, "-o", str(tmp_path / "a"), "--frames", "1", *common, *[f"--camera=h={h},psi={p}" for h in (0, 1) for p in ("0", "90deg")])
     assert a.returncode == 0, a.stderr
     rendered = json.loads((tmp_path / "r" / "metadata.json").read_text())["settings"]
     animated = json.loads((tmp_path / "a" / "frame_0000" / "metadata.json").read_text())["settings"]
