@@ -6,6 +6,7 @@ system directories, no ``ldconfig`` outside that ``PATH``.
 """
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -257,3 +258,73 @@ def test_a_ctrl_c_while_dr_jit_starts_arrives_after_it():
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
     assert run.stdout.splitlines() == ["interrupted after the import: True", "llvm_ad_rgb llvm_ad_rgb"], run.stdout
+
+
+# ----------------------------------------------------------------------------------------
+# Default variant: OptiX is probed before CUDA is chosen
+
+
+def test_cuda_without_a_working_optix_falls_back_to_llvm_with_one_warning(monkeypatch):
+    """Where Dr.Jit reports a CUDA backend but OptiX cannot trace (here: no CUDA at all
+    behind the claim), the default is LLVM, said in one warning; the active variant stays."""
+    import warnings
+
+    import mitsuba as mi
+
+    monkeypatch.delenv("DOPPLERTOF_VARIANT", raising=False)
+    monkeypatch.setattr(backend, "_backend_works", lambda name: True)
+    active = mi.variant()
+    if backend.optix_problem() is None:
+        pytest.skip("OptiX works on this machine")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert backend.default_variant() == "llvm_ad_rgb"
+        assert backend.default_variant(mono=True) == "llvm_ad_mono"
+    messages = [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
+    assert len(messages) == 2 and all("OptiX does not" in m and "\n" not in m for m in messages), messages
+    assert mi.variant() == active
+
+
+def test_working_optix_picks_cuda(monkeypatch):
+    monkeypatch.delenv("DOPPLERTOF_VARIANT", raising=False)
+    monkeypatch.setattr(backend, "_backend_works", lambda name: True)
+    monkeypatch.setattr(backend, "optix_problem", lambda mono=False: None)
+    assert backend.default_variant() == "cuda_ad_rgb"
+    assert backend.default_variant(mono=True) == "cuda_ad_mono"
+
+
+# ----------------------------------------------------------------------------------------
+# Float64 directions: IEEE division and square root (gpu-notes §2.1)
+
+APPROXIMATE = re.compile(r"dr\.(normalize|rcp|rsqrt)\(")
+FLOAT64 = re.compile(r"Vector3d|Point3d|Float64|\w+64\b")
+
+
+def _approximate_float64(line: str) -> bool:
+    return bool(APPROXIMATE.search(line) and FLOAT64.search(line))
+
+
+def test_no_approximate_float64_normalisation_in_the_source():
+    """On CUDA ``dr.normalize``, ``dr.rcp`` and ``dr.rsqrt`` of Float64 are approximate
+    (about 20 mantissa bits: µm errors in optical lengths); Float64 vectors are normalised
+    as ``v / dr.norm(v)``. A lint over the source: no line that makes or holds a Float64
+    value (``Vector3d``, ``Float64``, ``64``-suffixed names) may call them."""
+    offenders = []
+    for path in sorted(Path(backend.__file__).parent.rglob("*.py")):
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            if _approximate_float64(line):
+                offenders.append(f"{path.name}:{number}: {line.strip()}")
+    assert not offenders, offenders
+
+
+@pytest.mark.parametrize(
+    "line, offends",
+    [
+        ("    d64 = dr.normalize(mi.Vector3d(direction))", True),
+        ("    inv = dr.rcp(mi.Float64(x))", True),
+        ("    d64 = mi.Vector3d(direction) / dr.norm(mi.Vector3d(direction))", False),
+        ("    d = dr.normalize(pose.vector_to_world(ray.d))", False),
+    ],
+)
+def test_the_lint_tells_approximate_float64_from_the_rest(line, offends):
+    assert _approximate_float64(line) == offends

@@ -25,8 +25,10 @@ Variant selection (:func:`set_variant`):
 
 ==========================  ====================================================
 ``DOPPLERTOF_VARIANT``      environment variable; forces a variant by name
-default                     ``cuda_ad_rgb`` when a CUDA device works, otherwise
-                            ``llvm_ad_rgb``
+default                     ``cuda_ad_rgb`` when a CUDA device works and OptiX
+                            traces a probe ray (:func:`optix_problem`: a tiny
+                            scene, one ray), otherwise ``llvm_ad_rgb`` (with a
+                            one-line warning where CUDA works but OptiX does not)
 ``mono=True``               the ``*_ad_mono`` variant of the chosen backend
 ==========================  ====================================================
 
@@ -47,6 +49,7 @@ import signal
 import subprocess
 import sys
 import threading
+import warnings
 
 MIN_LLVM_MAJOR = 16
 SUPPORTED_VARIANTS = ("llvm_ad_rgb", "llvm_ad_mono", "cuda_ad_rgb", "cuda_ad_mono")
@@ -377,12 +380,39 @@ def _backend_works(name: str) -> bool:
         return False
 
 
+def optix_problem(mono: bool = False) -> str | None:
+    """Why the CUDA variant cannot trace rays (one line), or None where it can: loads a
+    scene of one rectangle on ``cuda_ad_rgb`` (``cuda_ad_mono``) and traces one ray at
+    it. A CUDA device without a usable OptiX (no ``libnvoptix.so.1``, a driver that
+    drjit-core refuses) fails at every scene load. The active variant is kept."""
+    import drjit as dr
+    import mitsuba as mi
+
+    name = f"cuda_ad_{'mono' if mono else 'rgb'}"
+    previous = mi.variant()
+    try:
+        mi.set_variant(name)
+        scene = mi.load_dict({"type": "scene", "probe": {"type": "rectangle"}})
+        hit = scene.ray_intersect_preliminary(mi.Ray3f(mi.Point3f(0, 0, 1), mi.Vector3f(0, 0, -1)))
+        return None if bool(dr.all(hit.is_valid())) else "a probe ray at a rectangle missed it"
+    except Exception as exc:  # noqa: BLE001 - any failure means "OptiX does not work"
+        lines = str(exc).strip().splitlines()
+        return f"{type(exc).__name__}: {lines[0] if lines else ''}"
+    finally:
+        if previous and previous != name:
+            mi.set_variant(previous)
+
+
 def default_variant(mono: bool = False) -> str:
     """The variant dopplertof uses when none is asked for (see module docstring)."""
     forced = os.environ.get("DOPPLERTOF_VARIANT")
     if forced:
         return forced
-    if _backend_works("CUDA"):
+    cuda = _backend_works("CUDA")
+    problem = optix_problem(mono) if cuda else None
+    if cuda and problem is not None:
+        warnings.warn(f"CUDA works but OptiX does not ({problem}); using the LLVM (CPU) backend", RuntimeWarning, stacklevel=2)
+    if cuda and problem is None:
         backend = "cuda"
     elif _backend_works("LLVM"):
         backend = "llvm"
