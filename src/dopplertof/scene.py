@@ -374,6 +374,9 @@ class DynamicScene:
     camera_motion: Motion | None = None
     lights: list = field(default_factory=list)
     recipe: tuple | None = None  # how to build it again elsewhere (scenes.from_recipe); None: from a dict
+    # The never-traced scene whose OptiX pipeline and SBT ``static`` and every body's scene
+    # share (loader.pipeline_host); it must outlive them. None without bodies.
+    pipeline_host: object = None
 
     def __post_init__(self):
         if self.traversal not in TRAVERSALS:
