@@ -431,10 +431,19 @@ class DynamicScene:
         self._fit_bounds(t0, t1)
 
     def uses_tree(self) -> bool:
-        """Whether ray queries walk the tree of swept boxes (see ``traversal``)."""
+        """Whether ray queries walk the tree of swept boxes (see ``traversal``). Never on
+        CUDA: the tree traces inside ``dr.switch``, which OptiX compiles to direct
+        callables, from which tracing is not sanctioned (gpu-notes §2.2); ``"tree"`` is
+        refused there and ``"auto"`` takes the per-body loop."""
+        import mitsuba as mi
+
         if self.traversal not in TRAVERSALS:
             raise ValueError(f"traversal must be one of {TRAVERSALS}, got {self.traversal!r}")
         if not self.bodies or self.traversal == "per-body":
+            return False
+        if mi.variant().startswith("cuda"):
+            if self.traversal == "tree":
+                raise ValueError(f"traversal='tree' traces inside dr.switch (OptiX direct callables) and is not supported on {mi.variant()}; use 'per-body' or 'auto'")
             return False
         return self.traversal == "tree" or len(self.bodies) > PER_BODY_MAX_BODIES
 
