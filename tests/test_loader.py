@@ -484,3 +484,13 @@ def test_an_xml_scene_with_a_moving_sphere_has_a_host_with_spheres(tmp_path):
 def test_a_static_scene_needs_no_host():
     dyn = dt.load_scene({"type": "scene", "sensor": {"type": "perspective"}, "plane": {"type": "rectangle"}})
     assert dyn.pipeline_host is None and not dyn.bodies
+
+
+def test_shapes_no_host_covers_are_refused_on_cuda(monkeypatch):
+    """On CUDA a guest whose shape type the host's pipeline lacks fails to load (OptiX:
+    "shape type not mapped"); the loader says so first, naming the type."""
+    from dopplertof import loader
+
+    monkeypatch.setattr(mi, "variant", lambda: "cuda_ad_rgb")
+    with pytest.raises(dt.SceneError, match=r"<dict>: .*shape type 'sdfgrid' on cuda_ad_rgb"):
+        loader.pipeline_host({"sdfgrid", "sphere", "diffuse"}, "<dict>")

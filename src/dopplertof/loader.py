@@ -387,7 +387,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     host = None
     if moving:
         elements = [root] + [el for _, (_, el) in moving]
-        host = pipeline_host({shape.attrib.get("type") for el in elements for shape in el.iter("shape")})
+        host = pipeline_host({shape.attrib.get("type") for el in elements for shape in el.iter("shape")}, path)
     try:
         try:
             xml = ET.tostring(root, encoding="unicode")
@@ -549,13 +549,23 @@ def _group_by_motion(moving):
 # the same code runs (Embree ignores the host), so the CPU tests exercise it.
 
 ANALYTIC_SHAPES = ("sphere", "disk", "cylinder")  # the analytic shape plugins a host covers
+# Analytic shapes a host cannot cover (they need data files): refused on CUDA, where a
+# guest of theirs would fail to load ("shape type not mapped").
+UNCOVERED_SHAPES = ("bsplinecurve", "linearcurve", "sdfgrid", "ellipsoids")
 HOST_KEY = "parent_scene"  # the property Mitsuba itself names a host by
 
 
-def pipeline_host(types):
-    """The host scene (above) of guests whose plugin names are among ``types``."""
+def pipeline_host(types, where: str):
+    """The host scene (above) of guests whose plugin names are among ``types``; a
+    SceneError naming ``where`` and the shape type where CUDA cannot host them."""
     import mitsuba as mi
 
+    uncovered = sorted(set(types) & set(UNCOVERED_SHAPES))
+    if uncovered and mi.variant().startswith("cuda"):
+        raise SceneError(
+            f"{where}: a scene with moving bodies cannot use shape type {uncovered[0]!r} on {mi.variant()} "
+            f"(its OptiX pipeline covers meshes and {', '.join(ANALYTIC_SHAPES)}); use a mesh or the llvm variant"
+        )
     entries = {"probe-mesh": {"type": "rectangle"}}
     entries.update({f"probe-{name}": {"type": name} for name in ANALYTIC_SHAPES if name in types})
     return mi.load_dict({"type": "scene", **entries})
@@ -736,7 +746,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
             moving.append((motion, (key, shape, placement)))
         else:
             static_dict[key] = value
-    host = pipeline_host(_plugin_types(scene_dict)) if moving else None
+    host = pipeline_host(_plugin_types(scene_dict), "<dict>") if moving else None
     guest = {} if host is None else {HOST_KEY: host}
     bodies = []
     for motion, members in _group_by_motion(moving):
