@@ -6,8 +6,6 @@ compare the two halves, print the throughput rows."""
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import os
 import subprocess
 import sys
