@@ -57,15 +57,23 @@ _SCENE_RENDER_SETTINGS = ("rr_depth", "hide_emitters", "exposure_start")
 class ExperimentScene:
     """A loaded scene with its name for files and its identity for the reference cache.
 
-    label : short name for output folders and CSV rows (built-in name or file stem)
-    scene : the :class:`~dopplertof.scene.DynamicScene`
-    identity : JSON-able description hashed into the cache key
-    base_camera : camera whose modulation settings every experiment camera inherits (from
-        the scene's ``<integrator type="dopplertofpath">``, else :class:`Camera` defaults
-        with the exposure of the sensor's shutter: :func:`~dopplertof.settings.scene_camera`)
-    max_depth : path depth from the scene's integrator, else :data:`DEFAULT_MAX_DEPTH`
-    render_settings : ``rr_depth``, ``hide_emitters``, ``exposure_start`` (s) where the
-        scene's integrator gives them; passed to every render
+    Attributes
+    ----------
+    label : str
+        Short name for output folders and CSV rows (built-in name or file stem).
+    scene : DynamicScene
+        The loaded scene (:class:`~dopplertof.scene.DynamicScene`).
+    identity : dict
+        JSON-able description hashed into the cache key.
+    base_camera : Camera
+        Camera whose modulation settings every experiment camera inherits (from the
+        scene's ``<integrator type="dopplertofpath">``, else :class:`Camera` defaults with
+        the exposure of the sensor's shutter: :func:`~dopplertof.settings.scene_camera`).
+    max_depth : int
+        Path depth from the scene's integrator, else :data:`DEFAULT_MAX_DEPTH`.
+    render_settings : dict
+        ``rr_depth``, ``hide_emitters``, ``exposure_start`` (s) where the scene's
+        integrator gives them; passed to every render.
     """
 
     label: str
