@@ -9,6 +9,7 @@ start with ``_``; of a public class, its public methods and properties.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import inspect
 import pkgutil
@@ -36,6 +37,14 @@ def module_members(module_name: str) -> list[str]:
     return list(names)
 
 
+def _documented(obj) -> bool:
+    """A docstring of its own: not empty, not the signature a dataclass writes when there is none."""
+    doc = (obj.__doc__ or "").strip()
+    if inspect.isclass(obj) and dataclasses.is_dataclass(obj):
+        return bool(doc) and not doc.startswith(f"{obj.__name__}(")
+    return bool(doc)
+
+
 def undocumented() -> list[str]:
     """Every public name (module, function, class, method, property) without a docstring."""
     import dopplertof
@@ -49,7 +58,7 @@ def undocumented() -> list[str]:
     for name, obj in targets:
         if not (inspect.ismodule(obj) or inspect.isfunction(obj) or inspect.isclass(obj)):
             continue  # constants and tables: documented in their module's docstring
-        if not (obj.__doc__ or "").strip():
+        if not _documented(obj):
             missing.append(name)
         if inspect.isclass(obj):
             for attribute, value in vars(obj).items():

@@ -131,6 +131,7 @@ class Code:
 
     @property
     def mean(self) -> float:
+        """The code's mean over one period (its DC coefficient), e.g. 0.5 for a 0/1 square."""
         return float(self.coefficients(0)[0].real)
 
     def _grid(self, parts: int) -> np.ndarray:

@@ -216,6 +216,8 @@ class Camera:
         return self.heterodyne / self.exposure
 
     def label(self) -> str:
+        """Short text naming this camera in file names and tables, e.g. ``h=1,psi=1.5708``
+        (with ``,start=…`` in s when it has an ``exposure_start``)."""
         start = "" if self.exposure_start is None else f",start={self.exposure_start:g}"
         return f"h={self.heterodyne:g},psi={self.phase:g}{start}"
 

@@ -92,6 +92,7 @@ class RenderResult:
 
     @property
     def seed(self) -> int:
+        """The render's seed (``settings.seed``)."""
         return self.settings.seed
 
 

@@ -437,6 +437,13 @@ class DynamicScene:
 
     @property
     def sensor(self):
+        """The scene's Mitsuba sensor (the first; dopplertof renders one camera).
+
+        Raises
+        ------
+        SceneError
+            If the scene has no sensor.
+        """
         sensors = self.static.sensors()
         if not sensors:
             raise SceneError(f"{self.source}: the scene has no sensor")

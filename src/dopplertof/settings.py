@@ -136,12 +136,16 @@ class RenderSettings:
 
     @property
     def shift(self) -> float:
+        """The antithetic shift a in units of T, its default filled in: ``antithetic_shift``,
+        else 0 for ``antithetic_mirror`` and 0.5 otherwise."""
         if self.antithetic_shift is not None:
             return self.antithetic_shift
         return 0.0 if self.time_sampling == "antithetic_mirror" else 0.5
 
     @property
     def threshold(self) -> float:
+        """The GGX/Beckmann α above which ``adaptive`` reconnects: ``reconnection_threshold``,
+        else 0.5."""
         return 0.5 if self.reconnection_threshold is None else self.reconnection_threshold
 
     @property
@@ -172,6 +176,8 @@ class RenderSettings:
 
     @property
     def correlation_spec(self) -> Correlation:
+        """The path correlation as the tracer takes it: mode, replay depth and the
+        reconnection threshold with their defaults filled in."""
         return Correlation(self.correlation, self.correlation_depth, self.threshold)
 
     def _check_combination(self):

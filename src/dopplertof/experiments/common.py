@@ -133,6 +133,8 @@ class Estimator:
 
     @property
     def antithetic_shift(self) -> float:
+        """The antithetic shift in units of T: ``shift`` if given, else the original scripts'
+        default for the time sampling (0.5; 0 for ``antithetic_mirror``)."""
         return self.shift if self.shift is not None else _DEFAULT_SHIFT.get(self.time_sampling, 0.5)
 
     @property
@@ -142,6 +144,7 @@ class Estimator:
 
     @property
     def label(self) -> str:
+        """``time_sampling/correlation``, the estimator's name in tables and plots."""
         return f"{self.time_sampling}/{self.correlation}"
 
     def render_settings(self) -> dict:
@@ -259,6 +262,7 @@ class ReferenceCache:
         return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()
 
     def path(self, key: str) -> Path:
+        """The cache file of the reference with cache key ``key``: ``<folder>/<key>.npz``."""
         return self.folder / f"{key}.npz"
 
     def load(self, key: str, cameras) -> RenderResult | None:

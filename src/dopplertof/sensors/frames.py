@@ -88,6 +88,8 @@ class RawFrame(Camera):
         super().__post_init__()
 
     def label(self) -> str:
+        """Short text naming this frame: its modulation frequency (Hz), then the
+        :meth:`Camera.label <dopplertof.Camera.label>`."""
         return f"f={self.modulation_frequency:g},{super().label()}"
 
 

@@ -84,7 +84,8 @@ def digitize(expected_e, rng: np.random.Generator, *, full_well_e, read_noise_e,
 
     Returns
     -------
-    ndarray of int64, the shape of ``expected_e``: DN in [0, max_dn].
+    ndarray of int64
+        DN in [0, max_dn], the shape of ``expected_e``.
 
     Raises
     ------
