@@ -9,6 +9,7 @@ pages of their own, so that they can fail.
 
 from __future__ import annotations
 
+import importlib
 import os
 import re
 import subprocess
@@ -138,6 +139,32 @@ def test_tutorials_show_their_images(site):
 
 def test_every_public_name_has_a_docstring():
     assert public_api.undocumented() == []
+
+
+def test_the_top_level_names_have_examples_that_run():
+    """Every name of ``dopplertof.__all__`` (modules aside) and ``reconstruct.velocity`` has
+    an Examples section, and its examples give what they show (doctest)."""
+    import doctest
+
+    import mitsuba as mi
+
+    import dopplertof
+
+    names = [f"dopplertof.{n}" for n in dopplertof.__all__ if not isinstance(getattr(dopplertof, n), type(dopplertof))]
+    finder = doctest.DocTestFinder(recurse=False)
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    report, variant = [], mi.variant()
+    try:
+        dopplertof.set_variant("llvm_ad_rgb")  # the examples show RGB shapes
+        for name in [*names, "dopplertof.reconstruct.velocity"]:
+            module, _, attribute = name.rpartition(".")
+            tests = finder.find(getattr(importlib.import_module(module), attribute), name, globs={})
+            assert sum(len(test.examples) for test in tests), f"{name}: no example in its docstring"
+            for test in tests:
+                runner.run(test, out=report.append)
+    finally:
+        dopplertof.set_variant(variant)
+    assert runner.failures == 0, "".join(report)
 
 
 def test_an_undocumented_name_is_found(monkeypatch):

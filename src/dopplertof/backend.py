@@ -302,6 +302,12 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
         With ``variant=None``, choose the monochrome variant.
 
     Returns the active variant name.
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> dt.set_variant("llvm_ad_rgb")
+    'llvm_ad_rgb'
     """
     import mitsuba as mi
 

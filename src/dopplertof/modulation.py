@@ -98,6 +98,13 @@ class Camera:
         [exposure_start, exposure_start + exposure]: configurations with the same window
         share paths, each other window is traced with its own (a capture schedule, such as
         four phase images one after another; README "Capture schedules").
+
+    Examples
+    --------
+    >>> import math, dopplertof as dt
+    >>> camera = dt.Camera(heterodyne=1.0, phase=math.pi / 2)   # 30 MHz, T = 1.5 ms
+    >>> camera.label(), round(camera.beat_frequency, 1)          # h / T in Hz
+    ('h=1,psi=1.5708', 666.7)
     """
 
     modulation_frequency: float = 30e6

@@ -70,6 +70,13 @@ class RenderResult:
     standard error, the ground truth, ``coverage`` and ``instance_id`` are those of the
     *reference* window, the first camera's (``settings.windows[0]``). ``cameras`` are the
     rendered cameras with their window's ``exposure_start`` filled in.
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> result = dt.render(dt.scenes.cornell_box(resolution=16), spp=8, max_depth=2)   # intensity only
+    >>> result.spp, result.intensity.shape, result.depth.shape, result.measurements.shape
+    (8, (16, 16, 3), (16, 16), (0, 16, 16))
     """
 
     maps: dict
@@ -271,6 +278,15 @@ def render(
     KeyboardInterrupt
         Only a Ctrl-C (SIGINT) that arrives before the first pass finished; after that the
         render returns the finished passes as for ``stop``.
+
+    Examples
+    --------
+    >>> import math, dopplertof as dt
+    >>> scene = dt.scenes.cornell_box(resolution=16)
+    >>> cameras = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
+    >>> result = dt.render(scene, cameras=cameras, spp=16, max_depth=3)
+    >>> result.measurements.shape, result.intensity.shape, result.velocity.shape
+    ((4, 16, 16), (16, 16, 3), (16, 16))
     """
     import time
 

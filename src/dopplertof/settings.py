@@ -230,6 +230,34 @@ class RenderSettings:
 FIELDS = {f.name: f for f in dataclasses.fields(RenderSettings)}
 
 
+def _parameters_section() -> str:
+    """The numpy-style parameter table of :class:`RenderSettings`, from the declarations."""
+    lines = ["Parameters", "----------"]
+    for name, unit, default, meaning in RenderSettings.table():
+        meta = FIELDS[name].metadata
+        kind = "sequence of dopplertof.Camera" if meta["kind"] == "cameras" else meta["kind"]
+        choices = f" ({', '.join(meta['choices'])})" if meta["choices"] else ""
+        lines += [f"{name} : {kind}{', ' + unit if unit else ''}, default {default}", f"    {meaning}{choices}."]
+    return "\n".join("    " + line for line in lines)
+
+
+RenderSettings.__doc__ = f"""{RenderSettings.__doc__}
+
+{_parameters_section()}
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> settings = dt.RenderSettings.build({{"spp": 256, "correlation": "adaptive"}})
+    >>> settings.spp, settings.time_sampling, settings.threshold
+    (256, 'antithetic', 0.5)
+    >>> dt.RenderSettings.build({{"spp": 0}})
+    Traceback (most recent call last):
+    ...
+    ValueError: 'spp' must be >= 1, got 0
+    """
+
+
 @dataclass(frozen=True)
 class Window:
     """One exposure window of a capture schedule (:attr:`RenderSettings.windows`): its
