@@ -38,6 +38,7 @@ myst_heading_anchors = 3
 nb_execution_mode = "force"
 nb_execution_timeout = 300
 nb_execution_raise_on_error = True
+nb_execution_in_temp = True  # what a tutorial writes (a scene file, a dataset) stays out of docs/
 nb_execution_show_tb = True
 # Markdown a cell outputs (the troubleshooting table) is MyST, so its links resolve as the pages'.
 nb_render_markdown_format = "myst"
