@@ -9,6 +9,7 @@ lists. Nothing is fetched from the network.
 
 import importlib
 import re
+import shutil
 import sys
 from pathlib import Path
 
@@ -55,7 +56,8 @@ for _name in cli_main.list_commands(_context):
     cli_main.get_command(_context, _name)
 
 GENERATED = DOCS / "_generated"
-(GENERATED / "api").mkdir(parents=True, exist_ok=True)
+shutil.rmtree(GENERATED, ignore_errors=True)  # no page of a module that is gone
+(GENERATED / "api").mkdir(parents=True)
 
 
 def _settings_table() -> str:

@@ -5,5 +5,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-rm -rf docs/_build docs/_generated
+rm -rf docs/_build
 exec .venv/bin/python -m sphinx -W --keep-going -b html docs docs/_build/html "$@"
