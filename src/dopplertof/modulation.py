@@ -189,15 +189,15 @@ class Camera:
 
     @property
     def light_mean(self) -> float:
-        """ḡ, the light waveform's mean over a period (the trapezoid's pulse: 1; the
-        other named waveforms: 0)."""
+        """ḡ, the light waveform's mean over a period (1 for the trapezoid's pulse, 0 for
+        the other named waveforms)."""
         if self.coded:
             return self.light.mean
         return 1.0 if self.waveform == "trapezoidal" else 0.0
 
     @property
     def sensor_mean(self) -> float:
-        """s̄, the demodulation's mean over a period (every named waveform: 0)."""
+        """s̄, the demodulation's mean over a period (0 for every named waveform)."""
         return self.sensor_code.mean if self.coded else 0.0
 
     @cached_property
