@@ -134,6 +134,14 @@ def test_tutorials_show_their_images(site):
     assert all(name in settings for name in FIELDS), "the settings table is missing settings"
 
 
+def test_the_readmes_links_resolve():
+    """The README links into the docs pages (their Markdown sources) and shows an image: each
+    relative link names a file of the repository."""
+    links = re.findall(r"\]\(([^)\s]+)\)", (ROOT / "README.md").read_text())
+    targets = [link.partition("#")[0] for link in links if not _EXTERNAL.match(link)]
+    assert [t for t in targets if t and not (ROOT / t).exists()] == []
+
+
 # ------------------------------------------------------------------------------ docstrings
 
 
