@@ -44,6 +44,10 @@ nb_execution_show_tb = True
 # Markdown a cell outputs (the troubleshooting table) is MyST, so its links resolve as the pages'.
 nb_render_markdown_format = "myst"
 
+# Docstrings write "name : type. description" one-liners; a word of such a type text that
+# names two objects (``windows``) is left unlinked rather than failing the build.
+suppress_warnings = ["ref.python"]
+
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
 napoleon_numpy_docstring = True
