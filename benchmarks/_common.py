@@ -110,13 +110,11 @@ def add_sweep_options(parser, scene_names, ref_spp_help, methods=None, correlati
     )  # fmt: skip
 
 
-def paired_times(method, shift=0.5):
-    """Render settings drawing *pairs* of times of ``method`` (``n_times=2``, per-interval
-    stratification on, antithetic shift ``shift`` for the methods that take one)."""
-    settings = dict(time_sampling=method, n_times=2, stratify_intervals=True)
-    if method in ("antithetic", "antithetic_mirror"):
-        settings["antithetic_shift"] = shift
-    return settings
+def paired_times(method):
+    """Render settings drawing *pairs* of times of ``method`` (``n_times=2``); the antithetic
+    shift and per-interval stratification are the render defaults (½ for antithetic, 0 for
+    the mirror, stratification on), as in ``dopplertof experiment``."""
+    return dict(time_sampling=method, n_times=2)
 
 
 def fill_defaults(args, defaults):

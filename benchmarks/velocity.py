@@ -3,8 +3,8 @@
 
 For every time sampling x correlation (default uniform/stratified/antithetic x
 replay/adaptive) and every spp of a sweep it renders a scene, reconstructs the radial
-velocity with :func:`dopplertof.reconstruct.velocity` (default ``method="auto"``: the
-homodyne/heterodyne ratio, fused over both phases) and measures the RMSE against the
+velocity with :func:`dopplertof.reconstruct.velocity` (``method="ratio"``: the
+homodyne/heterodyne ratio, fused over both phases, as the measured tables were made) and measures the RMSE against the
 render's ground truth ``RenderResult.velocity`` on the moving pixels, once from the
 rendered measurements and once after :class:`dopplertof.sensor.SensorModel` (shot, read
 and ADC noise at realistic photon counts)::
@@ -18,7 +18,7 @@ Definitions:
 * cameras: homodyne and heterodyne (h = 0 and 1) at ψ = 0 and 90°, all four from the
   same paths in one render (f_g = 30 MHz, T = 1.5 ms, low-pass sinusoid);
 * time sampling: every method draws *pairs* of times (``n_times=2``, antithetic shift ½,
-  stratified intervals: ``_common.paired_times``), so ``uniform`` x ``replay`` is two
+  mirror 0, stratified intervals: ``_common.paired_times``), so ``uniform`` x ``replay`` is two
   independent times replaying one path and ``adaptive`` (paired tracing,
   :mod:`dopplertof.tracing.paired`) gets the pairs it needs;
 * scenes: ``cornell-box`` (boxes at ∓10 m/s, exposure [0, T]) and ``rotating`` (the
@@ -150,8 +150,8 @@ def velocity_maps(result, cameras, sensor, noise_seed):
 
     noisy = sensor.noisy_measurements(luminance(result.intensity), result.measurements, cameras, seed=noise_seed)
     return {
-        "none": reconstruct.velocity(result.measurements, cameras).velocity,
-        "sensor": reconstruct.velocity(noisy, cameras).velocity,
+        "none": reconstruct.velocity(result.measurements, cameras, method="ratio").velocity,
+        "sensor": reconstruct.velocity(noisy, cameras, method="ratio").velocity,
     }
 
 
@@ -462,7 +462,7 @@ def main(argv=None):
     settings = (
         f"settings: {args.resolution}x{args.resolution}, spp {' '.join(map(str, args.spp))}, {args.seeds} seeds per (estimator, spp) "
         f"(the first untimed warm-up), reference {REFERENCE[0]} x {REFERENCE[1]} {args.ref_spp} spp (seed {REFERENCE_SEED}), "
-        f"max_depth {args.max_depth}, pairs of times (shift 0.5, stratified intervals), cameras h in (0, 1) x psi in (0, 90deg), "
+        f"max_depth {args.max_depth}, pairs of times (shifts 0.5 / mirror 0, stratified intervals), cameras h in (0, 1) x psi in (0, 90deg), "
         f"reconstruct.velocity(method='auto'); sensor: full well {args.full_well:g} e-, fill {args.fill:g} at the 99th-percentile pixel, "
         f"read noise {args.read_noise:g} e-, 12-bit ADC at {args.full_well / ADC_LEVELS_AT_FULL_WELL:g} e-/DN, noise seed {args.noise_seed}"
     )

@@ -121,7 +121,7 @@ def test_other_settings_are_refused_unless_overwritten(clip_copy):
     (["--fps", -24], "fps must be a finite number of frames per second > 0, got -24.0"),
     (["--fps", "nan"], "fps must be a finite number of frames per second > 0, got nan"),
     (["--camera", "h=1,psi=0", "--camera", "h=1,psi=90deg"], "same heterodyne ratio"),
-    (["--camera", "h=0,psi=0", "--camera", "h=1,psi=0,f=20e6"], "share one modulation_frequency"),
+    (["--camera", "h=0,psi=0", "--camera", "h=1,psi=0,f=20e6"], "modulation_frequency = 30 MHz (beside 20 MHz"),
 ])
 def test_bad_input_is_one_line_and_nothing_is_rendered(tmp_path, args, message):
     code, output = run_animate("cornell-box", "--resolution", 16, "--spp", 4, "-o", tmp_path / "out", *args)

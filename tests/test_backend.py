@@ -6,6 +6,7 @@ system directories, no ``ldconfig`` outside that ``PATH``.
 """
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -194,3 +195,136 @@ def test_backend_failure_says_what_to_install_or_fix(bare, tmp_path, monkeypatch
     missing = tmp_path / "libLLVM-19.so"
     monkeypatch.setenv(backend.LLVM_PATH_ENV, str(missing))
     assert f"DRJIT_LIBLLVM_PATH={missing} is not a file" in backend._install_hint()
+
+
+def test_only_too_old_versions_are_named_in_the_hint(bare, tmp_path, monkeypatch):
+    old = _touch(tmp_path / "sys" / "libLLVM-15.so.1")
+    monkeypatch.setattr(backend, "_SYSTEM_LLVM_DIRS", (str(tmp_path / "sys"),))
+    assert backend._install_hint().endswith(f"{backend.LLVM_INSTALL_HINT} (found only LLVM 15 ({old}), too old)")
+
+
+@pytest.mark.parametrize("version, user_path, where", [((15, 0, 6), None, "found by Dr.Jit's own search"),
+                                                       ((14, 0, 0), "/x/libLLVM-14.so", "DRJIT_LIBLLVM_PATH=/x/libLLVM-14.so")])
+def test_a_loaded_llvm_older_than_16_is_refused(version, user_path, where):
+    with pytest.raises(backend.BackendError, match=f"libLLVM {'.'.join(map(str, version))} \\({where}\\).*apt-get install libllvm19"):
+        backend.check_loaded_llvm(version, user_path)
+    backend.check_loaded_llvm((16, 0, 0), user_path)
+    backend.check_loaded_llvm((-1, -1, -1), user_path)  # none loaded: CUDA only
+
+
+def _system_llvm(major):
+    path = f"/usr/lib/x86_64-linux-gnu/libLLVM-{major}.so.1"
+    if not os.path.isfile(path):
+        pytest.skip(f"needs {path}")
+    return {**os.environ, backend.LLVM_PATH_ENV: path}
+
+
+@pytest.mark.parametrize("major", [15, 14])
+def test_an_old_libllvm_is_one_error_line_on_the_command_line(tmp_path, major):
+    """LLVM 15 starts Dr.Jit and aborts on the first kernel (exit 134) unless refused first;
+    LLVM 14 Dr.Jit refuses itself, with a message of its own that we hold back."""
+    env = _system_llvm(major)
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, "-m", "dopplertof.cli", "render", "cornell-box", "--resolution", "8", "--spp", "2", "-o", str(out), "--quiet"],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert run.returncode == 2, run.stderr[-2000:]
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and f"LLVM {major}" in lines[0], run.stderr[-2000:]
+    assert "libllvm19" in lines[0] or "point it at a newer one" in lines[0]
+    assert not (out / "metadata.json").exists()
+
+
+def test_an_old_libllvm_is_an_exception_from_the_api():
+    env = _system_llvm(15)
+    code = ("import dopplertof as dt\n"
+            "try:\n    dt.render(dt.scenes.build('cornell-box', resolution=8), spp=2)\n"
+            "except dt.backend.BackendError as exc:\n    print(exc)\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "Dr.Jit loaded libLLVM 15" in run.stdout and "libllvm19" in run.stdout, run.stdout
+
+
+def test_a_ctrl_c_while_dr_jit_starts_arrives_after_it():
+    """A KeyboardInterrupt raised inside Dr.Jit's extension initialisation crashes the
+    process (SIGSEGV): set_variant holds SIGINT until the import is done."""
+    code = (
+        "import os, signal, sys, threading\n"
+        "import dopplertof.backend as backend\n"
+        "threading.Timer(0.02, os.kill, (os.getpid(), signal.SIGINT)).start()\n"
+        "try:\n    backend.set_variant('llvm_ad_rgb')\n    print('not interrupted')\n"
+        "except KeyboardInterrupt:\n    print('interrupted after the import:', 'mitsuba' in sys.modules and 'drjit' in sys.modules)\n"
+        "import mitsuba as mi\nprint(backend.set_variant('llvm_ad_rgb'), mi.variant())\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
+    assert run.stdout.splitlines() == ["interrupted after the import: True", "llvm_ad_rgb llvm_ad_rgb"], run.stdout
+
+
+# ----------------------------------------------------------------------------------------
+# Default variant: OptiX is probed before CUDA is chosen
+
+
+def test_cuda_without_a_working_optix_falls_back_to_llvm_with_one_warning(monkeypatch):
+    """Where Dr.Jit reports a CUDA backend but OptiX cannot trace (here: no CUDA at all
+    behind the claim), the default is LLVM, said in one warning; the active variant stays."""
+    import warnings
+
+    import mitsuba as mi
+
+    monkeypatch.delenv("DOPPLERTOF_VARIANT", raising=False)
+    monkeypatch.setattr(backend, "_backend_works", lambda name: True)
+    active = mi.variant()
+    if backend.optix_problem() is None:
+        pytest.skip("OptiX works on this machine")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert backend.default_variant() == "llvm_ad_rgb"
+        assert backend.default_variant(mono=True) == "llvm_ad_mono"
+    messages = [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
+    assert len(messages) == 2 and all("OptiX does not" in m and "\n" not in m for m in messages), messages
+    assert mi.variant() == active
+
+
+def test_working_optix_picks_cuda(monkeypatch):
+    monkeypatch.delenv("DOPPLERTOF_VARIANT", raising=False)
+    monkeypatch.setattr(backend, "_backend_works", lambda name: True)
+    monkeypatch.setattr(backend, "optix_problem", lambda mono=False: None)
+    assert backend.default_variant() == "cuda_ad_rgb"
+    assert backend.default_variant(mono=True) == "cuda_ad_mono"
+
+
+# ----------------------------------------------------------------------------------------
+# Float64 directions: IEEE division and square root (gpu-notes §2.1)
+
+APPROXIMATE = re.compile(r"dr\.(normalize|rcp|rsqrt)\(")
+FLOAT64 = re.compile(r"Vector3d|Point3d|Float64|\w+64\b")
+
+
+def _approximate_float64(line: str) -> bool:
+    return bool(APPROXIMATE.search(line) and FLOAT64.search(line))
+
+
+def test_no_approximate_float64_normalisation_in_the_source():
+    """On CUDA ``dr.normalize``, ``dr.rcp`` and ``dr.rsqrt`` of Float64 are approximate
+    (about 20 mantissa bits: µm errors in optical lengths); Float64 vectors are normalised
+    as ``v / dr.norm(v)``. A lint over the source: no line that makes or holds a Float64
+    value (``Vector3d``, ``Float64``, ``64``-suffixed names) may call them."""
+    offenders = []
+    for path in sorted(Path(backend.__file__).parent.rglob("*.py")):
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            if _approximate_float64(line):
+                offenders.append(f"{path.name}:{number}: {line.strip()}")
+    assert not offenders, offenders
+
+
+@pytest.mark.parametrize(
+    "line, offends",
+    [
+        ("    d64 = dr.normalize(mi.Vector3d(direction))", True),
+        ("    inv = dr.rcp(mi.Float64(x))", True),
+        ("    d64 = mi.Vector3d(direction) / dr.norm(mi.Vector3d(direction))", False),
+        ("    d = dr.normalize(pose.vector_to_world(ray.d))", False),
+    ],
+)
+def test_the_lint_tells_approximate_float64_from_the_rest(line, offends):
+    assert _approximate_float64(line) == offends

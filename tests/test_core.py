@@ -96,7 +96,7 @@ def test_render_animate_and_plugin_build_the_same_settings(tmp_path, correlation
     common = ["--resolution", "4", "--spp", "2", "--correlation", correlation, "--quiet"]
     r = _cli("render", ORIGINAL_CORNELL, "-o", str(tmp_path / "r"), *common)
     assert r.returncode == 0, r.stderr
-    a = _cli("animate", ORIGINAL_CORNELL, "-o", str(tmp_path / "a"), "--frames", "1", *common, "--camera", "h=0,psi=0", "--camera", "h=1,psi=0")
+    a = _cli("animate", ORIGINAL_CORNELL, "-o", str(tmp_path / "a"), "--frames", "1", *common, *[f"--camera=h={h},psi={p}" for h in (0, 1) for p in ("0", "90deg")])
     assert a.returncode == 0, a.stderr
     rendered = json.loads((tmp_path / "r" / "metadata.json").read_text())["settings"]
     animated = json.loads((tmp_path / "a" / "frame_0000" / "metadata.json").read_text())["settings"]
@@ -297,11 +297,12 @@ def test_velocity_stderr_is_propagated_and_calibrated():
     """Direct light, a receding plane: reconstructed velocity against the truth, z spread ≈ 1."""
     cameras = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
     result = dt.render(moving_plane_scene(40.0, resolution=16), cameras, spp=32, max_depth=2, seed=5)
-    v = rc.velocity(result)
+    # the z spread over every pixel: a threshold far above the errors (32 spp: up to ~40 m/s)
+    v = rc.velocity(result, max_velocity_stderr=1e3)
     assert v.velocity_stderr is not None and v.valid.mean() > 0.9
     z = ((v.velocity - result.velocity) / v.velocity_stderr)[v.valid]
     assert 0.75 <= np.std(z) <= 1.3
-    independent = rc.velocity(result.measurements, cameras, measurement_stderr=result.measurement_stderr)
+    independent = rc.velocity(result.measurements, cameras, measurement_stderr=result.measurement_stderr, max_velocity_stderr=1e3)
     assert not np.allclose(independent.velocity_stderr[v.valid], v.velocity_stderr[v.valid])  # the covariance matters
 
 

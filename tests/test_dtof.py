@@ -85,6 +85,24 @@ def test_analytic_mode_matches_closed_form_where_length_is_linear_in_time():
             assert float(image.astype(np.float64).mean()) == pytest.approx(_reference_image_mean(cam, 1.0), rel=5e-3), cam.label()
 
 
+@pytest.mark.slow
+def test_analytic_mode_is_close_to_the_unbiased_estimate_on_the_cornell_box():
+    """The biased analytic mode against antithetic + replay on the Cornell box (32², depth 4,
+    h = 1 at ψ = 0 and π/2): relative bias of the image sum, Σ(analytic − reference) / Σ|reference|,
+    averaged over ψ. Measured at these settings: −1.2 % and +0.1 % (seeds 0, 1; noise
+    ±0.95 %); the previous rule (a contribution missing at the end held constant, the partner
+    dropped once the primal path ended) gave +6.8 % and +7.1 %. Bound: 3 %, 3 noise widths."""
+    scene = dt.scenes.cornell_box(resolution=32)
+    cams = [dt.Camera(heterodyne=1.0, phase=psi) for psi in (0.0, math.pi / 2)]
+    reference = dt.render(scene, cameras=cams, spp=16384, seed=99, max_depth=4, time_sampling="antithetic", correlation="replay")
+    analytic = dt.render(scene, cameras=cams, spp=1024, seed=0, max_depth=4, time_sampling="analytic", correlation="replay")
+    biases = []
+    for i in range(len(cams)):
+        ref = reference.measurements[i].astype(np.float64)
+        biases.append((analytic.measurements[i].astype(np.float64) - ref).sum() / np.abs(ref).sum())
+    assert abs(np.mean(biases)) < 0.03, biases
+
+
 def test_analytic_mode_rejects_what_it_cannot_integrate():
     scene = dt.scenes.cornell_box(resolution=8)
     with pytest.raises(ValueError, match="low-pass sinusoid only"):

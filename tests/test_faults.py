@@ -122,34 +122,52 @@ def test_a_used_folder_is_refused_unless_overwrite(tmp_path):
     assert "mine.txt" in names and not any(n.startswith("measurement_") for n in names)
 
 
-# ------------------------------------------------------------------------------ signals and resume
+# ------------------------------------------------------------------------------ signals, faults and resume
+
+# 64² × 256 spp in 256 passes of 4096 lanes (two tiles of 2048 pixels × 2 spp), with a progress bar.
+_LONG_RENDER = ["render", "cornell-box", "--resolution", "64", "--spp", "256", "--lanes-per-pass", "4096", "--camera", "h=1", "--seed", "3"]
+_KILLABLE = [*_LONG_RENDER, "--quiet"]
+_EXRS = ("intensity.exr", "stderr.exr", "depth.exr", "velocity.exr", "measurement_0_h1_psi0deg.exr", "measurement_0_h1_psi0deg_stderr.exr")
+
+
+def _render_until_progress(args, pattern):
+    """Start the CLI with ``args``; return once its stderr (the progress bar) matches the
+    regular expression ``pattern``: (process, a function that waits for it to end and returns
+    its whole stderr)."""
+    import re
+    import threading
+
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    seen, matched = [], threading.Event()
+
+    def read():
+        while (char := proc.stderr.read(1)):
+            seen.append(char)
+            if not matched.is_set() and re.search(pattern, "".join(seen[-40:])):
+                matched.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    assert matched.wait(timeout=300), "".join(seen)
+
+    def finish():
+        proc.wait(timeout=300)
+        reader.join(timeout=10)
+        return "".join(seen)
+
+    return proc, finish
 
 
 def _interrupt(tmp_path, sig, name, extra=()):
     """Start a render (``extra``: more arguments), send ``sig`` once its progress bar shows
     a finished pass; the finished process's status, its stderr, the output folder and the
     arguments."""
-    import re
-    import threading
-
     out = tmp_path / name
-    args = ["render", "cornell-box", "--resolution", "64", "--spp", "256", "--lanes-per-pass", "4096", "--camera", "h=1", "-o", str(out), "--seed", "3", *extra]
-    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    seen, started = [], threading.Event()
-
-    def read():
-        while (char := proc.stderr.read(1)):
-            seen.append(char)
-            if not started.is_set() and re.search(r"\|\s*([1-9]\d*)/\d+", "".join(seen[-40:])):
-                started.set()
-
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    assert started.wait(timeout=300), "".join(seen)
+    args = [*_LONG_RENDER, "-o", str(out), *extra]
+    proc, finish = _render_until_progress(args, r"\|\s*([1-9]\d*)/\d+")
     proc.send_signal(sig)
-    proc.wait(timeout=300)
-    reader.join(timeout=10)
-    return proc.returncode, "".join(seen), out, [*args, "--quiet"]
+    stderr = finish()
+    return proc.returncode, stderr, out, [*args, "--quiet"]
 
 
 @pytest.mark.slow
@@ -166,11 +184,199 @@ def test_a_signal_keeps_the_work_and_resume_is_bit_identical(tmp_path, sig):
     resumed = _cli(*args, "--resume")
     assert resumed.returncode == 0, resumed.stderr
     assert not (out / "checkpoint.npz").exists()
+    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+
+
+
+
+def _passes_in_checkpoint(path):
+    with np.load(path) as data:
+        return int(data["passes_done"][0])
+
+
+def _start_and_wait_for_a_checkpoint(out):
+    """A render into ``out`` saving a checkpoint after every pass; returns the process once
+    the first checkpoint is there."""
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *_KILLABLE, "-o", str(out), "--checkpoint-interval", "0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    deadline = time.monotonic() + 300
+    while not (out / "checkpoint.npz").exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "no checkpoint after 300 s"
+        time.sleep(0.01)
+    return proc
+
+
+def _assert_same_as_an_uninterrupted_render(tmp_path, out):
     whole = tmp_path / "whole"
-    full_args = [a if a != str(out) else str(whole) for a in args]
-    assert _cli(*full_args).returncode == 0
-    for name in ("intensity.exr", "stderr.exr", "depth.exr", "velocity.exr", "measurement_0_h1_psi0deg.exr", "measurement_0_h1_psi0deg_stderr.exr"):
+    run = _cli(*_KILLABLE, "-o", str(whole))
+    assert run.returncode == 0, run.stderr
+    for name in _EXRS:
         np.testing.assert_array_equal(io.read_exr(out / name), io.read_exr(whole / name), err_msg=name)
+
+
+@pytest.mark.slow
+def test_sigkill_loses_at_most_the_checkpoint_interval_and_resume_is_bit_identical(tmp_path):
+    out = tmp_path / "killed"
+    proc = _start_and_wait_for_a_checkpoint(out)
+    proc.kill()
+    proc.wait(timeout=60)
+    assert not (out / "metadata.json").exists()
+    kept = _passes_in_checkpoint(out / "checkpoint.npz")
+    assert 0 < kept < 256
+    (out / f".checkpoint.{2**22 + 1}.partial.npz").write_bytes(b"half")  # what a kill mid-save leaves (no such process id)
+    _one_error_line(_cli(*_KILLABLE, "-o", str(out)), "continue it with --resume")
+    resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    assert not (out / "checkpoint.npz").exists() and not [p for p in os.listdir(out) if ".partial" in p]
+    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 16 MiB tmpfs (needs root); unmounted after the test."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small tmpfs needs root")
+    mount = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=16m", "tmpfs", str(disk)], capture_output=True, text=True)
+    if mount.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs: {mount.stderr.strip()}")
+    yield disk
+    subprocess.run(["umount", str(disk)], check=True)
+
+
+@pytest.mark.slow
+def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_identical(tmp_path, small_disk):
+    import errno
+    import time
+
+    out = small_disk / "out"
+    proc = _start_and_wait_for_a_checkpoint(out)
+    # Another program fills the disk, and keeps it full, until the render gives up.
+    with open(small_disk / "filler", "wb") as filler:
+        while proc.poll() is None:
+            try:
+                filler.write(b"\0" * 65536)
+                filler.flush()
+            except OSError as exc:
+                assert exc.errno == errno.ENOSPC
+                time.sleep(0.005)
+    stdout, stderr = proc.communicate()
+    _one_error_line(subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr), "No space left on device")
+    assert "passes is kept" in stderr and "--resume" in stderr
+    kept = _passes_in_checkpoint(out / "checkpoint.npz")
+    assert 0 < kept < 256, stderr
+    os.remove(small_disk / "filler")
+    resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    assert not (out / "checkpoint.npz").exists()
+    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+
+
+@pytest.mark.slow
+def test_a_disk_that_fills_while_the_images_are_written_keeps_the_rendered_sums(tmp_path, small_disk):
+    """The render finishes, its checkpoint is saved, then the disk is too full for the images:
+    one error line, and --resume writes them without rendering again."""
+    from dopplertof.render import checkpoint_disk_bytes
+
+    out = small_disk / "out"
+    # The bar shows once the folder is checked and the render runs.
+    proc, finish = _render_until_progress([*_LONG_RENDER, "-o", str(out), "--checkpoint-interval", "3600"], r"/256")
+    checkpoint_bytes = checkpoint_disk_bytes(64, 64, dt.RenderSettings(cameras=(dt.Camera(heterodyne=1),))) // 2  # one copy, + npz headers (< 64 KiB)
+    free = os.statvfs(small_disk).f_bavail * os.statvfs(small_disk).f_frsize
+    with open(small_disk / "filler", "wb") as filler:  # room for the checkpoint and 64 KiB more
+        filler.write(b"\0" * (free - checkpoint_bytes - 65536))
+    stderr = finish()
+    lines = [line for line in stderr.replace("\r", "\n").splitlines() if line.startswith("error:")]
+    assert proc.returncode == 2 and len(lines) == 1 and "No space left on device" in lines[0] and "--resume" in lines[0], stderr
+    assert "Traceback" not in stderr
+    assert _passes_in_checkpoint(out / "checkpoint.npz") == 256 and not (out / "metadata.json").exists()
+    os.remove(small_disk / "filler")
+    resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    assert not (out / "checkpoint.npz").exists()
+    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+
+
+def test_a_checkpoint_interval_is_honoured_or_refused(tmp_path):
+    scene = dt.scenes.build("cornell-box", resolution=16)  # 256 pixels x 8 spp: two passes of 1024 lanes
+    checkpoint = tmp_path / "c.npz"
+    seen = []
+
+    def stop():  # called before each pass: what the checkpoint holds then
+        seen.append(_passes_in_checkpoint(checkpoint) if checkpoint.exists() else 0)
+        return False
+
+    whole = dt.render(scene, spp=8, lanes_per_pass=1024, checkpoint=checkpoint, checkpoint_interval_s=0, keep_checkpoint=True, stop=stop)
+    assert seen == [0, 1] and _passes_in_checkpoint(checkpoint) == 2
+    resumed = dt.render(scene, spp=8, lanes_per_pass=1024, checkpoint=checkpoint)  # complete: nothing left to render
+    np.testing.assert_array_equal(resumed.intensity, whole.intensity)
+    assert not checkpoint.exists()
+    seen.clear()
+    dt.render(scene, spp=8, lanes_per_pass=1024, checkpoint=checkpoint, checkpoint_interval_s=3600, stop=stop)
+    assert seen == [0, 0] and not checkpoint.exists()
+    for bad in (-1.0, float("nan"), "60"):
+        with pytest.raises(ValueError, match="'checkpoint_interval_s' must be"):
+            dt.render(scene, spp=8, checkpoint=checkpoint, checkpoint_interval_s=bad)
+    _one_error_line(_cli("render", "cornell-box", "--resolution", "8", "-o", str(tmp_path / "o"), "--checkpoint-interval", "-5"), "'checkpoint_interval_s' must be >= 0 seconds, got -5.0")
+
+
+def test_stopping_at_once_inside_an_update_keeps_the_last_checkpoint_not_a_torn_pass(tmp_path, monkeypatch):
+    """A second Ctrl-C raises KeyboardInterrupt wherever the code is, also half-way through
+    adding a pass to the sums: the render falls back to the last checkpoint."""
+    from dopplertof.passes import Accumulator
+
+    scene = dt.scenes.build("cornell-box", resolution=16)  # 256 pixels x 16 spp: four passes of 1024 lanes
+    checkpoint = tmp_path / "c.npz"
+    apply = Accumulator.apply
+    calls = iter(range(100))
+
+    def torn_third_pass(self, p, inc):
+        if next(calls) == 2:
+            self.applying = True
+            self.state["group_sum"][:, p.pixel_start : p.pixel_start + p.n_pixels] += 1.0  # half the update
+            raise KeyboardInterrupt
+        apply(self, p, inc)
+
+    monkeypatch.setattr(Accumulator, "apply", torn_third_pass)
+    with pytest.raises(KeyboardInterrupt):  # no checkpoint yet: nothing is kept, nothing torn is saved
+        dt.render(scene, spp=16, lanes_per_pass=1024, checkpoint=checkpoint, checkpoint_interval_s=3600)
+    assert not checkpoint.exists()
+    calls = iter(range(100))
+    partial = dt.render(scene, spp=16, lanes_per_pass=1024, checkpoint=checkpoint, checkpoint_interval_s=0)
+    assert partial.interrupted and partial.info["passes_done"] == 2 and _passes_in_checkpoint(checkpoint) == 2
+    monkeypatch.setattr(Accumulator, "apply", apply)
+    stops = iter(range(100))
+    two_passes = dt.render(scene, spp=16, lanes_per_pass=1024, stop=lambda: next(stops) >= 2)
+    np.testing.assert_array_equal(partial.intensity, two_passes.intensity)
+    resumed = dt.render(scene, spp=16, lanes_per_pass=1024, checkpoint=checkpoint)
+    whole = dt.render(scene, spp=16, lanes_per_pass=1024)
+    np.testing.assert_array_equal(resumed.intensity, whole.intensity)
+    np.testing.assert_array_equal(resumed.stderr, whole.stderr)
+
+
+def test_a_stopped_animation_frame_continues_from_its_checkpoint(tmp_path):
+    from dopplertof import animate
+
+    scene = dt.scenes.build("cornell-box", resolution=16)  # 256 pixels x 8 spp: two passes of 1024 lanes per frame
+    settings = dt.RenderSettings(cameras=tuple(animate.default_cameras()), spp=8, lanes_per_pass=1024)
+    common = dict(frames=2, fps=30.0, settings=settings, progress=False, log=lambda line: None)
+    calls = iter(range(100))
+    with pytest.raises(animate.AnimationStopped):  # frame 0 whole, frame 1 stopped after its first pass
+        animate.render_animation(scene, str(tmp_path / "a"), stop=lambda: next(calls) == 3, **common)
+    assert animate.is_done(str(tmp_path / "a"), 0) and not animate.is_done(str(tmp_path / "a"), 1)
+    frame_1 = tmp_path / "a" / "frame_0001"
+    assert _passes_in_checkpoint(frame_1 / "checkpoint.npz") == 1
+    passes = []
+    animate.render_animation(scene, str(tmp_path / "a"), stop=lambda: passes.append(1) and False, **common)
+    assert len(passes) == 1  # frame 0 done, frame 1 continued with its second pass
+    animate.render_animation(scene, str(tmp_path / "b"), **common)
+    assert not [p for p in os.listdir(frame_1) if p.startswith("checkpoint")]
+    for name in ("measurement_3_h1_psi90deg.exr", "intensity.exr", "velocity_reconstructed.exr"):
+        np.testing.assert_array_equal(io.read_exr(frame_1 / name), io.read_exr(tmp_path / "b" / "frame_0001" / name), err_msg=name)
 
 
 def test_a_resume_with_other_settings_is_refused(tmp_path):
@@ -233,3 +439,89 @@ def test_metadata_records_the_render(tmp_path):
     assert meta["render"]["render_seconds"] > 0 and meta["command"][0]
     assert meta["settings"]["seed"] == 0 and len(meta["cameras"]) == 1
     assert set(meta["files"]) <= set(os.listdir(out))
+
+
+# ------------------------------------------------------------------------------ other commands (issue 16)
+
+
+def test_reconstruct_into_a_file_or_an_unwritable_folder_is_one_error_line(tmp_path):
+    rendered = tmp_path / "r"
+    cameras = [a for c in ("h=0", "h=1", "h=0,psi=90deg", "h=1,psi=90deg") for a in ("--camera", c)]
+    assert _cli("render", "cornell-box", "--resolution", "8", "--spp", "4", *cameras, "-o", str(rendered), "--quiet").returncode == 0
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    _one_error_line(_cli("reconstruct", str(rendered), "-o", str(a_file)), "exists and is not a folder")
+    _one_error_line(_cli("reconstruct", str(rendered), "-o", str(a_file / "sub")), "which is a file")
+    _one_error_line(_cli("reconstruct", str(rendered), "-o", "/proc/sys/dopplertof-out"), "not writable")
+    assert a_file.read_text() == "x"
+    done = _cli("reconstruct", str(rendered), "-o", str(tmp_path / "v"))
+    assert done.returncode == 0 and (tmp_path / "v" / "velocity_reconstructed.exr").exists(), done.stderr
+
+
+@pytest.mark.parametrize("fps, match", [("1e-9", "fps must be >= 0.001526 frames per second"), ("0", "fps must be a finite number of frames per second > 0")])
+def test_animate_refuses_an_fps_its_clip_cannot_hold(tmp_path, fps, match):
+    out = tmp_path / "clip"
+    _one_error_line(_cli("animate", "cornell-box", "--fps", fps, "--resolution", "8", "--spp", "2", "-o", str(out), "--quiet"), match)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("address, why", [("nonsense:1234", "cannot reach the Ray cluster at 'nonsense:1234' within 5 s"),
+                                          ("127.0.0.1:1", "Connection refused")])
+def test_an_unreachable_ray_address_fails_fast(tmp_path, address, why):
+    import time
+
+    pytest.importorskip("ray")
+    started = time.monotonic()
+    run = _cli("render", "cornell-box", "--resolution", "8", "--spp", "2", "-o", str(tmp_path / "o"), "--quiet", "--ray", "--address", address, timeout=120)
+    _one_error_line(run, why)
+    assert time.monotonic() - started < 60
+
+
+def test_experiment_output_and_cache_are_checked_before_rendering(tmp_path):
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    common = ["experiment", "velocity", "cornell-box", "--quick", "--cache", str(tmp_path / "cache")]
+    _one_error_line(_cli(*common, "-o", str(a_file)), "exists and is not a folder")
+    _one_error_line(_cli(*common, "-o", "/proc/sys/dopplertof-out"), "not writable")
+    _one_error_line(_cli(*common[:-1], str(a_file), "-o", str(tmp_path / "o")), "reference cache: output")
+    assert not (tmp_path / "cache").exists() or not os.listdir(tmp_path / "cache")
+
+
+def _sigint_while_dr_jit_loads(args):
+    """Run the CLI with ``args``, send SIGINT while Dr.Jit's library is being loaded (the
+    command's own code runs, no pass has started); (exit status, stderr)."""
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    maps = f"/proc/{proc.pid}/maps"
+    if not os.path.exists(maps):
+        proc.kill()
+        pytest.skip("needs /proc")
+    deadline = time.monotonic() + 120
+    while "libdrjit" not in open(maps).read():
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.001)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=300)
+    return proc.returncode, stderr
+
+
+def test_sigint_during_start_up_is_one_error_line(tmp_path):
+    out = tmp_path / "o"
+    status, stderr = _sigint_while_dr_jit_loads([*_KILLABLE, "-o", str(out)])
+    assert status == 130, stderr
+    lines = [line for line in stderr.splitlines() if line.strip() and not line.startswith("SIGINT: stopping")]
+    assert lines == ["error: interrupted before the first pass finished; nothing written"], stderr
+    assert not (out / "metadata.json").exists() and not (out / "checkpoint.npz").exists()
+
+
+@pytest.mark.parametrize("args, says", [
+    (["animate", "cornell-box", "--resolution", "16", "--spp", "4", "--frames", "2", "--quiet"], "interrupted: the finished frames are in"),
+    (["experiment", "velocity", "cornell-box", "--quick"], "error: aborted"),
+    (["dataset", "generate", "--samples", "2", "--resolution", "8", "--spp", "2"], "interrupted: 0 of"),
+], ids=["animate", "experiment", "dataset"])
+def test_sigint_during_start_up_of_other_commands_neither_crashes_nor_prints_a_traceback(tmp_path, args, says):
+    """Dr.Jit's extension crashed (SIGSEGV) when the KeyboardInterrupt came during its start-up."""
+    extra = ["--cache", str(tmp_path / "cache")] if args[0] == "experiment" else []
+    status, stderr = _sigint_while_dr_jit_loads([*args, "-o", str(tmp_path / "o"), *extra])
+    assert status == 130 and says in stderr and "Traceback" not in stderr, (status, stderr)

@@ -436,3 +436,61 @@ def test_rotate_axis_is_normalised_like_mitsuba(tmp_path):
 def test_unknown_plugin_type_is_named_as_such():
     with pytest.raises(dt.SceneError, match=r"spherez.*\(unknown plugin type\)$"):
         dt.load_scene({"type": "scene", "a": {"type": "spherez"}})
+
+
+# ----------------------------------------------------------------------------------------
+# One OptiX pipeline and SBT per scene (loader.pipeline_host, gpu-notes §1)
+
+
+def _pipeline_types(dyn):
+    return {shape.class_name() for shape in dyn.pipeline_host.shapes()}
+
+
+def _used_types(dyn):
+    scenes = [dyn.static] + [b.scene for b in dyn.bodies]
+    return {shape.class_name() for s in scenes for shape in s.shapes()}
+
+
+@pytest.mark.parametrize("name", ["rotating", "cornell_box"])
+def test_a_scene_with_bodies_has_a_host_covering_every_shape_type(name):
+    """The static scene and every body are guests of one never-traced host whose pipeline
+    has every analytic type they use (a mesh of any kind needs only the host's rectangle)."""
+    dyn = getattr(dt.scenes, name)(resolution=8)
+    analytic = {"Sphere", "Disk", "Cylinder"}
+    assert dyn.pipeline_host is not None
+    assert _used_types(dyn) & analytic <= _pipeline_types(dyn)
+    assert "Rectangle" in _pipeline_types(dyn)
+    assert not ({"Sphere", "Disk", "Cylinder"} - _used_types(dyn)) & _pipeline_types(dyn)  # no more than needed
+
+
+def test_an_xml_scene_with_a_moving_sphere_has_a_host_with_spheres(tmp_path):
+    path = tmp_path / "scene.xml"
+    path.write_text(
+        """<scene version="3.0.0">
+  <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="4"/><integer name="height" value="4"/></film></sensor>
+  <shape type="rectangle"><transform name="to_world"><scale value="10"/><translate z="5"/></transform></shape>
+  <shape type="sphere"><point name="center" x="0" y="0" z="3"/><float name="radius" value="0.5"/>
+    <animation name="to_world"><transform time="0"><translate x="0"/></transform><transform time="1"><translate x="1"/></transform></animation>
+  </shape>
+  <emitter type="point"><point name="position" x="0" y="0" z="0"/></emitter>
+</scene>"""
+    )
+    dyn = dt.load_scene(str(path))
+    assert _pipeline_types(dyn) == {"Rectangle", "Sphere"}
+    result = dt.render(dyn, spp=4, max_depth=2, seed=0)
+    assert result.coverage.min() == 1.0 and (result.instance_id == 0).any()  # the sphere is hit
+
+
+def test_a_static_scene_needs_no_host():
+    dyn = dt.load_scene({"type": "scene", "sensor": {"type": "perspective"}, "plane": {"type": "rectangle"}})
+    assert dyn.pipeline_host is None and not dyn.bodies
+
+
+def test_shapes_no_host_covers_are_refused_on_cuda(monkeypatch):
+    """On CUDA a guest whose shape type the host's pipeline lacks fails to load (OptiX:
+    "shape type not mapped"); the loader says so first, naming the type."""
+    from dopplertof import loader
+
+    monkeypatch.setattr(mi, "variant", lambda: "cuda_ad_rgb")
+    with pytest.raises(dt.SceneError, match=r"<dict>: .*shape type 'sdfgrid' on cuda_ad_rgb"):
+        loader.pipeline_host({"sdfgrid", "sphere", "diffuse"}, "<dict>")

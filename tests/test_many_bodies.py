@@ -303,3 +303,16 @@ def test_translating_cubes_ground_truth_is_exact(traversal):
         np.testing.assert_allclose(r.velocity[on], v[2] * depth / z_face, rtol=1e-5, atol=1e-6, err_msg=body.name)
         checked += on.sum()
     assert checked > 150  # about 9 pixels a cube
+
+
+def test_the_tree_is_never_walked_on_cuda(monkeypatch):
+    """On CUDA the tree's traces would run inside dr.switch (OptiX direct callables):
+    ``"auto"`` takes the per-body loop there and ``"tree"`` is refused, naming itself."""
+    scene = dt.load_scene(_extra_bodies(_scene_dict(res=4)))
+    assert len(scene.bodies) > PER_BODY_MAX_BODIES
+    assert scene.uses_tree()  # LLVM: auto walks the tree above PER_BODY_MAX_BODIES bodies
+    monkeypatch.setattr(mi, "variant", lambda: "cuda_ad_rgb")
+    assert not scene.uses_tree()
+    scene.traversal = "tree"
+    with pytest.raises(ValueError, match="traversal='tree'.*cuda_ad_rgb"):
+        scene.uses_tree()

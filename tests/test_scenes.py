@@ -74,7 +74,9 @@ def test_every_scene_builds_and_renders_with_moving_bodies_in_view(name):
     assert scene.resolution == (24, 24)
     assert scene.bodies, "a built-in scene has something moving"
     t = min(0.4 * scenes.clip_duration(name), max(0.0, scenes.clip_duration(name) - EXPOSURE_S))
-    res = dt.render(scene, cameras=[dt.Camera(heterodyne=1.0)], spp=4, max_depth=3, exposure_start=t)
+    # 16 spp: at 4 the median over the body pixels of the area-lit Cornell box scatters
+    # about the bound (0.013–0.028 over seeds 0–5), at 16 it stays above (0.022–0.030).
+    res = dt.render(scene, cameras=[dt.Camera(heterodyne=1.0)], spp=16, max_depth=3, exposure_start=t)
     for image in (res.intensity, res.stderr, res.measurements, res.measurement_stderr, res.coverage):
         assert np.all(np.isfinite(image))
     hit = res.coverage > 0

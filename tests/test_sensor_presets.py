@@ -68,7 +68,7 @@ def test_dtof_prototype_takes_sub_hz_offsets_and_any_phase():
     frames = [RawFrame(modulation_frequency=30e6, exposure=1.5e-3, heterodyne_hz=0.37, phase=0.123)]
     assert preset("dtof-prototype", frames=frames).frames[0].heterodyne == pytest.approx(0.37 * 1.5e-3)
     default = preset("dtof-prototype").frames
-    assert [(f.modulation_frequency, f.exposure, f.heterodyne, f.phase) for f in default] == [(30e6, 1.5e-3, 0.0, 0.0), (30e6, 1.5e-3, 1.0, 0.0), (30e6, 1.5e-3, 1.0, math.pi / 2)]
+    assert [(f.modulation_frequency, f.exposure, f.heterodyne, f.phase) for f in default] == [(30e6, 1.5e-3, 0.0, 0.0), (30e6, 1.5e-3, 0.0, math.pi / 2), (30e6, 1.5e-3, 1.0, 0.0), (30e6, 1.5e-3, 1.0, math.pi / 2)]
 
 
 def test_kinect_v2_is_nine_frames_one_after_another():

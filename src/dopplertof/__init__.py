@@ -31,7 +31,7 @@ _ATTRIBUTES = {
     "load_scene": "loader",
     "set_variant": "backend",
 }
-_MODULES = ("scenes", "reconstruct", "sensor", "io", "viz", "experiments", "animate", "outputs", "settings", "oracles", "folder", "tracing", "dataset", "sensors", "codes")
+_MODULES = ("scenes", "reconstruct", "sensor", "io", "viz", "experiments", "animate", "outputs", "settings", "oracles", "folder", "tracing", "dataset", "sensors", "codes", "design")
 
 
 def __getattr__(name):

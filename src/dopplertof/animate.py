@@ -23,9 +23,11 @@ path                        content
 ==========================  ====================================================================
 
 Resuming: a rerun skips the frames that have ``done.json`` and renders the others, so an
-interrupted run (Ctrl-C) continues where it stopped; the frame being rendered when it was
-interrupted is rendered again. ``frames`` may change between runs (a longer clip extends a
-shorter one), the other settings may not, unless ``overwrite=True`` deletes the old frames.
+interrupted run (Ctrl-C, SIGKILL, a full disk) continues where it stopped; the frame being
+rendered then continues from its ``checkpoint.npz`` (saved every 60 s of rendering and
+when stopped, removed once the frame is done), bit-identical to an uninterrupted frame.
+``frames`` may change between runs (a longer clip extends a shorter one), the other
+settings may not, unless ``overwrite=True`` deletes the old frames.
 """
 
 from __future__ import annotations
@@ -68,11 +70,14 @@ def default_cameras(base: Camera | None = None) -> list[Camera]:
 
 
 def check_frames_and_fps(frames, fps) -> tuple[int, float]:
-    """``frames`` as a positive int and ``fps`` as a finite positive float, else ValueError."""
+    """``frames`` as a positive int and ``fps`` as a finite float the clip's GIF can play
+    (>= 1 / :data:`dopplertof.viz.GIF_MAX_FRAME_S`, a frame every 655.35 s), else ValueError."""
     if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames <= 0:
         raise ValueError(f"frames must be a positive integer, got {frames!r}")
     if isinstance(fps, bool) or not isinstance(fps, (int, float, np.number)) or not (math.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be a finite number of frames per second > 0, got {fps!r}")
+    if 1.0 / fps > viz.GIF_MAX_FRAME_S:
+        raise ValueError(f"fps must be >= {1.0 / viz.GIF_MAX_FRAME_S:.4g} frames per second (the clip's GIF holds a frame for at most {viz.GIF_MAX_FRAME_S} s), got {fps!r}")
     return int(frames), float(fps)
 
 
@@ -149,21 +154,26 @@ class AnimationStopped(Exception):
 
 
 def _render_frame(scene, index, fps, settings, method, folder, progress, stop):
-    from .folder import write_result
+    from .folder import CHECKPOINT, write_result
     from .render import render
 
     start_s = index / fps
     cameras = list(settings.cameras)
-    result = render(scene, settings=settings.replace(seed=settings.seed + index, exposure_start=start_s), progress=progress, stop=stop)
+    os.makedirs(folder, exist_ok=True)
+    # The frame's sums are saved as it renders and kept until done.json: a stopped or killed
+    # run continues the frame where its checkpoint left it.
+    checkpoint = os.path.join(folder, CHECKPOINT)
+    frame_settings = settings.replace(seed=settings.seed + index, exposure_start=start_s)
+    result = render(scene, settings=frame_settings, progress=progress, checkpoint=checkpoint, keep_checkpoint=True, stop=stop)
     if result.interrupted:  # a frame must be whole
         raise AnimationStopped(f"stopped in frame {index}; the frames before it are done, a rerun resumes there")
-    os.makedirs(folder, exist_ok=True)
     write_result(result, folder, {"frame": index, "time_s": start_s})
     reconstruction = reconstruct(result.measurements, cameras, method, result.measurement_stderr, result.maps.get("measurement_covariance"))
     write_reconstruction(folder, reconstruction, result.velocity)
     summary = {"frame": index, "time_s": start_s, "exposure_s": cameras[0].exposure,
                **velocity_error(reconstruction, result.velocity)}
     _write_done(folder, summary)
+    os.remove(checkpoint)
     return summary
 
 
@@ -300,7 +310,7 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
 @click.option("--camera", "camera_specs", multiple=True,
               help="A camera as in 'dopplertof render' (repeatable; default h=0 and h=1 at psi=0 and 90deg).")
 @click.option("--method", type=click.Choice(["auto", "ratio", "fit"]), default=None,
-              help="Velocity reconstruction (default: auto, the ratio for matched h=0/h=1 pairs, else the fit).")
+              help="Velocity reconstruction (default: auto, the fit for sinusoidal cameras, else the ratio).")
 @click.option("--overwrite", is_flag=True, help="Replace a clip with other settings in the output folder.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @settings_options(exclude=("exposure_start",))

@@ -3,7 +3,9 @@
 Dr.Jit 1.5 needs libLLVM >= 16 for its LLVM (CPU) backend; versions 14 and 15 crash
 with "Cannot select fminimum". Dr.Jit reads ``DRJIT_LIBLLVM_PATH`` once, when it
 starts, so :func:`configure_llvm_path` must run before ``import drjit``: importing
-:mod:`dopplertof` does that.
+:mod:`dopplertof` does that. Dr.Jit itself accepts LLVM 15 (found by its own search or
+named by the user), so :func:`set_variant` and :func:`ensure_variant` refuse a loaded
+libLLVM < 16 with a :class:`BackendError` before any kernel runs (:func:`check_loaded_llvm`).
 
 :func:`find_libllvm` looks in this order and takes the first place that has a libLLVM
 >= 16 (the newest there, if it has several):
@@ -23,8 +25,10 @@ Variant selection (:func:`set_variant`):
 
 ==========================  ====================================================
 ``DOPPLERTOF_VARIANT``      environment variable; forces a variant by name
-default                     ``cuda_ad_rgb`` when a CUDA device works, otherwise
-                            ``llvm_ad_rgb``
+default                     ``cuda_ad_rgb`` when a CUDA device works and OptiX
+                            traces a probe ray (:func:`optix_problem`: a tiny
+                            scene, one ray), otherwise ``llvm_ad_rgb`` (with a
+                            one-line warning where CUDA works but OptiX does not)
 ``mono=True``               the ``*_ad_mono`` variant of the chosen backend
 ==========================  ====================================================
 
@@ -35,12 +39,17 @@ libLLVM search has one home.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import glob
 import os
 import re
 import shutil
+import signal
 import subprocess
+import sys
+import threading
+import warnings
 
 MIN_LLVM_MAJOR = 16
 SUPPORTED_VARIANTS = ("llvm_ad_rgb", "llvm_ad_mono", "cuda_ad_rgb", "cuda_ad_mono")
@@ -252,18 +261,113 @@ def cuda_device_count() -> int:
     return 0
 
 
+def _too_old_libllvm() -> str:
+    """The libLLVM < 16 that the routes find, as "LLVM 14 (path), ..."; "" if none."""
+    found = sorted({(major, path) for route in _LLVM_ROUTES for major, path in route() if major < MIN_LLVM_MAJOR})
+    return ", ".join(f"LLVM {major} ({path})" for major, path in found)
+
+
 def _install_hint() -> str:
     """What to install (or fix) so that a Dr.Jit backend starts."""
     try:
         llvm_problem = None if find_libllvm() else LLVM_INSTALL_HINT
     except BackendError as exc:
         llvm_problem = str(exc)
+    too_old = _too_old_libllvm() if llvm_problem == LLVM_INSTALL_HINT else ""
+    if too_old:
+        llvm_problem = f"{LLVM_INSTALL_HINT} (found only {too_old}, too old)"
     if llvm_problem is None:
         return (
             f"dopplertof needs Dr.Jit's LLVM backend (libLLVM >= {MIN_LLVM_MAJOR}) "
             "or a working CUDA GPU"
         )
     return f"dopplertof needs Dr.Jit's LLVM backend or a working CUDA GPU: {llvm_problem}"
+
+
+# What Dr.Jit prints on its own, straight to the process's stderr, when it loads a libLLVM too
+# old for it (14); the BackendError of set_variant says it in one line.
+_DRJIT_OLD_LLVM_MESSAGE = "jit_llvm_init(): the located LLVM version"
+
+
+_HELD_SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s is not None)
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """Hold the Python-level handlers of SIGINT, SIGTERM and SIGHUP, and deliver what came
+    when the block ends: a KeyboardInterrupt raised while Dr.Jit's extension initialises
+    crashes the process (SIGSEGV)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received = []
+    saved = {s: signal.getsignal(s) for s in _HELD_SIGNALS}
+    saved = {s: h for s, h in saved.items() if callable(h)}
+    for s in saved:
+        signal.signal(s, lambda signum, frame: received.append(signum))
+    try:
+        yield
+    finally:
+        for s, handler in saved.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(received):
+            signal.raise_signal(s)
+
+
+def _import_mitsuba():
+    """``import mitsuba`` (which starts Dr.Jit), with signals held (:func:`_signals_held`) and
+    Dr.Jit's own old-libLLVM message held back."""
+    if "drjit" in sys.modules:  # started already: nothing left to protect or hold back
+        import mitsuba
+
+        return mitsuba
+    import tempfile
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with _signals_held(), tempfile.TemporaryFile() as capture:
+        os.dup2(capture.fileno(), 2)
+        try:
+            import mitsuba
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            capture.seek(0)
+            lines = capture.read().decode(errors="replace").splitlines(keepends=True)
+            sys.stderr.write("".join(line for line in lines if _DRJIT_OLD_LLVM_MESSAGE not in line))
+    return mitsuba
+
+
+def check_loaded_llvm(version: tuple, user_path: str | None = None) -> None:
+    """BackendError unless the libLLVM Dr.Jit loaded is >= 16.
+
+    Dr.Jit 1.5 accepts LLVM 15, whose first kernel then aborts the process ("LLVM ERROR:
+    Cannot select ... fminimum", exit 134): this check must run before any kernel.
+
+    Parameters
+    ----------
+    version : tuple of int
+        (major, minor, patch) of the loaded libLLVM, ``drjit.detail.llvm_version()``;
+        a negative major means none is loaded (nothing to check).
+    user_path : str, optional
+        ``DRJIT_LIBLLVM_PATH``, named in the message when set.
+    """
+    major = version[0]
+    if 0 <= major < MIN_LLVM_MAJOR:
+        where = f"{LLVM_PATH_ENV}={user_path}" if user_path else "found by Dr.Jit's own search"
+        raise BackendError(
+            f"Dr.Jit loaded libLLVM {'.'.join(map(str, version))} ({where}), which aborts on dopplertof's "
+            f"kernels; dopplertof needs libLLVM >= {MIN_LLVM_MAJOR}: install it with 'sudo apt-get install "
+            f"libllvm19' (Debian/Ubuntu) or 'conda install -c conda-forge libllvm19', "
+            f"then unset {LLVM_PATH_ENV} or point it at the new library"
+        )
+
+
+def _check_llvm_variant(name: str) -> None:
+    if name.startswith("llvm"):
+        import drjit as dr
+
+        check_loaded_llvm(tuple(dr.detail.llvm_version()), os.environ.get(LLVM_PATH_ENV))
 
 
 def _backend_works(name: str) -> bool:
@@ -276,12 +380,39 @@ def _backend_works(name: str) -> bool:
         return False
 
 
+def optix_problem(mono: bool = False) -> str | None:
+    """Why the CUDA variant cannot trace rays (one line), or None where it can: loads a
+    scene of one rectangle on ``cuda_ad_rgb`` (``cuda_ad_mono``) and traces one ray at
+    it. A CUDA device without a usable OptiX (no ``libnvoptix.so.1``, a driver that
+    drjit-core refuses) fails at every scene load. The active variant is kept."""
+    import drjit as dr
+    import mitsuba as mi
+
+    name = f"cuda_ad_{'mono' if mono else 'rgb'}"
+    previous = mi.variant()
+    try:
+        mi.set_variant(name)
+        scene = mi.load_dict({"type": "scene", "probe": {"type": "rectangle"}})
+        hit = scene.ray_intersect_preliminary(mi.Ray3f(mi.Point3f(0, 0, 1), mi.Vector3f(0, 0, -1)))
+        return None if bool(dr.all(hit.is_valid())) else "a probe ray at a rectangle missed it"
+    except Exception as exc:  # noqa: BLE001 - any failure means "OptiX does not work"
+        lines = str(exc).strip().splitlines()
+        return f"{type(exc).__name__}: {lines[0] if lines else ''}"
+    finally:
+        if previous and previous != name:
+            mi.set_variant(previous)
+
+
 def default_variant(mono: bool = False) -> str:
     """The variant dopplertof uses when none is asked for (see module docstring)."""
     forced = os.environ.get("DOPPLERTOF_VARIANT")
     if forced:
         return forced
-    if _backend_works("CUDA"):
+    cuda = _backend_works("CUDA")
+    problem = optix_problem(mono) if cuda else None
+    if cuda and problem is not None:
+        warnings.warn(f"CUDA works but OptiX does not ({problem}); using the LLVM (CPU) backend", RuntimeWarning, stacklevel=2)
+    if cuda and problem is None:
         backend = "cuda"
     elif _backend_works("LLVM"):
         backend = "llvm"
@@ -303,14 +434,18 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
 
     Returns the active variant name.
 
+    Raises
+    ------
+    BackendError
+        The variant cannot start, or its libLLVM is older than 16 (before any kernel runs).
+
     Examples
     --------
     >>> import dopplertof as dt
     >>> dt.set_variant("llvm_ad_rgb")
     'llvm_ad_rgb'
     """
-    import mitsuba as mi
-
+    mi = _import_mitsuba()
     name = variant or default_variant(mono)
     if name not in SUPPORTED_VARIANTS:
         raise ValueError(
@@ -318,19 +453,22 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
         )
     if mi.variant() != name:
         try:
-            mi.set_variant(name)
+            with _signals_held():  # the variant's modules are extensions too
+                mi.set_variant(name)
         except Exception as exc:  # noqa: BLE001 - turn Dr.Jit's message into one line
             raise BackendError(
                 f"cannot start Mitsuba variant {name!r} ({exc}); {_install_hint()}"
             ) from None
+    _check_llvm_variant(name)
     return name
 
 
 def ensure_variant() -> str:
-    """The active dopplertof-compatible variant, choosing the default if none is set."""
-    import mitsuba as mi
-
+    """The active dopplertof-compatible variant, choosing the default if none is set
+    (BackendError as :func:`set_variant`, also for a variant the user set)."""
+    mi = _import_mitsuba()
     current = mi.variant()
     if current in SUPPORTED_VARIANTS:
+        _check_llvm_variant(current)
         return current
     return set_variant()

@@ -15,6 +15,7 @@ import click
 
 from . import __version__
 from .clitools import StopOnSignal, cameras_layer, fail, given_settings, settings_options, show_warning
+from .settings import DEFAULT_CHECKPOINT_INTERVAL_S
 
 
 def scene_description(scene_arg: str, resolution, defines) -> dict:
@@ -35,6 +36,7 @@ def scene_description(scene_arg: str, resolution, defines) -> dict:
 _LAZY_COMMANDS = {
     "animate": ("dopplertof.animate", "animate_command", "Render SCENE as a clip: one D-ToF exposure per frame, with velocity."),
     "dataset": ("dopplertof.dataset.cli", "dataset_group", "Datasets for learning: randomized scenes rendered into WebDataset shards."),
+    "design": ("dopplertof.design.cli", "design_command", "Sweep and optimise a sensor's parameters on a scene from one render."),
     "experiment": ("dopplertof.experiments.cli", "experiment", "Reproduce the paper's experiments (time sampling, shifts, velocity)."),
     "reconstruct": ("dopplertof.render_folder", "reconstruct_command", "Reconstruct radial velocity (and depth) from a render folder."),
 }
@@ -106,6 +108,7 @@ def scenes():
 @click.option("-o", "--output", "output", default=None, help="Output folder (default: out/<scene name>).")
 @click.option("--camera", "camera_specs", multiple=True, help="A camera, e.g. 'h=1,psi=0' or 'h=0,psi=90deg,f=30e6'. Repeatable. Keys: h, psi (rad or 90deg), f (Hz), T (s), start (s: when its exposure opens), waveform, g1, g0, low_pass.")
 @click.option("--sensor", "sensor_spec", default=None, metavar="PRESET|FILE.toml", help="Render a sensor's raw frames instead of --camera: a preset (mlx75027, opt8241, imx556, kinect-v2, dtof-prototype) or a TOML file (dopplertof.sensors.files). Writes raw_electrons.npy, raw_dn.npy and the schedule in metadata.json.")
+@click.option("--until-noise", "until_noise", type=float, default=None, metavar="RATIO", help="With --sensor: stop once the Monte Carlo error of the raw frames is at most RATIO x the sensor's own noise in 95%% of the pixels (--spp is then the most it may take).")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file (overrides its <default>). Repeatable.")
 @click.option("--overwrite", is_flag=True, help="Replace the files of another render in the output folder (only those).")
@@ -114,25 +117,38 @@ def scenes():
 @click.option("--ray", "use_ray", is_flag=True, help="Trace the passes on Ray workers; the result is bit-identical to the local render's.")
 @click.option("--address", default=None, help="Ray cluster address (with --ray; default: the running Ray, else a local one).")
 @click.option("--workers", type=click.IntRange(min=1), default=None, help="Ray workers, each with CPUs / workers threads (with --ray; default: one per CPU, with a cuda variant one per GPU).")
+@click.option("--checkpoint-interval", "checkpoint_interval_s", type=float, default=DEFAULT_CHECKPOINT_INTERVAL_S, show_default=True,
+              help="Seconds between checkpoints [s]: the sums are saved after the first pass that ends this long after the last save (0: every pass); a killed render loses at most this much.")
 @settings_options()
-def render(scene, output, camera_specs, sensor_spec, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, **options):
+def render(scene, output, camera_specs, sensor_spec, until_noise, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, **options):
     """Render SCENE (an XML file or a built-in scene name) into OUTPUT.
 
     SIGINT, SIGTERM and SIGHUP stop after the pass in progress: the partial result and a
     checkpoint are written, the exit status is 128 + the signal, and --resume continues
-    (with or without --ray).
+    (with or without --ray). A checkpoint is also saved every --checkpoint-interval
+    seconds, so a killed render (SIGKILL) or a full disk loses at most that interval:
+    --resume continues from it.
     """
+    # First: a signal during start-up then stops the render before its first pass.
+    with StopOnSignal() as stop:
+        _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, options)
+
+
+def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolution, defines, overwrite, resume, quiet, use_ray, address, workers, checkpoint_interval_s, options):
     from . import folder as out_folder
     from .backend import BackendError
     from .raytools import require_ray
-    from .render import check_film_memory
+    from .render import CheckpointWriteError, check_film_memory, checkpoint_disk_bytes
     from .render import render as run_render
     from .scene import SceneError
     from .scenes import open_scene
-    from .settings import RenderSettings, scene_layer
+    from .settings import RenderSettings, checked_checkpoint_interval, scene_layer
 
     output = output or os.path.join("out", os.path.splitext(os.path.basename(scene))[0])
+    checkpoint = os.path.join(output, out_folder.CHECKPOINT)
+    result = None
     try:
+        checked_checkpoint_interval(checkpoint_interval_s)
         if overwrite and resume:
             raise ValueError("--overwrite and --resume exclude each other")
         for name, value in (("--address", address), ("--workers", workers)):
@@ -140,6 +156,8 @@ def render(scene, output, camera_specs, sensor_spec, resolution, defines, overwr
                 raise ValueError(f"{name} needs --ray")
         if use_ray:
             require_ray()
+        if until_noise is not None and sensor_spec is None:
+            raise ValueError("--until-noise compares the render's error with a sensor's noise: give --sensor")
         sensor = None
         if sensor_spec is not None:
             from .sensors.files import load_sensor
@@ -154,28 +172,41 @@ def render(scene, output, camera_specs, sensor_spec, resolution, defines, overwr
         settings = RenderSettings.build(base, layer, where=scene)
         width, height = dyn.resolution
         check_film_memory(width, height, len(settings.cameras), len(settings.windows))
-        out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=out_folder.estimated_bytes(width, height, len(settings.cameras)))
+        bytes_needed = out_folder.estimated_bytes(width, height, len(settings.cameras)) + checkpoint_disk_bytes(width, height, settings)
+        out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=bytes_needed)
         executor = {"executor": "ray", "address": address, "workers": workers} if use_ray else {}
-        with StopOnSignal() as stop:
-            result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=os.path.join(output, out_folder.CHECKPOINT), stop=stop, sensor=sensor, **executor)
+        # The checkpoint outlives the render until its images are written: a full disk then loses nothing.
+        result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=checkpoint, checkpoint_interval_s=checkpoint_interval_s,
+                            keep_checkpoint=True, stop=stop, sensor=sensor, until_noise=until_noise, **executor)  # fmt: skip
         if result.info["passes_done"] == 0:
-            click.echo(f"{stop.name}: stopped before the first pass finished; nothing written", err=True)
+            click.echo("error: interrupted before the first pass finished; nothing written", err=True)
             sys.exit(stop.exit_status)
         metadata = {"scene": scene_description(scene, resolution, defines), "film": [width, height], "command": sys.argv}
         written = out_folder.write_result(result, output, metadata)
+        if not result.interrupted:
+            os.remove(checkpoint)
     except KeyboardInterrupt:
         click.echo("error: interrupted before the first pass finished; nothing written", err=True)
-        sys.exit(130)
+        sys.exit(stop.exit_status)
+    except CheckpointWriteError as exc:
+        fail(f"{exc}; free space, then continue with the same command and --resume")
     except (ValueError, SceneError, BackendError, FileNotFoundError) as exc:
         fail(str(exc))
     except OSError as exc:
-        fail(f"cannot write {output!r}: {exc.strerror or exc}")
+        kept = f"; the rendered sums are kept in {checkpoint!r}: free space, then write the images with the same command and --resume" if result is not None and os.path.isfile(checkpoint) else ""
+        fail(f"cannot write {output!r}: {exc.strerror or exc}{kept}")
     if result.interrupted:
         click.echo(
             f"{stop.name}: stopped at {result.spp} of {settings.spp} spp; partial result and checkpoint in "
             f"{os.path.abspath(output)}/ (continue with --resume)", err=True,
         )  # fmt: skip
         sys.exit(stop.exit_status)
+    if until_noise is not None:
+        stopped = result.info["until_noise"]
+        reached = max(stopped["reached"])
+        verdict = "reached" if reached <= until_noise else f"not reached within --spp {settings.spp}"
+        spp = f"{result.spp} spp" if len(stopped["spp"]) == 1 else f"{', '.join(map(str, stopped['spp']))} spp (per exposure window)"
+        click.echo(f"until-noise {until_noise:g} {verdict}: Monte Carlo error {reached:.3g} x the sensor's noise (95% of pixels) at {spp}")
     click.echo(f"rendered {scene} at {result.spp} spp; images in {os.path.abspath(output)}/")
     for path in written:
         click.echo(f"  {path}")

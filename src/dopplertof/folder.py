@@ -21,9 +21,10 @@ file                   content
 =====================  ==================================================================
 
 Every file is written under a temporary name and renamed (:func:`dopplertof.io.atomic_path`),
-so a fault never leaves a partial file. A folder holding another render's files is refused
-unless ``overwrite``, which removes exactly the files that render's ``metadata.json`` (or
-checkpoint) names and nothing else.
+so a fault never leaves a partial file under a file's name; the temporary files a killed
+process leaves are removed when the folder is next prepared. A folder holding another
+render's files is refused unless ``overwrite``, which removes exactly the files that
+render's ``metadata.json`` (or checkpoint) names and nothing else.
 """
 
 from __future__ import annotations
@@ -99,7 +100,10 @@ def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes
     unusable (:func:`check_writable`) or holding another render (its ``metadata.json``
     or checkpoint), unless ``overwrite`` (which removes that render's files) or
     ``resume`` (which continues its checkpoint)."""
+    from .io import remove_stale_partials
+
     parts = check_writable(folder, bytes_needed)
+    remove_stale_partials(parts)  # a killed render's half-written files: no one's data
     owned = _owned_files(parts)
     if not owned:
         return

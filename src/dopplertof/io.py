@@ -11,6 +11,8 @@ Function                       Meaning
 ``write_npy``, ``read_npy``    ``numpy.save`` / ``numpy.load`` that create parent directories
 ``write_image``                ``write_exr`` or ``write_npy``, chosen by the file suffix
 ``write_json``, ``read_json``  metadata; numpy scalars and arrays become JSON numbers/lists
+``write_record``,              a scene's response record (:mod:`dopplertof.design.record`) as
+``read_record``                one ``.npz`` file: its arrays and its metadata
 =============================  ===============================================================
 
 All functions take a path as ``str`` or :class:`pathlib.Path`. Readers raise
@@ -28,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 from pathlib import Path
 from typing import Any, Sequence, Union
 
@@ -70,6 +73,33 @@ def atomic_path(path: PathLike):
         with contextlib.suppress(OSError):
             os.remove(tmp)
         raise
+
+
+_PARTIAL_NAME = re.compile(r"^\..+\.(\d+)\.partial(\.[^.]*)?$")
+
+
+def _process_exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except (ProcessLookupError, OverflowError):
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def remove_stale_partials(folder: PathLike) -> list[Path]:
+    """Remove the temporary files of :func:`atomic_path` in ``folder`` whose writer is gone
+    (a process killed mid-write, by SIGKILL or the OOM killer, leaves one); the paths removed.
+    Those of a running process (its id is in the name) are kept."""
+    removed = []
+    for entry in os.scandir(folder):
+        match = _PARTIAL_NAME.match(entry.name)
+        if match and entry.is_file(follow_symlinks=False) and not _process_exists(int(match.group(1))):
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(entry.path)
+                removed.append(Path(entry.path))
+    return removed
 
 
 def _existing_file(path: PathLike, what: str) -> Path:
@@ -124,6 +154,8 @@ def write_exr(path: PathLike, image: np.ndarray, channels: Sequence[str] | None 
     ValueError
         If the image is not 2-D or 3-D, is empty, is not real-valued, or the channel names
         are missing, of the wrong count, empty or repeated.
+    OSError
+        If the file cannot be written (no space left, ...); ``path`` is left as it was.
     """
     array = np.asarray(image)
     if array.ndim not in (2, 3):
@@ -162,7 +194,10 @@ def write_exr(path: PathLike, image: np.ndarray, channels: Sequence[str] | None 
         EXR_CHANNEL_ORDER_ATTRIBUTE: names,
     }
     with atomic_path(path) as tmp, OpenEXR.File(header, pixels) as exr_file:
-        exr_file.write(str(tmp))
+        try:
+            exr_file.write(str(tmp))
+        except RuntimeError as exc:  # OpenEXR's word for a failed write (a full disk, say): an OSError like every other
+            raise OSError(str(exc).replace(str(tmp), str(path))) from exc
     return Path(path)
 
 
@@ -405,3 +440,45 @@ def read_json(path: PathLike) -> Any:
         return json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise ValueError(f"cannot read '{path}' as JSON: {error}") from error
+
+
+def write_record(path: PathLike, record) -> Path:
+    """Save a response record (``render(..., record=True).record``) as one ``.npz`` file
+    (uncompressed: the phasors hardly compress), written atomically.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        Output file, used as given.
+    record : :class:`dopplertof.design.Record`
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+    """
+    arrays = record.to_arrays()
+    with atomic_path(path) as tmp, open(tmp, "wb") as file:  # a file object stops numpy appending ".npz"
+        np.savez(file, **arrays)
+    return Path(path)
+
+
+def read_record(path: PathLike):
+    """Load a response record saved by :func:`write_record`.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If the file is not a response record.
+    """
+    from .design.record import Record
+
+    path = _existing_file(path, "record")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in data.files}
+    except Exception as error:
+        raise ValueError(f"cannot read '{path}' as a response record: {error}") from error
+    return Record.from_arrays(arrays, where=str(path))

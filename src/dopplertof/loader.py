@@ -403,9 +403,14 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     resolver = mi.file_resolver()
     saved_paths = [str(resolver[i]) for i in range(len(resolver))]
     resolver.prepend(scene_dir)
+    host = None
+    if moving:
+        elements = [root] + [el for _, (_, el) in moving]
+        host = pipeline_host({shape.attrib.get("type") for el in elements for shape in el.iter("shape")}, path)
     try:
         try:
-            static = mi.load_string(ET.tostring(root, encoding="unicode"))
+            xml = ET.tostring(root, encoding="unicode")
+            static = mi.load_string(xml) if host is None else _load_guest_string(xml, host)
         except Exception as exc:  # noqa: BLE001
             raise _mitsuba_error(path, exc) from None
         if not static.sensors():
@@ -419,7 +424,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
                 body_root.append(el)
             name = ", ".join(el.attrib.get("id", f"shape #{i}") for i, el in members)
             try:
-                body_scene = mi.load_string(ET.tostring(body_root, encoding="unicode"))
+                body_scene = _load_guest_string(ET.tostring(body_root, encoding="unicode"), host)
             except Exception as exc:  # noqa: BLE001
                 raise _mitsuba_error(f"{path}: moving shape(s) {name}", exc) from None
             bodies.append(_make_body(name, body_scene, motion))
@@ -442,7 +447,10 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
             resolver.append(entry)
     if strict_normals:
         mitsuba06.check_flat_shading([static, *(b.scene for b in bodies)], path)
-    scene = DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path, camera_motion=camera_motion, lights=lights)
+    scene = DynamicScene(
+        static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path,
+        camera_motion=camera_motion, lights=lights, pipeline_host=host,
+    )  # fmt: skip
     return _checked_scene(scene, shutter_given)
 
 
@@ -545,6 +553,61 @@ def _group_by_motion(moving):
     for motion, member in moving:
         groups.setdefault(_motion_key(motion), (motion, []))[1].append(member)
     return list(groups.values())
+
+
+# ----------------------------------------------------------------------------------------
+# One OptiX pipeline and shader binding table per DynamicScene (gpu-notes §1)
+#
+# Dr.Jit allows one OptiX pipeline and SBT per kernel and turns every other trace into a
+# silent miss; the static scene and the bodies' scenes are traced in one kernel. So they
+# are loaded as *guests* of one *host* (Mitsuba's shared-SBT mechanism: a scene given a
+# ``Scene`` property appends its hit records to that scene's SBT and uses its pipeline).
+# The host is never traced: a small rectangle (triangles) plus one shape of each analytic
+# type the scene uses, since a guest's shape types must be in the host's pipeline. Every
+# guest names that one host, never another guest (a guest's SBT is a snapshot). On LLVM
+# the same code runs (Embree ignores the host), so the CPU tests exercise it.
+
+ANALYTIC_SHAPES = ("sphere", "disk", "cylinder")  # the analytic shape plugins a host covers
+# Analytic shapes a host cannot cover (they need data files): refused on CUDA, where a
+# guest of theirs would fail to load ("shape type not mapped").
+UNCOVERED_SHAPES = ("bsplinecurve", "linearcurve", "sdfgrid", "ellipsoids")
+HOST_KEY = "parent_scene"  # the property Mitsuba itself names a host by
+
+
+def pipeline_host(types, where: str):
+    """The host scene (above) of guests whose plugin names are among ``types``; a
+    SceneError naming ``where`` and the shape type where CUDA cannot host them."""
+    import mitsuba as mi
+
+    uncovered = sorted(set(types) & set(UNCOVERED_SHAPES))
+    if uncovered and mi.variant().startswith("cuda"):
+        raise SceneError(
+            f"{where}: a scene with moving bodies cannot use shape type {uncovered[0]!r} on {mi.variant()} "
+            f"(its OptiX pipeline covers meshes and {', '.join(ANALYTIC_SHAPES)}); use a mesh or the llvm variant"
+        )
+    entries = {"probe-mesh": {"type": "rectangle"}}
+    entries.update({f"probe-{name}": {"type": name} for name in ANALYTIC_SHAPES if name in types})
+    return mi.load_dict({"type": "scene", **entries})
+
+
+def _plugin_types(value) -> set:
+    """Every plugin name (``"type"``) in a scene dict (or a part of one)."""
+    if isinstance(value, dict):
+        found = {value["type"]} if isinstance(value.get("type"), str) else set()
+        return found.union(*(_plugin_types(v) for v in value.values()))
+    return set()
+
+
+def _load_guest_string(xml: str, host):
+    """``mi.load_string(xml)`` as a guest of ``host`` (what load_string does, the host
+    added before the objects are made)."""
+    import mitsuba as mi
+
+    config = mi.parser.ParserConfig(mi.variant())
+    state = mi.parser.parse_string(config, xml)
+    mi.parser.transform_all(config, state)
+    state.root.props[HOST_KEY] = host
+    return mi.parser.instantiate(config, state)
 
 
 def _make_body(name: str, scene, motion: Motion) -> Body:
@@ -702,18 +765,20 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
             moving.append((motion, (key, shape, placement)))
         else:
             static_dict[key] = value
+    host = pipeline_host(_plugin_types(scene_dict), "<dict>") if moving else None
+    guest = {} if host is None else {HOST_KEY: host}
     bodies = []
     for motion, members in _group_by_motion(moving):
         motion, shapes = _shared_placement_as_base(motion, members)
         keys = [key for key, _ in shapes]
         where = f"<dict>: entr{'y' if len(keys) == 1 else 'ies'} {', '.join(repr(k) for k in keys)}"
         try:
-            body_scene = mi.load_dict({"type": "scene", **_referenced(dict(shapes), scene_dict), **dict(shapes)})
+            body_scene = mi.load_dict({"type": "scene", **guest, **_referenced(dict(shapes), scene_dict), **dict(shapes)})
         except Exception as exc:  # noqa: BLE001
             raise _mitsuba_error(where, exc) from None
         bodies.append(_make_body(", ".join(keys), body_scene, motion))
     try:
-        static = mi.load_dict(static_dict)
+        static = mi.load_dict({**static_dict, **guest})
     except Exception as exc:  # noqa: BLE001
         raise _mitsuba_error("<dict>", exc) from None
     if not static.sensors():
@@ -727,4 +792,5 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
 
     lights = [MovingLight(where, light_scene(light, where), motion) for where, light, motion in moving_lights]
     lights += [MovingLight(where, light_scene(light, where), _camera_light_motion(static, camera_motion, where)) for where, light in attached]
-    return _checked_scene(DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, camera_motion=camera_motion, lights=lights), shutter_given)
+    scene = DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, camera_motion=camera_motion, lights=lights, pipeline_host=host)
+    return _checked_scene(scene, shutter_given)

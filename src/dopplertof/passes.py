@@ -154,7 +154,11 @@ class Accumulator(Reducer):
     """Float64 per-pixel sums (module docstring) of ``n_pixels`` pixels; ``state`` is what a
     checkpoint holds. A pass is added by ``apply(p, reduce(p, out))``, wherever ``reduce``
     ran: the same numpy operations in pass order, so the sums are bit-identical.
+    ``applying`` is True while :meth:`apply` runs: an exception that leaves it True (a
+    KeyboardInterrupt, say) left the sums holding part of a pass.
     """
+
+    applying = False
 
     def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates):
         super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates)
@@ -170,6 +174,7 @@ class Accumulator(Reducer):
 
     def apply(self, p: Pass, inc: dict):
         """Add one pass's increments (from :meth:`Reducer.reduce`) to the sums."""
+        self.applying = True
         s = self.state
         pix = slice(p.pixel_start, p.pixel_start + p.n_pixels)
         if "rep_sum" in inc:
@@ -198,6 +203,7 @@ class Accumulator(Reducer):
         if "instance_id" in inc:
             s["instance_id"][pix] = inc["instance_id"]
         s["passes_done"][0] += 1
+        self.applying = False
 
     def _close(self, pix, rep_means):
         """Add complete replicates: their means, (channels, pixels, replicates)."""

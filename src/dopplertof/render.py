@@ -20,9 +20,13 @@ window share paths, cameras of different windows are independent.
 
 Random numbers depend on (seed, window, pixel, sample index) only, so the result does not
 depend on the tiling or the pass split. A render stopped early (Ctrl-C, or ``stop()`` returning
-True between passes) returns what the finished passes hold (``result.interrupted``);
-with ``checkpoint=PATH`` its sums are saved there, and a later call with the same
-settings continues from them to a result bit-identical to an uninterrupted render.
+True between passes) returns what the finished passes hold (``result.interrupted``).
+With ``checkpoint=PATH`` the sums are saved there while the render runs (after the first
+pass that ends ``checkpoint_interval_s`` after the previous save, default 60 s) and when it
+stops early, each time atomically (temporary file, fsync, rename: a fault during a save
+leaves the previous checkpoint), so a fault that kills the process (SIGKILL, the OOM
+killer, a full disk) loses at most that interval; a later call with the same settings
+continues from them to a result bit-identical to an uninterrupted render.
 
 Each pass is traced and reduced to per-pixel increments where its scene is
 (:class:`~dopplertof.passes.PassTracer`) and added here, in order
@@ -38,16 +42,17 @@ import hashlib
 import json
 import os
 import warnings
+import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .outputs import BY_NAME, ESTIMATES, TRUTH
 from .passes import MAX_COVARIANCE_CAMERAS, Accumulator, PassTracer, Reducer, schedule
-from .settings import DEFAULT_EXPOSURE_S, RenderSettings, scene_layer
+from .settings import DEFAULT_CHECKPOINT_INTERVAL_S, DEFAULT_EXPOSURE_S, RenderSettings, checked_checkpoint_interval, scene_layer
 from .validation import checked
 
-__all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S"]
+__all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S", "CheckpointWriteError"]
 
 
 @dataclass
@@ -85,6 +90,7 @@ class RenderResult:
     interrupted: bool = False
     info: dict = field(default_factory=dict)  # render time (s), passes, executor, exposure windows [[start, T], ...] (s)
     sensor: object = None  # the dopplertof.Sensor rendered (render(..., sensor=)); its frames' electrons are maps["raw"]
+    record: object = None  # the scene's response record (render(..., record=True)): dopplertof.design.Record
 
     def __getattr__(self, name):
         maps = self.__dict__.get("maps", {})
@@ -103,12 +109,35 @@ class RenderResult:
         return self.settings.seed
 
 
+def sums_bytes_per_pixel(n_cameras: int) -> int:
+    """Bytes per pixel of the Float64 sums and counters of one exposure window with
+    ``n_cameras`` cameras: what :class:`~dopplertof.passes.Accumulator` keeps and a checkpoint holds."""
+    estimates = 3 + n_cameras
+    truth = sum(o.channels for o in TRUTH)
+    pairs = n_cameras * (n_cameras - 1) // 2 if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS else 0
+    return 8 * (4 * estimates + truth + pairs) + 4 * 5
+
+
 def host_bytes_per_pixel(n_cameras: int) -> int:
     """Host memory of the film's Float64 sums and the float32 result, per pixel (bytes)."""
     estimates = 3 + n_cameras
     truth = sum(o.channels for o in TRUTH)
-    pairs = n_cameras * (n_cameras - 1) // 2 if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS else 0
-    return 8 * (4 * estimates + truth + pairs) + 4 * (2 * estimates + truth + 6 + n_cameras * n_cameras)
+    return sums_bytes_per_pixel(n_cameras) + 4 * (2 * estimates + truth + 6 + n_cameras * n_cameras)
+
+
+def checkpoint_disk_bytes(width: int, height: int, settings: RenderSettings) -> int:
+    """Disk space a render's checkpoint needs at its peak: while a save is under way the
+    previous checkpoint and the new one exist side by side (atomic replace)."""
+    return 2 * width * height * sum(sums_bytes_per_pixel(len(w.cameras)) for w in settings.windows)
+
+
+def available_memory_bytes() -> int | None:
+    """The memory available to this process (bytes; Linux's MemAvailable), None elsewhere."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            return next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
+    except (OSError, StopIteration, ValueError):
+        return None  # not Linux: no check
 
 
 def check_film_memory(width: int, height: int, n_cameras: int, n_windows: int = 1) -> None:
@@ -117,12 +146,8 @@ def check_film_memory(width: int, height: int, n_cameras: int, n_windows: int = 
     if width < 1 or height < 1:
         raise ValueError(f"the film must be at least 1x1 pixels, got {width}x{height}")
     need = width * height * (host_bytes_per_pixel(n_cameras) + (n_windows - 1) * host_bytes_per_pixel(0))
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            available = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
-    except (OSError, StopIteration, ValueError):
-        return  # not Linux: no check
-    if need > available:
+    available = available_memory_bytes()
+    if available is not None and need > available:
         raise ValueError(f"a {width}x{height} film with {n_cameras} camera(s) needs about {need / 2**30:.1f} GiB of memory for its buffers; {available / 2**30:.1f} GiB are available")
 
 
@@ -161,24 +186,62 @@ def _checkpoint_names(accs: list) -> list[tuple[str, Accumulator, str]]:
     return [(prefix(k) + name, acc, name) for k, acc in enumerate(accs) for name in acc.state]
 
 
+# What np.load raises for a file that is not a whole .npz.
+_UNREADABLE = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
+
+
 def _load_checkpoint(path, accs: list, key: str):
-    with np.load(path, allow_pickle=False) as data:
-        if str(data["fingerprint"]) != key:
-            raise ValueError(f"{path}: the checkpoint belongs to a render with other settings or another scene; remove it or render into another folder")
-        for stored, acc, name in _checkpoint_names(accs):
-            if stored not in data or data[stored].shape != acc.state[name].shape:
-                raise ValueError(f"{path}: the checkpoint is damaged ({stored!r} missing or of another shape)")
-            acc.state[name] = data[stored].copy()
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            stored = {name: data[name] for name in data.files}
+    except _UNREADABLE as exc:
+        raise ValueError(f"{path}: the checkpoint cannot be read ({exc}); remove it to render from the start") from None
+    if str(stored.get("fingerprint")) != key:
+        raise ValueError(f"{path}: the checkpoint belongs to a render with other settings or another scene; remove it or render into another folder")
+    for name_in_file, acc, name in _checkpoint_names(accs):
+        if name_in_file not in stored or stored[name_in_file].shape != acc.state[name].shape:
+            raise ValueError(f"{path}: the checkpoint is damaged ({name_in_file!r} missing or of another shape)")
+        acc.state[name] = stored[name_in_file]
+
+
+class CheckpointWriteError(OSError):
+    """A checkpoint could not be written (a full disk, say); the one before it, if any, is intact.
+
+    ``str()`` says what was lost and what is kept; ``errno`` is the failed write's.
+    """
+
+    def __str__(self):
+        return self.strerror
 
 
 def save_checkpoint(path, accs: list, key: str):
-    """Write the accumulators (one per exposure window) atomically (temporary name, then rename)."""
+    """Write the accumulators (one per exposure window) atomically (temporary name, fsync,
+    rename: :func:`dopplertof.io.atomic_path`)."""
     from .io import atomic_path
 
     arrays = {stored: acc.state[name] for stored, acc, name in _checkpoint_names(accs)}
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             np.savez(f, fingerprint=np.array(key), **arrays)
+
+
+def _passes_in(path) -> int | None:
+    """Passes done that the checkpoint at ``path`` holds (all windows); None without one."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return sum(int(data[name][0]) for name in data.files if name.rpartition(".")[2] == "passes_done")
+    except _UNREADABLE:
+        return None
+
+
+def _save_or_explain(path, accs: list, key: str, total_passes: int):
+    """:func:`save_checkpoint`, or a :class:`CheckpointWriteError` saying what the kept one holds."""
+    try:
+        save_checkpoint(path, accs, key)
+    except OSError as exc:
+        kept = _passes_in(path)
+        what = "no earlier checkpoint is kept" if kept is None else f"the checkpoint of {kept} of {total_passes} passes is kept"
+        raise CheckpointWriteError(exc.errno, f"cannot write the checkpoint {os.fspath(path)!r} ({exc.strerror or exc}); {what}") from exc
 
 
 # ----------------------------------------------------------------------------------------
@@ -215,6 +278,29 @@ def _merge_windows(finished: list[dict], windows, n_cameras: int, shape: tuple[i
 
 
 # ----------------------------------------------------------------------------------------
+# Stopping when the Monte Carlo error is below the sensor's noise
+
+
+def _noise_ratio_reached(acc, window, sensor, shape) -> float | None:
+    """The ``until_noise`` ratio the frames of ``window`` reach now
+    (:mod:`dopplertof.design.convergence`); None while tiles of the film differ in samples."""
+    import copy
+
+    from .design.convergence import noise_ratio, quantile
+
+    samples = acc.state["samples"]
+    if samples.min() != samples.max():
+        return None
+    n_cameras = len(sensor.cameras())
+    maps = copy.deepcopy(acc).finish(*shape, len(window.cameras))  # finish consumes the sums
+    measurements, errors = np.zeros((n_cameras, *shape)), np.zeros((n_cameras, *shape))
+    measurements[list(window.indices)] = maps["measurements"]
+    errors[list(window.indices)] = maps[BY_NAME["measurements"].stderr_name]
+    frames = [i for i in range(len(sensor.frames)) if i in window.indices]
+    return quantile(noise_ratio(sensor, measurements, errors, frames))
+
+
+# ----------------------------------------------------------------------------------------
 # render()
 
 EXECUTORS = ("local", "ray")
@@ -227,8 +313,9 @@ def _traced_locally(scene, settings, passes):
 
 
 def render(
-    scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None, stop=None,
-    executor="local", address=None, workers=None, sensor=None, **overrides,
+    scene, cameras=None, *, settings: RenderSettings | None = None, progress=False, checkpoint=None,
+    checkpoint_interval_s=DEFAULT_CHECKPOINT_INTERVAL_S, keep_checkpoint=False, stop=None,
+    executor="local", address=None, workers=None, sensor=None, record=None, until_noise=None, **overrides,
 ) -> RenderResult:  # fmt: skip
     """Render the intensity, ground truth and D-ToF measurements of a dynamic scene.
 
@@ -251,7 +338,15 @@ def render(
         ``time_sampling``, ``correlation``, …), applied on top.
     progress : bool. Show a progress bar (a bool: ``"no"`` is a ValueError).
     checkpoint : path, optional. Continue from this checkpoint if it exists (same
-        settings, else ValueError); save the sums there if the render stops early.
+        settings, else ValueError); save the sums there while rendering (see
+        ``checkpoint_interval_s``) and if the render stops early; remove it when the render
+        is complete (unless ``keep_checkpoint``).
+    checkpoint_interval_s : float, seconds, default 60. With ``checkpoint``: a save follows
+        the first pass that ends at least this long after the previous save (0: every
+        pass), so a killed process loses at most this much rendering (plus a pass).
+    keep_checkpoint : bool, default False. With ``checkpoint``: also save the sums of a
+        complete render and leave them, for a caller that removes the checkpoint once the
+        result is safely written (resuming a complete checkpoint renders nothing).
     stop : callable, optional. Called before every pass; when it returns True the render
         stops there and returns what the finished passes hold: ``result.interrupted`` is
         True and ``result.spp`` the paths per pixel done, 0 (every estimate NaN, nothing
@@ -268,6 +363,17 @@ def render(
         ``cameras``): the measurements are those of ``sensor.cameras()`` and the result's
         ``raw`` (frames, taps, H, W) the noiseless electrons of every frame and tap
         (:mod:`dopplertof.sensors.frames`); ``sensor.read_out(result, seed=)`` adds the noise.
+    record : True, dict or :class:`dopplertof.design.RecordSpec`, optional. Also keep the
+        scene's response record of every exposure window (``result.record``), from which
+        :func:`dopplertof.design.evaluate` reads out any sensor in its band
+        (:mod:`dopplertof.design.record`). Rendered locally, without checkpoints; a render
+        stopped early has no record (None), and a Ctrl-C while the record is rendered
+        raises KeyboardInterrupt.
+    until_noise : float, optional. With ``sensor``: stop a window's passes once the Monte
+        Carlo standard error of its raw frames is at most this many times the sensor's own
+        noise in 95 % of its pixels (:mod:`dopplertof.design.convergence`); ``spp`` is
+        then the most it may take, ``result.spp`` what it took and ``result.info["until_noise"]``
+        the ratio reached and the spp of each window, and the (spp, ratio) after each pass.
 
     Returns
     -------
@@ -276,8 +382,12 @@ def render(
     Raises
     ------
     KeyboardInterrupt
-        Only a Ctrl-C (SIGINT) that arrives before the first pass finished; after that the
-        render returns the finished passes as for ``stop``.
+        Only a Ctrl-C (SIGINT) that leaves nothing to return: before the first pass
+        finished, or half-way through adding a pass with no checkpoint to fall back to;
+        otherwise the render returns the finished passes as for ``stop``.
+    CheckpointWriteError
+        A checkpoint could not be written (full disk, ...): the render stops there; the
+        message says which earlier checkpoint is kept.
 
     Examples
     --------
@@ -311,6 +421,8 @@ def render(
         if cameras is not None or "cameras" in overrides:
             raise ValueError("give cameras or sensor, not both (a sensor's raw frames are its cameras)")
         cameras = sensor.cameras()
+    checkpoint_interval_s = checked_checkpoint_interval(checkpoint_interval_s)
+    keep_checkpoint = checked("keep_checkpoint", keep_checkpoint, "bool")
     if cameras is not None:
         overrides["cameras"] = cameras
     if isinstance(settings, RenderSettings):
@@ -320,6 +432,20 @@ def render(
     else:
         raise TypeError(f"settings must be a dopplertof.RenderSettings or a dict of setting names, got {type(settings).__name__}")
     settings = RenderSettings.build(*layers, overrides)
+    if until_noise is not None:
+        until_noise = checked("until_noise", until_noise, "float")
+        if sensor is None or not until_noise > 0:
+            raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...) and a ratio > 0")
+    if record is not None and record is not False:
+        from .design.record import as_spec
+        from .design.record import check_memory as check_record_memory
+
+        record = as_spec(record)
+        if executor != "local" or checkpoint is not None:
+            raise ValueError("record: a response record is rendered locally and without checkpoints (executor='local', checkpoint=None)")
+        check_record_memory(record, *scene.resolution, len(settings.windows))
+    else:
+        record = None
 
     width, height = scene.resolution
     n_pixels = width * height
@@ -330,14 +456,32 @@ def render(
     window_settings = [
         dataclasses.replace(settings, cameras=w.cameras, exposure_start=w.start_s, seed=window_seed(settings.seed, k)) for k, w in enumerate(windows)
     ]  # fmt: skip
-    accs = [Accumulator(n_pixels, *Reducer.layout(ws)) for ws in window_settings]
     key = fingerprint(scene, settings)
-    if checkpoint is not None and os.path.exists(checkpoint):
-        _load_checkpoint(checkpoint, accs, key)
+
+    def saved_sums():
+        """The sums of the checkpoint, else zeros."""
+        accs = [Accumulator(n_pixels, *Reducer.layout(ws)) for ws in window_settings]
+        if checkpoint is not None and os.path.exists(checkpoint):
+            _load_checkpoint(checkpoint, accs, key)
+        return accs
+
+    accs = saved_sums()
     passes = schedule(n_pixels, settings.spp, settings.group_size, settings.lanes_per_pass)
 
     def passes_done():
         return [int(acc.state["passes_done"][0]) for acc in accs]
+
+    saved = sum(passes_done()) if checkpoint is not None and os.path.exists(checkpoint) else None
+    last_save_s = time.monotonic()
+
+    def save(due: bool):
+        """Save the sums if they changed since the last save (and, unless ``due``, the interval passed)."""
+        nonlocal saved, last_save_s
+        done = sum(passes_done())
+        if checkpoint is None or done == saved or not (due or time.monotonic() - last_save_s >= checkpoint_interval_s):
+            return
+        _save_or_explain(checkpoint, accs, key, len(passes) * len(windows))
+        saved, last_save_s = done, time.monotonic()
 
     bar = None
     if progress:
@@ -345,6 +489,7 @@ def render(
 
         bar = tqdm(total=len(passes) * len(windows), initial=sum(passes_done()), unit="pass", desc="render", leave=False)
     interrupted = False
+    reached = {}  # window index -> [(spp, until_noise ratio reached)] after each pass
     start = time.perf_counter()
     try:
         for index, (acc, done) in enumerate(zip(accs, passes_done())):
@@ -366,27 +511,43 @@ def render(
                     acc.apply(p, next(traced))
                     if bar is not None:
                         bar.update(1)
+                    save(due=False)
+                    if until_noise is not None:
+                        value = _noise_ratio_reached(acc, windows[index], sensor, (height, width))
+                        if value is not None:
+                            reached.setdefault(index, []).append((int(acc.state["samples"].min()), value))
+                            if value <= until_noise:
+                                break
             finally:
                 traced.close()  # a Ray render's workers stop here
     except KeyboardInterrupt:
+        interrupted = True
+        if any(acc.applying for acc in accs):  # stopped at once while adding a pass: back to the last checkpoint
+            accs = saved_sums()
         if sum(passes_done()) == 0:
             raise  # a Ctrl-C with nothing to return
-        interrupted = True
     finally:
         if bar is not None:
             bar.close()
     done = sum(passes_done())
-    if checkpoint is not None:
-        if interrupted and done:
-            save_checkpoint(checkpoint, accs, key)
-        elif os.path.exists(checkpoint):
-            os.remove(checkpoint)
+    if done and (interrupted or keep_checkpoint):
+        save(due=True)
+    elif checkpoint is not None and os.path.exists(checkpoint):
+        os.remove(checkpoint)
     spp_done = min(int(acc.state["samples"].min()) for acc in accs)
     info = {"render_seconds": time.perf_counter() - start, "passes": len(passes) * len(windows), "passes_done": done,
             "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows]}  # fmt: skip
+    if until_noise is not None:
+        info["until_noise"] = {"ratio": until_noise, "reached": [reached[k][-1][1] if k in reached else float("inf") for k in range(len(windows))],
+                               "spp": [int(acc.state["samples"].min()) for acc in accs], "history": [reached.get(k, []) for k in range(len(windows))]}  # fmt: skip
     finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
     maps = _merge_windows(finished, windows, len(settings.cameras), (height, width))
     if sensor is not None:
         maps["raw"] = sensor.raw(maps["measurements"])
-    return RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info, sensor=sensor)
+    result = RenderResult(maps=maps, settings=settings, spp=spp_done, interrupted=interrupted, info=info, sensor=sensor)
+    if record is not None and not interrupted:  # an interrupted render returns what it has, without a record
+        from .design.record import record_scene
+
+        result.record = record_scene(scene, settings, record)
+    return result
 

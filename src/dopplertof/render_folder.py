@@ -12,20 +12,32 @@ file                              content
 ``velocity_reconstructed.exr``    radial velocity, m/s, positive receding; NaN where invalid
 ``velocity_reconstructed.png``    the same with a colourbar
 ``velocity_valid.png``            mask: white where the velocity was determined
-``depth_reconstructed.exr/.png``  distance at mid-exposure, m (only where the set determines it)
+``depth_reconstructed.exr/.png``  distance at mid-exposure, m (only where the set determines it),
+                                  modulo c/(2 f_g), or c/(2 |f_1 − f_2|) at two frequencies
+``velocity_stderr.exr``           propagated standard error of the velocity, m/s (valid pixels)
+``depth_wrapped.png``             mask: white where the true depth (``depth.exr``) is beyond
+                                  the unambiguous range c/(2 f_g), so the depth read is wrapped
 ``velocity_comparison.png``       ground truth next to the reconstruction, one colour range
-``velocity_error.json``           error of the reconstruction on its valid pixels, m/s
+``velocity_error.json``           error of the reconstruction on its valid pixels, m/s, and
+                                  the fraction off by more than 3 standard errors
+``reconstruction.json``           method, the validity threshold (m/s) and why, the error
+                                  model, the depth range c/(2 f_g) and, against the ground
+                                  truth, the fraction of wrapped depths
 ================================  ============================================================
+
+Validity. A pixel is valid when the estimator determines its velocity and the standard
+error propagated from the render's per-camera errors and ``measurement_covariance.npy``
+is at most ``max_velocity_stderr`` (m/s; default a tenth of the scene's speed scale,
+:func:`dopplertof.reconstruct.default_max_velocity_stderr`). That error is Monte Carlo only:
+multipath (global illumination, silhouettes) biases a pixel beyond it.
 
 Reconstruction method
 ---------------------
 ``method=None`` (the default) is ``"auto"`` of :func:`dopplertof.reconstruct.velocity`:
-the homodyne/heterodyne ratio when the cameras are matched h = 0 / h = 1 pairs, else the
-per-pixel fit. With phases in quadrature (ψ = 0 and 90°, or four phases) both are
-insensitive, to first order, to a radiance that changes during the exposure (a box
-moving 1.5 cm closer in the Cornell box brightens by ≈ 0.5 %, 1/d²): the ratio fuses the
-phases as Σ E_i H_i / Σ H_i², to which a linear brightness change is orthogonal (see
-:mod:`dopplertof.reconstruct`).
+the per-pixel fit for sinusoidal cameras, which estimates the radiance change during the
+exposure with the velocity (a box moving 1.5 cm closer in the Cornell box brightens by
+≈ 0.5 %, 1/d²), else the homodyne/heterodyne ratio of balanced pairs, blind to that change
+to first order (see :mod:`dopplertof.reconstruct`).
 """
 
 from __future__ import annotations
@@ -45,6 +57,7 @@ from .modulation import Camera
 
 METADATA_FILE = "metadata.json"
 ERROR_FILE = "velocity_error.json"
+SUMMARY_FILE = "reconstruction.json"
 
 
 def resolve_method(cameras, method: str | None = None) -> str:
@@ -77,7 +90,8 @@ def resolve_method(cameras, method: str | None = None) -> str:
         return rc.velocity(np.zeros((len(cameras), 1, 1)), cameras, method=method or "auto").method
 
 
-def reconstruct(measurements, cameras, method: str | None = None, stderr=None, covariance=None) -> rc.VelocityResult:
+def reconstruct(measurements, cameras, method: str | None = None, stderr=None, covariance=None,
+                max_velocity_stderr: float | None = None) -> rc.VelocityResult:
     """:func:`dopplertof.reconstruct.velocity` with the default method of this module.
 
     Parameters
@@ -87,10 +101,56 @@ def reconstruct(measurements, cameras, method: str | None = None, stderr=None, c
     method : {None, "auto", "ratio", "fit"}, see :func:`resolve_method`
     stderr, covariance : the measurements' standard errors (n_cameras, H, W) and covariance
         (n_cameras, n_cameras, H, W), optional: propagated to velocity_stderr / depth_stderr
+    max_velocity_stderr : float, optional
+        Validity threshold on the velocity's standard error, m/s (default: derived from the
+        scene, :func:`dopplertof.reconstruct.default_max_velocity_stderr`).
     """
     method = resolve_method(cameras, method)
     with np.errstate(all="ignore"):  # invalid pixels come back as NaN with valid == False
-        return rc.velocity(measurements, cameras, method=method, measurement_stderr=stderr, measurement_covariance=covariance)
+        return rc.velocity(measurements, cameras, method=method, measurement_stderr=stderr, measurement_covariance=covariance,
+                           max_velocity_stderr=max_velocity_stderr)
+
+
+ERROR_MODEL = "standard errors are Monte Carlo only; multipath bias (global illumination, silhouettes) is not included"
+
+
+def summary(reconstruction: rc.VelocityResult, depth_truth_m=None) -> dict:
+    """What a reconstruction assumed and decided, for ``reconstruction.json`` and the
+    command's summary line: method, validity threshold (m/s) and its reason, the error
+    model, the unambiguous depth range (m) and, given the true depth (m, NaN where nothing
+    is hit), the fraction of the hit pixels whose depth is wrapped (:func:`depth_wrapped`)."""
+    info = {
+        "method": reconstruction.method,
+        "max_velocity_stderr_m_s": reconstruction.max_velocity_stderr_m_s,
+        "threshold_reason": reconstruction.threshold_reason,
+        "error_model": ERROR_MODEL if reconstruction.velocity_stderr is not None else "no standard errors",
+        "depth_range_m": reconstruction.depth_range_m,
+        "modulation_frequencies_hz": list(reconstruction.frequencies_hz),
+        "valid_fraction_of_image": float(np.mean(reconstruction.valid)),
+    }
+    if depth_truth_m is not None:
+        hit = np.isfinite(np.asarray(depth_truth_m, dtype=np.float64))
+        wrapped = depth_wrapped(depth_truth_m, reconstruction.depth_range_m)
+        info["depth_wrapped_fraction"] = float(wrapped[hit].mean()) if hit.any() else 0.0
+    return info
+
+
+def describe_summary(info: dict) -> str:
+    """One line for :func:`summary` (and the ground-truth checks, when present)."""
+    parts = []
+    if info["max_velocity_stderr_m_s"] is not None:
+        parts.append(f"valid where the velocity's standard error ≤ {info['max_velocity_stderr_m_s']:.3g} m/s "
+                     f"({info['threshold_reason']}); {info['error_model']}")
+    else:
+        parts.append(info["threshold_reason"])
+    if "off_by_3_stderr_fraction" in info and math.isfinite(info["off_by_3_stderr_fraction"]):
+        parts.append(f"{100 * info['off_by_3_stderr_fraction']:.1f}% of valid pixels are off by > 3 standard errors")
+    formula = "c/(2 f_g)" if len(info["modulation_frequencies_hz"]) < 2 else "c/(2 |f_1 − f_2|), two frequencies"
+    depth = f"depth modulo {info['depth_range_m']:.4g} m ({formula})"
+    if "depth_wrapped_fraction" in info:
+        depth += f", wrapped on {100 * info['depth_wrapped_fraction']:.1f}% of the pixels that hit a surface (ground truth)"
+    parts.append(depth)
+    return "; ".join(parts)
 
 
 def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s) -> dict:
@@ -106,8 +166,9 @@ def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s) -> dict:
     -------
     dict
         ``valid_fraction`` (of the pixels with ground truth), ``n_valid``, and over those
-        pixels ``median_abs_error_m_s``, ``mean_abs_error_m_s``, ``rmse_m_s`` (NaN when
-        no pixel is valid).
+        pixels ``median_abs_error_m_s``, ``mean_abs_error_m_s``, ``rmse_m_s`` and
+        ``off_by_3_stderr_fraction`` (|error| > 3 ``velocity_stderr``) (NaN when no pixel is
+        valid, or without standard errors).
     """
     truth = np.asarray(ground_truth_m_s, dtype=np.float64)
     seen = np.isfinite(truth)
@@ -118,8 +179,12 @@ def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s) -> dict:
     def stat(f):
         return float(f(error)) if error.size else math.nan
 
+    sigma = reconstruction.velocity_stderr
+    off = np.abs(error) > 3.0 * sigma[valid] if sigma is not None else np.zeros(0)
     return {
         "valid_fraction": float(valid.sum() / n_seen) if n_seen else 0.0,
+        # the calibration of velocity_stderr: ≈ 0.3 % for Gaussian errors where the model holds
+        "off_by_3_stderr_fraction": float(off.mean()) if off.size else math.nan,
         "n_valid": int(valid.sum()),
         "median_abs_error_m_s": stat(lambda e: np.median(np.abs(e))),
         "mean_abs_error_m_s": stat(lambda e: np.mean(np.abs(e))),
@@ -138,10 +203,11 @@ def describe_error(error: dict) -> str:
 
 
 def write_reconstruction(folder: str, reconstruction: rc.VelocityResult, ground_truth_m_s=None,
-                         vmax_m_s: float | None = None) -> list[str]:
+                         vmax_m_s: float | None = None, depth_truth_m=None) -> list[str]:
     """Write the files of the module table into ``folder``; returns their paths.
 
     ``ground_truth_m_s`` (H, W, m/s) adds the comparison figure and ``velocity_error.json``;
+    ``depth_truth_m`` (H, W, m; NaN where nothing is hit) adds ``depth_wrapped.png``;
     ``vmax_m_s`` fixes the colour range of the velocity pictures (default:
     :func:`dopplertof.viz.auto_vmax` of the ground truth if given, else of the
     reconstruction).
@@ -175,7 +241,18 @@ def write_reconstruction(folder: str, reconstruction: rc.VelocityResult, ground_
             vmax=vmax_m_s, unit="m/s", title="radial velocity",
         )
         io.write_json(path(ERROR_FILE), velocity_error(reconstruction, ground_truth_m_s))
+    if depth_truth_m is not None:
+        wrapped = depth_wrapped(depth_truth_m, reconstruction.depth_range_m)
+        viz.save_png(path("depth_wrapped.png"), np.where(wrapped, 255, 0).astype(np.uint8))
+    io.write_json(path(SUMMARY_FILE), summary(reconstruction, depth_truth_m))
     return written
+
+
+def depth_wrapped(depth_truth_m, depth_range_m: float) -> np.ndarray:
+    """Where a true distance (m) is at least the unambiguous range c/(2 f_g): the depth read
+    there is the distance minus a multiple of the range (a pixel that hits nothing, NaN, is not)."""
+    truth = np.asarray(depth_truth_m, dtype=np.float64)
+    return np.isfinite(truth) & (truth >= depth_range_m)
 
 
 def _measurement_file(folder: str, index: int) -> str:
@@ -221,7 +298,7 @@ def read_render_folder(folder: str):
     if isinstance(metadata.get("sensor"), dict) and "frame_cameras" in metadata["sensor"]:
         cameras = cameras[: metadata["sensor"]["frame_cameras"]]  # the rest measure a sensor's mean light
     if not cameras:
-        raise ValueError(f"{folder}: the render has no D-ToF camera; render with e.g. --camera h=0,psi=0 --camera h=1,psi=0")
+        raise ValueError(f"{folder}: the render has no D-ToF camera; render with e.g. --camera h=0,psi=0 --camera h=0,psi=90deg --camera h=1,psi=0 --camera h=1,psi=90deg")
     images = [io.read_exr(_measurement_file(folder, i)) for i in range(len(cameras))]
     shapes = {m.shape for m in images}
     if len(shapes) != 1 or len(next(iter(shapes))) != 2:
@@ -237,7 +314,19 @@ def read_render_folder(folder: str):
     return cameras, np.stack(images), truth, stderr, covariance
 
 
-def reconstruct_folder(folder: str, output: str | None = None, method: str | None = None):
+def read_depth_truth(folder: str):
+    """The render's ground-truth depth (m, NaN where nothing is hit: coverage 0), or None."""
+    depth_path, coverage_path = (os.path.join(folder, f"{n}.exr") for n in ("depth", "coverage"))
+    if not os.path.isfile(depth_path):
+        return None
+    depth = io.read_exr(depth_path).astype(np.float64)
+    if os.path.isfile(coverage_path):
+        depth = np.where(io.read_exr(coverage_path) > 0, depth, np.nan)
+    return depth
+
+
+def reconstruct_folder(folder: str, output: str | None = None, method: str | None = None,
+                       max_velocity_stderr: float | None = None):
     """Reconstruct the velocity of a render folder and write the maps.
 
     Parameters
@@ -247,30 +336,64 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
     output : str, optional
         Where to write (default: ``folder``).
     method : {None, "auto", "ratio", "fit"}, see :func:`resolve_method`.
+    max_velocity_stderr : float, optional. Validity threshold, m/s (see :func:`reconstruct`).
 
     Returns
     -------
-    (VelocityResult, list of written paths, error dict or None)
+    (VelocityResult, list of written paths, dict: :func:`summary` with, against the
+    ground truth, :func:`velocity_error` and ``depth_wrapped_fraction``)
+
+    Raises
+    ------
+    ValueError
+        ``folder`` is not a usable render folder, or ``output`` cannot be written (a file,
+        under a file, read-only: :func:`dopplertof.folder.check_writable`), before any work.
     """
+    from .folder import check_writable
+
     cameras, measurements, truth, stderr, covariance = read_render_folder(folder)
-    result = reconstruct(measurements, cameras, method, stderr, covariance)
-    written = write_reconstruction(output or folder, result, truth)
-    return result, written, None if truth is None else velocity_error(result, truth)
+    check_writable(output or folder)
+    result = reconstruct(measurements, cameras, method, stderr, covariance, max_velocity_stderr)
+    depth_truth = read_depth_truth(folder)
+    written = write_reconstruction(output or folder, result, truth, depth_truth_m=depth_truth)
+    info = summary(result, depth_truth)
+    if truth is not None:
+        info.update(velocity_error(result, truth))
+    return result, written, info
+
+
+def parse_speed(text: str) -> float:
+    """A speed in m/s from the command line: ``0.5`` or ``0.5m/s``; finite and > 0."""
+    number = str(text).strip()
+    number = number[: -len("m/s")].strip() if number.endswith("m/s") else number
+    try:
+        value = float(number)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"--max-velocity-stderr must be a speed > 0 in m/s (e.g. 0.5 or 0.5m/s), got {text!r}")
+    return value
 
 
 @click.command("reconstruct")
 @click.argument("folder")
 @click.option("-o", "--output", default=None, help="Output folder (default: FOLDER).")
 @click.option("--method", type=click.Choice(["auto", "ratio", "fit"]), default=None,
-              help="Estimator (default: auto, the ratio for matched h=0/h=1 pairs, else the fit).")
-def reconstruct_command(folder, output, method):
+              help="Estimator (default: auto, the fit for sinusoidal cameras, else the ratio).")
+@click.option("--max-velocity-stderr", "max_velocity_stderr", default=None, metavar="M/S",
+              help="Valid pixels: velocity standard error at most this, m/s (e.g. 0.5 or 0.5m/s; "
+                   "default a tenth of the scene's speed scale).")
+def reconstruct_command(folder, output, method, max_velocity_stderr):
     """Reconstruct radial velocity (and depth) from the measurements in FOLDER, the output of 'dopplertof render'."""
 
     try:
-        result, written, error = reconstruct_folder(folder, output, method)
+        limit = None if max_velocity_stderr is None else parse_speed(max_velocity_stderr)
+        result, written, info = reconstruct_folder(folder, output, method, limit)
     except (ValueError, FileNotFoundError) as exc:
         fail(str(exc))
-    summary = f"; {describe_error(error)}" if error else ""
-    click.echo(f"reconstructed velocity ({result.method}) of {folder}{summary}")
+    except OSError as exc:  # the disk filled, or the folder went away, while writing
+        fail(f"cannot write {output or folder!r}: {exc.strerror or exc}")
+    error = f"; {describe_error(info)}" if "n_valid" in info else ""
+    click.echo(f"reconstructed velocity ({result.method}) of {folder}{error}; {describe_summary(info)}")
     for path in written:
         click.echo(f"  {path}")

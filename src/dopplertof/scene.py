@@ -393,6 +393,9 @@ class DynamicScene:
     camera_motion: Motion | None = None
     lights: list = field(default_factory=list)
     recipe: tuple | None = None  # how to build it again elsewhere (scenes.from_recipe); None: from a dict
+    # The never-traced scene whose OptiX pipeline and SBT ``static`` and every body's scene
+    # share (loader.pipeline_host); it must outlive them. None without bodies.
+    pipeline_host: object = None
 
     def __post_init__(self):
         if self.traversal not in TRAVERSALS:
@@ -447,10 +450,19 @@ class DynamicScene:
         self._fit_bounds(t0, t1)
 
     def uses_tree(self) -> bool:
-        """Whether ray queries walk the tree of swept boxes (see ``traversal``)."""
+        """Whether ray queries walk the tree of swept boxes (see ``traversal``). Never on
+        CUDA: the tree traces inside ``dr.switch``, which OptiX compiles to direct
+        callables, from which tracing is not sanctioned (gpu-notes §2.2); ``"tree"`` is
+        refused there and ``"auto"`` takes the per-body loop."""
+        import mitsuba as mi
+
         if self.traversal not in TRAVERSALS:
             raise ValueError(f"traversal must be one of {TRAVERSALS}, got {self.traversal!r}")
         if not self.bodies or self.traversal == "per-body":
+            return False
+        if mi.variant().startswith("cuda"):
+            if self.traversal == "tree":
+                raise ValueError(f"traversal='tree' traces inside dr.switch (OptiX direct callables) and is not supported on {mi.variant()}; use 'per-body' or 'auto'")
             return False
         return self.traversal == "tree" or len(self.bodies) > PER_BODY_MAX_BODIES
 

@@ -37,6 +37,7 @@ from .validation import checked
 
 DEFAULT_EXPOSURE_S = 1.5e-3
 DEFAULT_LANES_PER_PASS = 1 << 21
+DEFAULT_CHECKPOINT_INTERVAL_S = 60.0
 PLUGIN_NAMES = ("dopplertof", "dopplertofpath")
 
 
@@ -284,6 +285,25 @@ def _validated(f, value):
     if meta["minimum"] is not None and value < meta["minimum"]:
         raise ValueError(f"{f.name!r} must be >= {meta['minimum']}, got {value!r}")
     return value
+
+
+def checked_checkpoint_interval(value) -> float:
+    """Seconds between a render's checkpoints, checked: a finite number >= 0, else ValueError.
+
+    Not a :class:`RenderSettings` field: how often the sums are saved changes nothing in
+    the result, so a render may be resumed with another interval.
+
+    Parameters
+    ----------
+    value : float
+        A checkpoint is written after the first pass that ends at least this long after
+        the previous one (0: after every pass). Default
+        :data:`DEFAULT_CHECKPOINT_INTERVAL_S` (60 s).
+    """
+    seconds = checked("checkpoint_interval_s", value, "float")
+    if seconds < 0:
+        raise ValueError(f"'checkpoint_interval_s' must be >= 0 seconds, got {value!r}")
+    return seconds
 
 
 def _unknown(key: str, where: str, known=None) -> ValueError:

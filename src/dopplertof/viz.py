@@ -56,6 +56,7 @@ AUTO_VMAX_PERCENTILE = 99.0
 
 #: Resolution of figures with axes and colourbars, dots per inch.
 FIGURE_DPI = 100
+GIF_MAX_FRAME_S = 655.35  # a GIF frame's delay is a 16-bit count of hundredths of a second
 
 # sRGB transfer curve constants (IEC 61966-2-1).
 _SRGB_LINEAR_THRESHOLD = 0.0031308
@@ -591,7 +592,8 @@ def write_gif(path: PathLike, frames: Sequence[np.ndarray], fps: float) -> Path:
     frames : sequence of numpy.ndarray of uint8, each of shape (H, W, 3)
         The frames, all the same shape (e.g. from :func:`to_srgb8`).
     fps : float
-        Frames per second, finite and > 0.
+        Frames per second, finite and >= 1 / :data:`GIF_MAX_FRAME_S` (a frame lasts at
+        most 655.35 s).
 
     Returns
     -------
@@ -601,12 +603,14 @@ def write_gif(path: PathLike, frames: Sequence[np.ndarray], fps: float) -> Path:
     Raises
     ------
     ValueError
-        If ``fps`` is not finite and positive, ``frames`` is empty, a frame is not uint8
+        If ``fps`` is not finite or below 1 / 655.35 s, ``frames`` is empty, a frame is not uint8
         (H, W, 3), the frames differ in shape, or the suffix is not ``.gif``.
     """
     fps = float(fps)
     if not (math.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be finite and > 0, got {fps}")
+    if 1.0 / fps > GIF_MAX_FRAME_S:
+        raise ValueError(f"fps must be >= {1.0 / GIF_MAX_FRAME_S:.4g}: a GIF frame lasts at most {GIF_MAX_FRAME_S} s, got fps={fps!r}")
     frames = [np.asarray(frame) for frame in frames]
     if not frames:
         raise ValueError("frames must contain at least one frame, got 0")

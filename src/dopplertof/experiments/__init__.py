@@ -11,6 +11,9 @@ experiment         what it measures
 ``velocity``       velocity reconstructed from homodyne/heterodyne pairs at ψ = 0, 90°
                    against the ground truth, with and without sensor noise —
                    :func:`run_velocity`
+``paper-fig12``    Figs. 12, 9 and 15 with the original scripts' protocol (:mod:`.paper`):
+``paper-fig9``     ω_r and ψ over 11 values each, 1024 spp, a 131 072-spp reference —
+``paper-fig15``    :func:`run_fig12`, :func:`run_fig9`, :func:`run_shifts`
 =================  =========================================================================
 
 From the command line: ``dopplertof experiment <name> SCENE`` (:mod:`.cli`). References
@@ -33,6 +36,8 @@ _EXPORTS = {
     "run_shifts": "sweeps",
     "run_time_sampling": "sweeps",
     "run_velocity": "velocity",
+    "run_fig12": "paper",
+    "run_fig9": "paper",
     "velocity_errors": "velocity",
 }
 __all__ = sorted(_EXPORTS)

@@ -1,7 +1,8 @@
-"""``dopplertof experiment time-sampling | shifts | velocity SCENE``.
+"""``dopplertof experiment time-sampling | shifts | velocity | paper-fig12 | paper-fig9 | paper-fig15 SCENE``.
 
-Options left out take the normal defaults, or with ``--quick`` the tiny ones (a smoke test
-that finishes in seconds). Bad input prints one line ``error: ...`` and exits with status 2.
+Options left out take the normal defaults (for the ``paper-*`` commands the original
+scripts' protocol, :mod:`.paper`), or with ``--quick`` the tiny ones (a smoke test that
+finishes in seconds). Bad input prints one line ``error: ...`` and exits with status 2.
 """
 
 from __future__ import annotations
@@ -19,6 +20,10 @@ from ..timesampling import METHODS
 NORMAL = {"resolution": 64, "spp": 256, "reference_spp": 16384, "h_steps": 11, "phases": 4, "shift_steps": 11}
 QUICK = {"resolution": 16, "spp": 16, "reference_spp": 256, "h_steps": 3, "phases": 2, "shift_steps": 3}
 QUICK_CORRELATIONS = ("none", "replay")  # the extremes; every mode still runs without --quick
+PAPER = {"resolution": 64, "spp": 1024, "reference_spp": 131072, "h_steps": 11, "phase_steps": 11, "shift_steps": 11}
+"""The original scripts' protocol (:mod:`.paper`; their films were 256², built-in scenes here default to 64²)."""
+PAPER_QUICK = {"resolution": 16, "spp": 16, "reference_spp": 256, "h_steps": 3, "phase_steps": 5, "shift_steps": 3}
+"""The paper commands' smoke test (5 phases, so that ψ and ψ + π both occur)."""
 
 
 class _ExperimentGroup(click.Group):
@@ -41,15 +46,19 @@ def _one_line_errors():
         fail(str(exc))
 
 
-def _common_options(command):
+_DEPTH_HELP = "Path depth (default: the scene's, else the render default 5)."
+
+
+def _common_options(command, defaults=(NORMAL, QUICK), depth_help=_DEPTH_HELP):
+    normal, quick = defaults
     options = [
         click.argument("scene"),
         click.option("-o", "--output", default=None, help="Output folder (default out/experiments/<experiment>/<scene>)."),
-        click.option("--spp", type=int, default=None, help=f"Paths per pixel of the compared renders (default {NORMAL['spp']}, quick {QUICK['spp']})."),
-        click.option("--reference-spp", type=int, default=None, help=f"Paths per pixel of the reference (default {NORMAL['reference_spp']}, quick {QUICK['reference_spp']})."),
-        click.option("--resolution", type=int, default=None, help=f"Film size of a built-in scene (default {NORMAL['resolution']}, quick {QUICK['resolution']})."),
+        click.option("--spp", type=int, default=None, help=f"Paths per pixel of the compared renders (default {normal['spp']}, quick {quick['spp']})."),
+        click.option("--reference-spp", type=int, default=None, help=f"Paths per pixel of the reference (default {normal['reference_spp']}, quick {quick['reference_spp']})."),
+        click.option("--resolution", type=int, default=None, help=f"Film size of a built-in scene (default {normal['resolution']}, quick {quick['resolution']})."),
         click.option("--seed", type=int, default=0, show_default=True, help="Seed of the compared renders; the reference uses seed + 1."),
-        click.option("--max-depth", type=int, default=None, help="Path depth (default: the scene's, else 4)."),
+        click.option("--max-depth", type=int, default=None, help=depth_help),
         click.option("--quick", is_flag=True, help="Tiny settings for a smoke test (seconds)."),
         click.option("--cache", default=None, help="Reference cache folder (default $DOPPLERTOF_CACHE, else ~/.cache/dopplertof/references)."),
         click.option("--ray", "use_ray", is_flag=True, help="Render the references on Ray workers (as 'dopplertof render --ray'; the same pixels)."),
@@ -60,30 +69,41 @@ def _common_options(command):
     return command
 
 
-def _setting(name, value, quick):
+def _setting(name, value, quick, defaults=(NORMAL, QUICK)):
     if value is not None:
         return value
-    return (QUICK if quick else NORMAL)[name]
+    return defaults[1 if quick else 0][name]
 
 
-def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo, use_ray=False, address=None):
-    """(scene, output folder, cache, max depth) shared by the experiments."""
+def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo, use_ray=False, address=None, defaults=(NORMAL, QUICK), default_depth=None):
+    """(scene, output folder, cache, max depth) shared by the experiments; ``default_depth``:
+    a function of the scene giving its depth when neither the option nor the scene does
+    (default the render's)."""
     from .. import scenes
+    from ..folder import check_writable
     from ..raytools import require_ray
-    from .common import ReferenceCache, default_cache_dir, open_scene
+    from .common import DEFAULT_MAX_DEPTH, ReferenceCache, default_cache_dir, open_scene
 
     if address and not use_ray:
         raise ValueError("--address needs --ray")
     if use_ray:
         require_ray()
     if scene_arg in scenes.SCENES:
-        resolution = _setting("resolution", resolution, quick)
+        resolution = _setting("resolution", resolution, quick, defaults)
     scene = open_scene(scene_arg, resolution)
     folder = output or os.path.join("out", "experiments", name, scene.label)
-    cache = ReferenceCache(cache or default_cache_dir(), {"executor": "ray", "address": address} if use_ray else None)
+    cache_folder = cache or default_cache_dir()
+    check_writable(folder)  # before any rendering, not when its results are due
+    try:
+        check_writable(cache_folder)
+    except ValueError as exc:
+        raise ValueError(f"reference cache: {exc}") from None
+    cache = ReferenceCache(cache_folder, {"executor": "ray", "address": address} if use_ray else None)
     width, height = scene.scene.resolution
     echo(f"{name} on {scene.label} ({width}x{height}); output in {os.path.abspath(folder)}/")
-    return scene, folder, cache, (max_depth if max_depth is not None else scene.max_depth)
+    if max_depth is None:
+        max_depth = default_depth(scene) if default_depth else scene.max_depth if scene.max_depth is not None else DEFAULT_MAX_DEPTH
+    return scene, folder, cache, max_depth
 
 
 def _estimators(time_samplings, correlations, quick):
@@ -99,7 +119,7 @@ def _report(written):
         click.echo(f"  {path}")
 
 
-def _experiment_command(name):
+def _experiment_command(name, defaults=(NORMAL, QUICK), depth_help=_DEPTH_HELP):
     """Register ``name`` on the group with the common options; bad input becomes one error line.
 
     Use it as the outermost decorator, above the command's own options.
@@ -111,7 +131,7 @@ def _experiment_command(name):
             with _one_line_errors():
                 function(**kwargs)
 
-        return experiment.command(name)(_common_options(run))
+        return experiment.command(name)(_common_options(run, defaults, depth_help))
 
     return wrap
 
@@ -189,3 +209,76 @@ def velocity_command(scene, output, spp, reference_spp, resolution, seed, max_de
         dyn, folder, estimators, _setting("spp", spp, quick), _setting("reference_spp", reference_spp, quick),
         seed, max_depth, signal_electrons, cache, click.echo,
     ))  # fmt: skip
+
+
+# ---------------------------------------------------------------------------- the paper's figures
+
+_PAPER_DEPTH_HELP = "Path depth (default: the scene's, else 4 for the Cornell boxes and 8 for other scenes, as the original scripts)."
+
+
+def _paper_settings(scene_arg, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, h_steps, phase_steps, name, waveforms=()):
+    """(scene, folder, cache, SweepSettings) of a ``paper-*`` command: the original protocol's
+    ω_r and ψ grids (ψ = 2π·linspace(0, 1, N)), spp and depth, unless given."""
+    from .paper import protocol_max_depth, protocol_phases
+    from .sweeps import SweepSettings, evenly_spaced
+
+    defaults = (PAPER, PAPER_QUICK)
+    h_values = evenly_spaced(_setting("h_steps", h_steps, quick, defaults), "--h-steps")
+    phases = protocol_phases(_setting("phase_steps", phase_steps, quick, defaults))
+    dyn, folder, cache, max_depth = _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, click.echo, use_ray, address, defaults, protocol_max_depth)
+    settings = SweepSettings(
+        h_values, phases, _setting("spp", spp, quick, defaults), _setting("reference_spp", reference_spp, quick, defaults), seed, max_depth,
+        waveforms=tuple(waveforms),
+    )  # fmt: skip
+    return dyn, folder, cache, settings
+
+
+_H_STEPS_HELP = f"Heterodyne ratios ω_r from 0 to 1 (default {PAPER['h_steps']}, quick {PAPER_QUICK['h_steps']})."
+_PHASE_STEPS_HELP = f"Phases ψ = 2π·linspace(0, 1, N) averaged over (default {PAPER['phase_steps']}, quick {PAPER_QUICK['phase_steps']})."
+
+
+@_experiment_command("paper-fig12", (PAPER, PAPER_QUICK), _PAPER_DEPTH_HELP)
+@click.option("--time-sampling", "time_samplings", multiple=True, help=f"Time sampling; repeatable (default all: {', '.join(METHODS)}).")
+@click.option("--correlation", "correlations", multiple=True, help="Correlation mode; repeatable (default none and replay: the original's depths 0 and 16).")
+@click.option("--h-steps", type=int, default=None, help=_H_STEPS_HELP)
+@click.option("--phase-steps", type=int, default=None, help=_PHASE_STEPS_HELP)
+def paper_fig12_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, time_samplings, correlations, h_steps, phase_steps):
+    """The paper's Figure 12: RMSE and PSNR of each time sampling, with and without path correlation, versus ω_r."""
+    from .paper import fig12_estimators, run_fig12
+
+    estimators = fig12_estimators(time_samplings, correlations)
+    dyn, folder, cache, settings = _paper_settings(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, h_steps, phase_steps, "paper-fig12")
+    _report(run_fig12(dyn, folder, estimators, settings, cache, click.echo))
+
+
+@_experiment_command("paper-fig9", (PAPER, PAPER_QUICK), _PAPER_DEPTH_HELP)
+@click.option("--waveform", "waveforms", multiple=True, help="Waveform; repeatable (default all four: sinusoidal, rectangular, triangular, trapezoidal).")
+@click.option("--h-steps", type=int, default=None, help=_H_STEPS_HELP)
+@click.option("--phase-steps", type=int, default=None, help=_PHASE_STEPS_HELP)
+def paper_fig9_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, waveforms, h_steps, phase_steps):
+    """The paper's Figure 9: each waveform's RMSE versus ω_r, with and without further stratification."""
+    from ..modulation import WAVEFORMS
+    from .paper import run_fig9
+
+    unknown = [w for w in waveforms if w not in WAVEFORMS]
+    if unknown:
+        raise ValueError(f"unknown --waveform {unknown[0]!r}; choose one of {', '.join(WAVEFORMS)}")
+    dyn, folder, cache, settings = _paper_settings(
+        scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, h_steps, phase_steps, "paper-fig9", dict.fromkeys(waveforms),
+    )  # fmt: skip
+    _report(run_fig9(dyn, folder, settings, cache, click.echo))
+
+
+@_experiment_command("paper-fig15", (PAPER, PAPER_QUICK), _PAPER_DEPTH_HELP)
+@click.option("--shift-steps", type=int, default=None, help=f"Shifts a from 0 to 1 (default {PAPER['shift_steps']}, quick {PAPER_QUICK['shift_steps']}).")
+@click.option("--h-steps", type=int, default=None, help=_H_STEPS_HELP)
+@click.option("--phase-steps", type=int, default=None, help=_PHASE_STEPS_HELP)
+def paper_fig15_command(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, shift_steps, h_steps, phase_steps):
+    """The paper's Figure 15: RMSE of antithetic and mirrored sampling (replayed paths) over the shift a and ω_r."""
+    from .paper import FIG15_METHODS
+    from .sweeps import evenly_spaced, run_shifts
+
+    shifts = evenly_spaced(_setting("shift_steps", shift_steps, quick, (PAPER, PAPER_QUICK)), "--shift-steps")
+    dyn, folder, cache, settings = _paper_settings(scene, output, spp, reference_spp, resolution, seed, max_depth, quick, cache, use_ray, address, h_steps, phase_steps, "paper-fig15")
+    _report(run_shifts(dyn, folder, FIG15_METHODS, shifts, "replay", settings, cache, click.echo))
+

@@ -40,6 +40,20 @@ all of them: the second path of a pair replays the first at an independent time.
 DEFAULT_MAX_DEPTH = FIELDS["max_depth"].default
 """Path depth when the scene gives none: the render default."""
 
+SWEEP_CAMERA_LANES = 1 << 27
+"""Lanes × cameras per pass of a sweep's renders: every camera keeps a per-lane sum, so a
+render of many cameras (220 for four waveforms × 11 h × 5 ψ) at the default 2 M lanes per
+pass took 3.4× as long and 2.5× the memory as at 0.5 M (64², 512 spp, measured)."""
+
+SWEEP_REPLICATES = 2
+"""Replicates per pixel of the sweeps' renders (the render default is 16). Per-interval
+stratification spreads a pixel's times over the groups of one replicate
+(:mod:`dopplertof.tracing.lanes`), so 16 replicates of a 64-spp render stratify each
+interval in only 2 strata, too few for mirrored sampling, whose pair mean at h = 1 varies
+as cos 2πt, to gain anything. The original scripts stratify over all spp/2 groups of a
+render; 2 replicates stratify over half of them and still give an unbiased image-average
+standard error (``stderr_rms``), which is all the sweeps use."""
+
 _DEFAULT_SHIFT = {"antithetic": 0.5, "antithetic_mirror": 0.0}
 """The original scripts' antithetic shift per method (a = T/2, and the plain mirror 1 − t)."""
 
@@ -69,8 +83,9 @@ class ExperimentScene:
         Camera whose modulation settings every experiment camera inherits (from the
         scene's ``<integrator type="dopplertofpath">``, else :class:`Camera` defaults with
         the exposure of the sensor's shutter: :func:`~dopplertof.settings.scene_camera`).
-    max_depth : int
-        Path depth from the scene's integrator, else :data:`DEFAULT_MAX_DEPTH`.
+    max_depth : int or None
+        Path depth from the scene's integrator; None where it gives none (the commands
+        then use :data:`DEFAULT_MAX_DEPTH` or their protocol's).
     render_settings : dict
         ``rr_depth``, ``hide_emitters``, ``exposure_start`` (s) where the scene's
         integrator gives them; passed to every render.
@@ -80,7 +95,7 @@ class ExperimentScene:
     scene: object
     identity: dict
     base_camera: Camera
-    max_depth: int
+    max_depth: int | None
     render_settings: dict
 
 
@@ -104,7 +119,7 @@ def open_scene(scene_arg: str, resolution: int | None) -> ExperimentScene:
     identity["film"] = [width, height]
     settings = scene_layer(dyn, scene_arg)
     base = scene_camera(settings)
-    max_depth = settings.get("max_depth", DEFAULT_MAX_DEPTH)
+    max_depth = settings.get("max_depth")
     kept = {k: settings[k] for k in _SCENE_RENDER_SETTINGS if k in settings}
     return ExperimentScene(label, dyn, identity, base, max_depth, kept)
 
@@ -119,7 +134,8 @@ def camera_grid(base: Camera, h_values: Sequence[float], phases_rad: Sequence[fl
 
 @dataclass(frozen=True)
 class Estimator:
-    """A time sampling and a correlation mode; the shift defaults to the method's usual one.
+    """A time sampling and a correlation mode; the shift defaults to the method's usual one,
+    per-interval stratification (``stratify_intervals``) to the render default (on).
 
     Raises ValueError for an unknown method or mode, or a shift outside [0, 1].
     """
@@ -127,6 +143,7 @@ class Estimator:
     time_sampling: str
     correlation: str
     shift: float | None = None
+    stratify_intervals: bool | None = None
 
     def __post_init__(self):
         self.render_settings()  # validates the names and the shift now, not after a long render
@@ -143,20 +160,33 @@ class Estimator:
         return self.antithetic_shift if self.time_sampling in _DEFAULT_SHIFT else ""
 
     @property
+    def stratified(self) -> bool:
+        """Whether each time interval is stratified (the setting resolved)."""
+        return FIELDS["stratify_intervals"].default if self.stratify_intervals is None else self.stratify_intervals
+
+    @property
     def label(self) -> str:
-        """``time_sampling/correlation``, the estimator's name in tables and plots."""
-        return f"{self.time_sampling}/{self.correlation}"
+        """``time_sampling/correlation`` (and ``/no further stratification`` where the time
+        intervals are not stratified), the estimator's name in tables and plots."""
+        return f"{self.time_sampling}/{self.correlation}" + ("" if self.stratified else "/no further stratification")
 
     def render_settings(self) -> dict:
         """Render settings (:class:`~dopplertof.settings.RenderSettings` fields) of this estimator."""
-        settings = {"time_sampling": self.time_sampling, "n_times": N_TIMES, "stratify_intervals": True, "correlation": self.correlation}
+        settings = {"time_sampling": self.time_sampling, "n_times": N_TIMES, "correlation": self.correlation}
         if self.time_sampling in _DEFAULT_SHIFT:
             settings["antithetic_shift"] = self.antithetic_shift
+        if self.stratify_intervals is not None:
+            settings["stratify_intervals"] = self.stratify_intervals
         RenderSettings.build(settings)  # validates the combination now
         return settings
 
 
 REFERENCE_ESTIMATOR = Estimator("antithetic", "replay")
+
+
+def sweep_lanes_per_pass(n_cameras: int) -> int:
+    """Lanes per pass of a render of ``n_cameras`` cameras (:data:`SWEEP_CAMERA_LANES`)."""
+    return max(1 << 16, min(FIELDS["lanes_per_pass"].default, SWEEP_CAMERA_LANES // max(n_cameras, 1)))
 
 
 def reference_seed(seed: int) -> int:
@@ -171,15 +201,18 @@ def check_spp(name: str, spp: int) -> int:
     return spp
 
 
-def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int, seed: int, max_depth: int, progress=False, **executor):
+def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int, seed: int, max_depth: int, progress=False, replicates=None, lanes_per_pass=None, **executor):
     """(RenderResult, wall seconds) of one render; an interrupted render raises KeyboardInterrupt.
 
+    ``replicates``, ``lanes_per_pass``: the render's (None: the render default);
     ``executor``: :func:`~dopplertof.render.render`'s ``executor``, ``address``, ``workers``.
     """
     start = time.perf_counter()
+    given = {"replicates": replicates, "lanes_per_pass": lanes_per_pass}
+    extra = {k: v for k, v in given.items() if v is not None}
     result = render(
         scene.scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth, progress=progress,
-        **scene.render_settings, **estimator.render_settings(), **executor,
+        **scene.render_settings, **estimator.render_settings(), **extra, **executor,
     )  # fmt: skip
     if result.interrupted:
         raise KeyboardInterrupt
@@ -192,17 +225,19 @@ def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
 """The ``dopplertof`` package folder."""
 
-_NOT_RENDERING = {"cli.py", "clitools.py", "folder.py", "animate.py", "render_folder.py", "viz.py", "io.py", "reconstruct.py", "sensor.py"}
+_NOT_RENDERING = {"cli.py", "clitools.py", "folder.py", "animate.py", "render_folder.py", "viz.py", "io.py", "sensor.py"}
 """Package modules that only read, post-process or show renders; with the ``experiments``
-subpackage they cannot change a render's pixels. Everything else (integrator, render, scene,
-motion, modulation, time sampling, correlation, loader, scenes, and any new module) can."""
+and ``reconstruct`` subpackages they cannot change a render's pixels. Everything else
+(integrator, render, scene, motion, modulation, time sampling, correlation, loader, scenes,
+and any new module) can."""
+_NOT_RENDERING_PACKAGES = {"experiments", "reconstruct"}
 
 
 def rendering_source_files(package_dir: Path = PACKAGE_DIR) -> list[Path]:
     """The package's ``*.py`` files that can change a render, sorted by relative path."""
     package_dir = Path(package_dir)
     relative = {path: path.relative_to(package_dir) for path in package_dir.rglob("*.py")}
-    kept = [path for path, rel in relative.items() if rel.as_posix() not in _NOT_RENDERING and rel.parts[0] != "experiments"]
+    kept = [path for path, rel in relative.items() if rel.as_posix() not in _NOT_RENDERING and rel.parts[0] not in _NOT_RENDERING_PACKAGES]
     return sorted(kept, key=lambda path: relative[path].as_posix())
 
 
@@ -242,7 +277,7 @@ class ReferenceCache:
         self.executor = dict(executor or {})
 
     @staticmethod
-    def key(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, estimator: Estimator) -> str:
+    def key(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, estimator: Estimator, replicates=None) -> str:
         """SHA-256 of everything that determines the reference's pixels."""
         import mitsuba as mi
 
@@ -253,6 +288,7 @@ class ReferenceCache:
             "spp": spp,
             "seed": seed,
             "max_depth": max_depth,
+            "replicates": replicates,
             "scene_settings": scene.render_settings,
             "estimator": settings,
             "variant": mi.variant(),
@@ -287,16 +323,20 @@ class ReferenceCache:
         return final
 
 
-def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, cache: ReferenceCache, echo: Echo) -> RenderResult:
-    """The high-spp reference of ``cameras``: from the cache, else rendered and stored."""
+def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, cache: ReferenceCache, echo: Echo, replicates=None, lanes_per_pass=None) -> RenderResult:
+    """The high-spp reference of ``cameras``: from the cache, else rendered and stored
+    (``replicates``, ``lanes_per_pass`` as for :func:`timed_render`; the pass split does not
+    change the pixels, so the cache key leaves it out)."""
     seed = reference_seed(seed)
-    key = cache.key(scene, cameras, spp, seed, max_depth, REFERENCE_ESTIMATOR)
+    key = cache.key(scene, cameras, spp, seed, max_depth, REFERENCE_ESTIMATOR, replicates)
     cached = cache.load(key, cameras)
     if cached is not None:
         echo(f"reference: loaded from cache {cache.path(key)}")
         return cached
     echo(f"reference: rendering {REFERENCE_ESTIMATOR.label} at {spp} spp (seed {seed}) ...")
-    result, seconds = timed_render(scene, cameras, REFERENCE_ESTIMATOR, spp, seed, max_depth, progress=sys.stderr.isatty(), **cache.executor)
+    result, seconds = timed_render(
+        scene, cameras, REFERENCE_ESTIMATOR, spp, seed, max_depth, progress=sys.stderr.isatty(), replicates=replicates, lanes_per_pass=lanes_per_pass, **cache.executor,
+    )  # fmt: skip
     path = cache.store(key, result)
     echo(f"reference: rendered in {seconds:.1f} s, cached as {path}")
     return result

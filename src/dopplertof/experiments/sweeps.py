@@ -1,8 +1,12 @@
 """Error of time-sampling estimators over a grid of heterodyne ratios h and phases ψ.
 
-Both sweeps render the whole h × ψ grid of cameras in one render per estimator (all
-cameras of a render share its paths, and a camera costs little next to a path) and compare
-every camera's image with the same camera of a high-spp reference.
+Both sweeps render the whole h × ψ grid of cameras (× waveforms, where a sweep has
+several) in one render per estimator (all cameras of a render share its paths, and a camera
+costs little next to a path) and compare every camera's image with the same camera of a
+high-spp reference. A phase ψ ≥ π is not rendered: its measurement is that of ψ − π with
+the sign flipped (every waveform is odd under a half-period shift), so its errors are the
+same numbers, and its rows repeat them (the original scripts' ψ ∈ 2π·{0, 0.1, …, 1} needs
+5 cameras per h instead of 11).
 
 ``time_sampling``
     The paper's Fig. 12: every time sampling × correlation mode; the error averaged over ψ
@@ -17,6 +21,7 @@ over ψ, with the standard deviation over ψ), PNG plots and ``metadata.json``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +34,7 @@ from .common import (
     Echo,
     Estimator,
     ExperimentScene,
+    SWEEP_REPLICATES,
     ReferenceCache,
     camera_grid,
     check_spp,
@@ -37,22 +43,26 @@ from .common import (
     reference_render,
     reference_seed,
     rms,
+    sweep_lanes_per_pass,
     timed_render,
     write_csv,
 )
 
-METRICS = ("mae", "rmse", "relative_mae", "relative_rmse", "psnr_db")
+METRICS = ("mae", "rmse", "relative_mae", "relative_rmse", "psnr_db", "rmse_x_exposure")
 RESULT_COLUMNS = (
-    "scene", "time_sampling", "correlation", "shift", "h", "psi_deg", "spp", "seed",
+    "scene", "waveform", "time_sampling", "correlation", "stratify_intervals", "shift", "h", "psi_deg", "spp", "seed",
     *METRICS,
     "stderr_rms", "reference_stderr_rms", "render_seconds",
 )  # fmt: skip
-"""``shift``: antithetic shift a (units of T), empty for methods without one; ``psi_deg``:
-ψ in degrees; errors in measurement units (see :func:`~.common.image_errors`);
+"""``shift``: antithetic shift a (units of T), empty for methods without one;
+``stratify_intervals``: per-interval ("further") stratification; ``psi_deg``: ψ in
+degrees; errors in measurement units (see :func:`~.common.image_errors`);
+``rmse_x_exposure``: the RMSE times the exposure T (s), the error of the exposure integral
+∫W f dt on which the original scripts' plots are drawn;
 ``stderr_rms``: the RMSE the render's own noise predicts; ``reference_stderr_rms``: the
 reference's, which adds in quadrature to every measured RMSE (the floor of the curves)."""
 
-SUMMARY_GROUP = ("scene", "time_sampling", "correlation", "shift", "h", "spp")
+SUMMARY_GROUP = ("scene", "waveform", "time_sampling", "correlation", "stratify_intervals", "shift", "h", "spp")
 SUMMARY_COLUMNS = (*SUMMARY_GROUP, "count", *(f"{m}_{s}" for m in METRICS for s in ("mean", "std")))
 
 
@@ -60,11 +70,22 @@ SUMMARY_COLUMNS = (*SUMMARY_GROUP, "count", *(f"{m}_{s}" for m in METRICS for s 
 class SweepSettings:
     """The camera grid and sample counts of a sweep.
 
-    h_values : heterodyne ratios h (beat cycles per exposure)
-    phases_rad : sensor phase offsets ψ (rad)
-    spp, reference_spp : paths per pixel of the compared renders and of the reference
-    seed : seed of the compared renders (the reference uses another)
-    max_depth : path depth
+    Attributes
+    ----------
+    h_values : tuple of float
+        Heterodyne ratios h (beat cycles per exposure).
+    phases_rad : tuple of float
+        Sensor phase offsets ψ (rad), each averaged over with equal weight.
+    spp, reference_spp : int
+        Paths per pixel of the compared renders and of the reference.
+    seed : int
+        Seed of the compared renders (the reference uses another).
+    max_depth : int
+        Path depth.
+    replicates : int
+        Replicates per pixel of every render (default :data:`~.common.SWEEP_REPLICATES`).
+    waveforms : tuple of str
+        The cameras' waveforms, all in the same renders (default: the scene's camera's).
     """
 
     h_values: tuple
@@ -73,6 +94,8 @@ class SweepSettings:
     reference_spp: int
     seed: int
     max_depth: int
+    replicates: int = SWEEP_REPLICATES
+    waveforms: tuple = ()
 
     def __post_init__(self):
         check_spp("spp", self.spp)
@@ -99,36 +122,67 @@ def phase_offsets(count: int) -> tuple:
     return tuple(math.pi * k / count for k in range(count))
 
 
-def _error_rows(scene, estimator, result, reference, seconds) -> list[dict]:
+def folded_phases(phases_rad: Sequence[float]) -> tuple[tuple, list[int]]:
+    """(phases to render, index of each given phase's among them): ψ folded into [0, π)."""
+    rendered: list[float] = []
+    index = []
+    for phase in phases_rad:
+        folded = math.fmod(float(phase), math.pi)
+        folded = folded + math.pi if folded < 0 else folded
+        folded = 0.0 if math.isclose(folded, math.pi, abs_tol=1e-9) else folded
+        match = [k for k, p in enumerate(rendered) if math.isclose(p, folded, abs_tol=1e-9)]
+        if not match:
+            rendered.append(folded)
+        index.append(match[0] if match else len(rendered) - 1)
+    return tuple(rendered), index
+
+
+def sweep_cameras(base, settings: SweepSettings) -> list:
+    """The rendered cameras, waveform-major, then h, then folded phase (:func:`folded_phases`)."""
+    rendered, _ = folded_phases(settings.phases_rad)
+    waveforms = settings.waveforms or (base.waveform,)
+    return [camera for w in waveforms for camera in camera_grid(dataclasses.replace(base, waveform=w), settings.h_values, rendered)]
+
+
+def _error_rows(scene, estimator, result, reference, seconds, settings: SweepSettings) -> list[dict]:
+    """One row per camera of the reported grid (a phase ψ ≥ π repeats the rendered ψ − π's errors)."""
+    rendered, index = folded_phases(settings.phases_rad)
     rows = []
-    for index, camera in enumerate(result.cameras):
-        rows.append({
+    for i, camera in enumerate(result.cameras):
+        errors = image_errors(result.measurements[i], reference.measurements[i])
+        errors["rmse_x_exposure"] = errors["rmse"] * camera.exposure
+        common = {
             "scene": scene.label,
+            "waveform": camera.waveform,
             "time_sampling": estimator.time_sampling,
             "correlation": estimator.correlation,
+            "stratify_intervals": estimator.stratified,
             "shift": estimator.shift_label,
             "h": camera.heterodyne,
-            "psi_deg": math.degrees(camera.phase),
             "spp": result.spp,
             "seed": result.seed,
-            **image_errors(result.measurements[index], reference.measurements[index]),
-            "stderr_rms": rms(result.measurement_stderr[index]),
-            "reference_stderr_rms": rms(reference.measurement_stderr[index]),
+            **errors,
+            "stderr_rms": rms(result.measurement_stderr[i]),
+            "reference_stderr_rms": rms(reference.measurement_stderr[i]),
             "render_seconds": seconds,
-        })  # fmt: skip
+        }  # fmt: skip
+        for phase, k in zip(settings.phases_rad, index):
+            if k == i % len(rendered):
+                rows.append({**common, "psi_deg": math.degrees(phase)})
     return rows
 
 
 def _sweep(scene: ExperimentScene, estimators: Sequence[Estimator], settings: SweepSettings, cache: ReferenceCache, echo: Echo):
     """Render every estimator and the reference; rows of :data:`RESULT_COLUMNS`."""
-    cameras = camera_grid(scene.base_camera, settings.h_values, settings.phases_rad)
-    reference = reference_render(scene, cameras, settings.reference_spp, settings.seed, settings.max_depth, cache, echo)
+    cameras = sweep_cameras(scene.base_camera, settings)
+    lanes = sweep_lanes_per_pass(len(cameras))
+    reference = reference_render(scene, cameras, settings.reference_spp, settings.seed, settings.max_depth, cache, echo, settings.replicates, lanes)
     rows = []
     for number, estimator in enumerate(estimators, 1):
-        result, seconds = timed_render(scene, cameras, estimator, settings.spp, settings.seed, settings.max_depth)
+        result, seconds = timed_render(scene, cameras, estimator, settings.spp, settings.seed, settings.max_depth, replicates=settings.replicates, lanes_per_pass=lanes)
         shift = f" shift {estimator.shift_label:g}" if estimator.shift_label != "" else ""
         echo(f"[{number}/{len(estimators)}] {estimator.label}{shift}: {seconds:.1f} s")
-        rows.extend(_error_rows(scene, estimator, result, reference, seconds))
+        rows.extend(_error_rows(scene, estimator, result, reference, seconds, settings))
     return rows, reference
 
 
@@ -156,7 +210,10 @@ def _metadata(scene, settings, estimators, cache, experiment) -> dict:
         "reference_seed": reference_seed(settings.seed),
         "reference_estimator": "antithetic/replay, shift 0.5",
         "max_depth": settings.max_depth,
-        "estimators": [{"time_sampling": e.time_sampling, "correlation": e.correlation, "shift": e.shift_label} for e in estimators],
+        "replicates": settings.replicates,
+        "waveforms": list(settings.waveforms or (scene.base_camera.waveform,)),
+        "rendered_psi_deg": [math.degrees(p) for p in folded_phases(settings.phases_rad)[0]],
+        "estimators": [{"time_sampling": e.time_sampling, "correlation": e.correlation, "shift": e.shift_label, "stratify_intervals": e.stratified} for e in estimators],
         "cache": str(cache.folder),
     }
 

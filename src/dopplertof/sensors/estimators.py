@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..modulation import SPEED_OF_LIGHT_M_S
-from ..reconstruct import _camera_set
+from ..reconstruct.model import _camera_set
 
 _PHASE_SUM_TOLERANCE = 1e-9
 _MAX_WRAP_CANDIDATES = 100_000

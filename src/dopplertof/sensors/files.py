@@ -25,7 +25,7 @@ A sensor file (TOML)::
                                                          # relative to this file)
 
 Without ``[[frames]]`` a preset keeps its default schedule. Unknown keys are an error
-naming them.
+naming them. :func:`sensor_toml` writes any sensor as such a file.
 """
 
 from __future__ import annotations
@@ -141,3 +141,36 @@ def sensor_record(sensor: Sensor, scheduled=None) -> dict:
         "frame_cameras": sensor.frame_cameras,
         "raw_shape": "(frames, taps, H, W)",
     }
+
+
+def sensor_toml(sensor: Sensor) -> str:
+    """``sensor`` as a TOML sensor file (module docstring) that :func:`load_sensor` reads
+    back to the same sensor: a preset's name and frames (its silicon written out whole), or
+    the taps, silicon and frames of a custom one."""
+    silicon = {k: v for k, v in dataclasses.asdict(sensor.noise).items() if v is not None}
+    lines = [f"preset = {_toml(sensor.name)}"] if sensor.name in PRESETS else [f"taps = {sensor.taps}"]
+    lines += ["", "[silicon]"] + [f"{k} = {_toml(v)}" for k, v in silicon.items()]
+    for frame in sensor.frames:
+        values = {**frame.as_dict(), "heterodyne": frame.heterodyne, "heterodyne_hz": getattr(frame, "heterodyne_hz", None)}
+        lines += ["", "[[frames]]"] + [f"{k} = {_toml(v)}" for k, v in values.items() if v is not None]
+    return "\n".join(lines) + "\n"
+
+
+def _toml(value) -> str:
+    """A TOML value: numbers, booleans, strings, arrays and inline tables."""
+    import json
+    import math
+
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else ("nan" if math.isnan(value) else ("inf" if value > 0 else "-inf"))
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    raise ValueError(f"sensor_toml: cannot write {value!r} as TOML")

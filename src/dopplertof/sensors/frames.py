@@ -100,6 +100,11 @@ class RawFrame(Camera):
         return f"f={self.modulation_frequency:g},{super().label()}"
 
 
+def mean_light_camera(start_s, exposure_s) -> Camera:
+    """The camera that measures a window's mean luminance Ī (constant weight 1)."""
+    return Camera(exposure=exposure_s, exposure_start=start_s, heterodyne=0.0, g1=0.0, g0=1.0, light_code=_CONSTANT, sensor_code=_CONSTANT)
+
+
 def _sensor_range(frame: Camera) -> tuple[float, float]:
     return frame.sensor_code.extremes() if frame.coded else (-1.0, 1.0)  # every named sensor waveform spans [-1, 1]
 
@@ -128,12 +133,12 @@ class Sensor:
     Examples
     --------
     >>> import dopplertof as dt
-    >>> sensor = dt.sensors.preset("dtof-prototype")       # 3 frames read by 2 taps
+    >>> sensor = dt.sensors.preset("dtof-prototype")       # 4 frames read by 2 taps
     >>> result = dt.render(dt.scenes.cornell_box(resolution=16), sensor=sensor, spp=8, max_depth=2)
     >>> result.raw.shape                                    # (frames, taps, H, W), electrons
-    (3, 2, 16, 16)
+    (4, 2, 16, 16)
     >>> sensor.read_out(result, seed=1, mode="A-B").shape   # digital numbers
-    (3, 16, 16)
+    (4, 16, 16)
     """
 
     frames: tuple
@@ -175,7 +180,7 @@ class Sensor:
         if self.taps == 4:
             out += [dataclasses.replace(f, phase=f.phase + j * math.pi / 2) for j in (1, 2, 3) for f in self.frames]
         for start, exposure in self._windows():
-            out.append(Camera(exposure=exposure, exposure_start=start, heterodyne=0.0, g1=0.0, g0=1.0, light_code=_CONSTANT, sensor_code=_CONSTANT))
+            out.append(mean_light_camera(start, exposure))
         return out
 
     @property
@@ -188,9 +193,12 @@ class Sensor:
         """Distinct (exposure_start, exposure) of the frames, in order (None: the render's start)."""
         return list(dict.fromkeys((f.exposure_start, f.exposure) for f in self.frames))
 
-    def raw(self, measurements) -> np.ndarray:
+    def raw(self, measurements, clip: bool = True) -> np.ndarray:
         """Noiseless signal electrons (frames, taps, H, W) from the measurements of
-        :meth:`cameras` (a render's ``measurements``, in that order; module docstring)."""
+        :meth:`cameras` (a render's ``measurements``, in that order; module docstring).
+
+        ``clip=False``: the linear map itself, in float64 and unclipped (applied to the
+        derivatives of the measurements it gives the electrons' derivatives)."""
         m = np.asarray(measurements, dtype=np.float64)
         n_frames, windows = len(self.frames), self._windows()
         expected = self.frame_cameras + len(windows)
@@ -209,6 +217,8 @@ class Sensor:
                 raw[index, 0] = 0.5 * kappa_t * (light + contrast * m[index])
                 if self.taps == 2:
                     raw[index, 1] = 0.5 * kappa_t * (light - contrast * m[index])
+        if not clip:
+            return raw
         # A noisy render can make |M| exceed D where little light arrives: no charge is negative.
         return np.maximum(raw, 0.0).astype(np.float32)
 

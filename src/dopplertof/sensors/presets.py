@@ -199,8 +199,9 @@ def dtof_prototype(frames=None, **silicon) -> Sensor:
     0–200 MHz, 0.12 Hz and 0.02° resolution, so sub-Hz offsets and arbitrary phases;
     sensor-design reference §3); the silicon is :func:`opt8241`'s. The default schedule is
     the original D-ToF setting (Kim et al. 2023 code defaults): 30 MHz, T = 1.5 ms, a
-    homodyne frame and heterodyne frames at h = 1 (≈ 667 Hz) with ψ = 0° and 90°, all in
-    one window, sinusoidal modulation.
+    homodyne and a heterodyne frame at h = 1 (≈ 667 Hz), each at ψ = 0° and 90°, all in one
+    window, sinusoidal modulation: the four frames velocity reconstruction needs (three
+    cannot tell the brightness change of a moving surface from its Doppler shift).
 
     The DDS's 0.12 Hz / 0.02° steps are below what a render resolves, so frequencies, offsets
     and phases are not restricted to them.
@@ -209,7 +210,7 @@ def dtof_prototype(frames=None, **silicon) -> Sensor:
     limits = Limits("D-ToF prototype (OPT8241 + AD9959)", (10e6, 100e6), heterodyne=True, waveforms=("code",))
     default = [
         RawFrame(modulation_frequency=30e6, exposure=1.5e-3, heterodyne=h, phase=p, waveform="sinusoidal")
-        for h, p in ((0.0, 0.0), (1.0, 0.0), (1.0, math.pi / 2))
+        for h, p in ((0.0, 0.0), (0.0, math.pi / 2), (1.0, 0.0), (1.0, math.pi / 2))
     ]  # fmt: skip
     return _sensor("dtof-prototype", frames or default, 2, base, silicon, limits)
 

@@ -32,10 +32,14 @@ The pair's sum of weighted contributions is one unbiased unit of the exposure av
 
 **Analytic mode** (``time_sampling="analytic"``, the original's M06 mode, biased): P1 at
 the start of the exposure and its partner (replay or reconnection) at the end, no role
-swap; each contribution X and optical length L are taken as linear in time between the
-two and the low-pass sinusoid is integrated in closed form
-(:func:`dopplertof.modulation.analytic_integral`). Biased wherever L or X are not linear
-in time (occlusion changes, rotations).
+swap; each contribution is integrated in closed form over the exposure from its values at
+the two ends (:meth:`~dopplertof.tracing.sink.Sink.add_analytic`: X and L linear in time
+while P2 stays on P1's surfaces, else a linear fade between the two ends). Unlike the
+original, P2 outlives P1 as a path of its own, so that contributions appearing during the
+exposure count as those disappearing do, and an occluded reconnection lets P2 go on from
+what it hit (the direction's density is the shift's whatever it hits). Biased per pixel wherever X or L are not linear in
+time (occlusion changes, rotations); its bias per scene is measured by
+``benchmarks/analytic_bias.py``.
 """
 
 from __future__ import annotations
@@ -144,16 +148,24 @@ def trace_pair(scene, settings, setup, tables):
     prev_delta1, prev_delta2 = mi.Bool(True), mi.Bool(True)
     active1 = mi.Bool(True)  # P1's ray was traced: its hit (or escape) is to be shaded
     active2 = mi.Bool(True)  # the same for P2, which also needs P1 alive
+    continuous = mi.Bool(True)  # analytic mode: P2's vertices so far lie on P1's surfaces
+    tracing = mi.Bool(True)  # P1 alive; in analytic mode P1 or P2
 
     while dr.hint(
-        active1,
+        tracing,
         label="dopplertof paired path",
         max_iterations=-1,
         exclude=[scene, correlation, bank1, bank2, poses1, poses2, poses1_64, poses2_64, tables, sink, bsdf_ctx, threshold, analytic, own_coef, shift_coef, opaque_cameras],
     ):
-        active2 &= active1
         valid1 = active1 & si1.is_valid()
-        valid2 = active2 & valid1 & si2.is_valid()  # a shifted vertex needs its primal vertex
+        if dr.hint(analytic, mode="scalar"):
+            # P2 outlives P1 as a path of its own (BSDF sampling with the shared numbers): its
+            # contributions missing at the exposure's start fade in, as P1's lone ones fade out.
+            valid2 = active2 & si2.is_valid()
+            continuous &= (body1 == body2) & (si1.shape == si2.shape)
+        else:
+            active2 &= active1
+            valid2 = active2 & valid1 & si2.is_valid()  # a shifted vertex needs its primal vertex
 
         # ---------------------------------------------------- emitter hit
         contributions = []
@@ -197,7 +209,7 @@ def trace_pair(scene, settings, setup, tables):
         # ---------------------------------------------------- accumulate
         if dr.hint(analytic, mode="scalar"):  # pairs (P1, P2): emitter hits, then NEE
             for k in (0, 2):
-                state = sink.add_analytic(state, opaque_cameras, contributions[k], contributions[k + 1])
+                state = sink.add_analytic(state, opaque_cameras, contributions[k], contributions[k + 1], continuous)
         else:
             for k, (contrib, length, mask) in enumerate(contributions):  # each member at its own time
                 state = sink.add(state, (bank1, bank2)[k % 2], contrib, length, mask)
@@ -227,7 +239,10 @@ def trace_pair(scene, settings, setup, tables):
         expected = dr.norm(target2 - ray2_next.o)
         landed = hit2n.si.is_valid() & (hit2n.body == hit1n.body) & (dr.abs(hit2n.si.t - expected) <= 1e-4 * expected + 1e-5)
         landed = dr.select(at_infinity, ~hit2n.si.is_valid(), landed)
-        next2 &= ~reconnect | landed
+        if dr.hint(analytic, mode="scalar"):
+            pass  # an occluded reconnection: P2 goes on from what it hit (an occlusion change, faded)
+        else:
+            next2 &= ~reconnect | landed  # the shift must be invertible for the MIS
 
         # ---------------------------------------------------- optical lengths and Jacobians
         index1_next = segment_index(index1, tables, bsdf1, next1, si1.wi, bs1.wo)
@@ -241,11 +256,13 @@ def trace_pair(scene, settings, setup, tables):
         x2r = scene.select_pose(poses2_64, hit1n.body).point_to_world(p_local64)
         at_point = reconnect & ~at_infinity
         length1_next = dr.select(at_point & next1, length1 + mi.Float64(index1_next) * dr.norm(x1r - x1), length1_next)
-        length2_next = dr.select(at_point & next2, length2 + mi.Float64(index2_next) * dr.norm(x2r - x2), length2_next)
+        length2_next = dr.select(at_point & landed & next2, length2 + mi.Float64(index2_next) * dr.norm(x2r - x2), length2_next)
         x1n = dr.select(at_point, x1r, x1n)
-        x2n = dr.select(at_point, x2r, x2n)
+        x2n = dr.select(at_point & landed, x2r, x2n)
+        # The shift's Jacobian is that of the direction towards the target, whatever P2 hits.
+        target_n2 = scene.select_pose(poses2, hit1n.body).normal_to_world(hit1n.n_local)
         g1n = dr.select(at_infinity, 1.0, _geometry_term(si1.p, hit1n.si.p, hit1n.si.n))
-        g2n = dr.select(at_infinity, 1.0, _geometry_term(si2.p, hit2n.si.p, hit2n.si.n))
+        g2n = dr.select(at_infinity, 1.0, _geometry_term(si2.p, target2, target_n2))
         own_pdf2 = dr.select(reconnect, pdf_r, bs2.pdf)
         shift_n1 = dr.select(next2, dr.select(reconnect, pdf_r * g2n / g1n, bs1.pdf), 0.0)
         shift_n2 = dr.select(reconnect, bs1.pdf * g1n / g2n, bs2.pdf)
@@ -271,5 +288,6 @@ def trace_pair(scene, settings, setup, tables):
         depth += 1
         active1 = next1
         active2 = next2
+        tracing = active1 | active2 if analytic else active1
 
     return Sink.outputs(state, truth, hits, label)

@@ -99,7 +99,8 @@ def hit_distance64(scene, poses64, hit, x_prev, direction):
     import mitsuba as mi
 
     pose64 = scene.select_pose(poses64, hit.body)
-    d64 = dr.normalize(mi.Vector3d(direction))
+    d64 = mi.Vector3d(direction)
+    d64 = d64 / dr.norm(d64)  # IEEE div and sqrt: dr.normalize of Float64 is approximate on CUDA
     o_local = pose64.point_to_local(x_prev)
     d_local = pose64.vector_to_local(d64)
     n_local = mi.Vector3d(hit.n_local)

@@ -43,25 +43,40 @@ class Sink:
         lum = _luminance(contrib)
         return radiance, [dr.select(mask, m + w * lum, m) for m, w in zip(measurements, bank.weights(length_m))]
 
-    def add_analytic(self, state, cameras, first, second):
-        """The original's analytic mode (:mod:`dopplertof.tracing.paired`): a contribution
-        X and length L at the exposure's start (``first``) and end (``second``), each a
-        (X, L, mask), taken as linear in time in between and integrated in closed form. A
-        start without a matching end holds X and L constant."""
+    def add_analytic(self, state, cameras, first, second, continuous):
+        """The analytic mode (:mod:`dopplertof.tracing.paired`): a contribution X with optical
+        length L at the exposure's start (``first``) and end (``second``), each a
+        (X, L, mask), integrated in closed form over the exposure under a model of X(t)
+        and L(t) between them:
+
+        * where both ends are present and the partner path lies on the primal's surfaces
+          (``continuous``: one path moving), X and L are linear in time;
+        * otherwise (the contribution is missing at one end: shadowed, the partner path
+          gone; or the paths reach different surfaces: an occlusion change) the start's
+          contribution fades linearly out and the end's in, each at its own L: the
+          expectation over a switch at a uniformly distributed time.
+
+        The original ramped a contribution missing at the end to zero (L held) and dropped
+        one missing at the start; holding it constant was this package's earlier rule. Both
+        are further from the unbiased estimate (README, ``benchmarks/analytic_bias.py``).
+        """
         import drjit as dr
         import mitsuba as mi
 
         radiance, measurements = state
         (x1, l1, m1), (x2, l2, m2) = first, second
-        both = m1 & m2
-        x2 = dr.select(both, x2, x1)
-        l2 = dr.select(both, l2, l1)
-        radiance = dr.select(m1, radiance + 0.5 * (x1 + x2), radiance)
+        x1, x2 = dr.select(m1, x1, 0.0), dr.select(m2, x2, 0.0)
+        l1, l2 = dr.select(m1, l1, l2), dr.select(m2, l2, l1)  # a missing end's length is unused: keep it finite
+        present = m1 | m2
+        linear = m1 & m2 & continuous
+        radiance = dr.select(present, radiance + 0.5 * (x1 + x2), radiance)
         lum1, lum2 = mi.Float64(_luminance(x1)), mi.Float64(_luminance(x2))
-        measurements = [
-            dr.select(m1, m + mi.Float(modulation.analytic_integral(cam, l1, l2, lum1, lum2)), m) for m, cam in zip(measurements, cameras)
-        ]
-        return radiance, measurements
+        out = []
+        for m, cam in zip(measurements, cameras):
+            moving = modulation.analytic_integral(cam, l1, l2, lum1, lum2)
+            fading = modulation.analytic_integral(cam, l1, l1, lum1, 0.0) + modulation.analytic_integral(cam, l2, l2, 0.0, lum2)
+            out.append(dr.select(present, m + mi.Float(dr.select(linear, moving, fading)), m))
+        return radiance, out
 
     @staticmethod
     def outputs(state, truth: dict, hits, label):

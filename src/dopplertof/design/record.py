@@ -1,0 +1,466 @@
+"""A scene's response record: render once, read out any sensor in a declared band.
+
+Every sensor-side parameter enters a render only through the low-pass weight of each path
+contribution (:mod:`dopplertof.modulation`). A low-pass weight is a sum of harmonics,
+
+    W(u, L) = c₀ + Re Σ_{m≥1} a_m e^{i m (2π h u + ψ + k L)},     k = 2π f / c,
+
+(the sinusoid: a₁ = g₁/2; a coded camera: a_m = g₁ K_m, c₀ = g₁ K₀ + g₀ s̄, K_m the harmonics
+of its correlation, :mod:`dopplertof.codes`), so a pixel's measurement is
+
+    M = c₀ Ī + Re Σ_m a_m e^{imψ} R(m f, m h),     R(F, ν) = ⟨lum · e^{i 2π ν u} e^{i 2π F L / c}⟩,
+
+with ⟨·⟩ the estimator's average over the pixel's samples and Ī = ⟨lum⟩ the window's mean
+luminance. The record holds, per exposure window and pixel, Ī and R(F, ν) on a declared grid:
+every multiple F of ``step_hz`` in ``band_hz`` crossed with the declared ``beats`` ν (beat
+cycles per exposure: the heterodyne ratios h, their multiples m h for codes, integer or
+not). Each R(F, ν) is itself the measurement of a sinusoidal camera (frequency F,
+heterodyne ν, ψ = 0 and −π/2 for its real and imaginary parts), rendered by the same kernel
+with the same seed, so a sensor read out of the record equals the same sensor rendered
+directly (same seed, same windows in the same order) to rounding: the record is *exact*
+wherever it applies, and refuses everything else (:func:`evaluate`):
+
+* a frequency m f (every harmonic m of the camera's correlation with a non-zero
+  coefficient) outside ``band_hz`` or not a multiple of ``step_hz``;
+* a beat m h not among ``beats``;
+* an exposure window that was not recorded;
+* weights with unbounded harmonics: the full-waveform model, the named rectangular,
+  triangular and trapezoidal waveforms, sampled codes without ``light_bandwidth`` (give
+  the source's bandwidth, at most the band's top, to make them band-limited).
+
+Size: 8 bytes per (F, ν) pair and pixel plus 4 for Ī, per window
+(:meth:`RecordSpec.bytes_per_pixel`): a 256² record of 10–300 MHz at 1 MHz with beats
+(0, 1) is 0.3 GB. Cost: the probe cameras are rendered ``cameras_per_render`` at a time,
+each chunk re-tracing the same paths (docs/design.md gives the measured overhead).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..modulation import MAX_HETERODYNE, MAX_MODULATION_FREQUENCY_HZ, Camera
+from ..validation import checked
+
+# A grid longer than this is a unit mistake (MHz given as Hz): 4096 frequencies per beat
+# and pixel are already 32 kB per pixel.
+MAX_FREQUENCIES = 4096
+MAX_BEATS = 64
+# Harmonics of a correlation smaller than this fraction of its largest are zero (rounding
+# of the chips' transform), not a term the record must hold.
+NEGLIGIBLE_HARMONIC = 1e-9
+# How close (relative) a frequency or beat must be to the grid to be on it.
+GRID_TOLERANCE = 1e-9
+# Beat step δ (cycles per exposure) of the central difference that gives the first moments:
+# its truncation error, (2πδ)²/6 ≈ 7e-6 relative, and the Float32 rounding of the lanes'
+# sums divided by 4πδ, about 1e-5 relative, are both far below a render's noise.
+MOMENT_BEAT_STEP = 1e-3
+# Frequency step δF (Hz) of the central difference that gives the slopes ∂R/∂F: a phase step
+# 2π δF L / c of 1e-2 rad at 5 m (truncation 2e-5 relative), large enough that the Float32
+# rounding of the mixed difference ∂R₁/∂F stays near 1e-3 relative.
+SLOPE_FREQUENCY_STEP_HZ = 1e5
+# What a record may hold beside R: the first moments R₁ (``doppler``), the slopes ∂R/∂F
+# (``slopes``) and ∂R₁/∂F (both).
+DERIVED = ("moments", "slopes", "moment_slopes")
+
+
+@dataclass(frozen=True)
+class RecordSpec:
+    """What a record holds (module docstring).
+
+    Parameters
+    ----------
+    band_hz : (float, float), Hz. Lowest and highest frequency F recorded (every harmonic of
+        an evaluated camera must lie in it). Default (10 MHz, 300 MHz).
+    step_hz : float, Hz. The grid: every multiple of it in ``band_hz``. Default 10 MHz.
+    beats : sequence of float. The beat cycles per exposure ν recorded (a camera with
+        heterodyne h needs m h for each of its harmonics m). Default (0, 1): homodyne and
+        the one-beat heterodyne.
+    cameras_per_render : int. Probe cameras traced per kernel (bounds the kernel's state:
+        4 bytes per camera and lane). Default 32.
+    doppler : bool. Also record the first moments R₁(F, ν) = ⟨lum · u e^{i2πνu} e^{i2πFL/c}⟩,
+        the derivative of every measurement with respect to the paths' rate L̇ that
+        precision maps need (:func:`dopplertof.design.crb`); they triple the probes and
+        double the size. Default False.
+    slopes : bool. Also record the slopes ∂R/∂F (and, with ``doppler``, ∂R₁/∂F): the
+        derivative of every measurement with respect to the modulation frequency, which
+        frequency gradients need (:func:`dopplertof.design.gradient`); they triple the
+        probes again and double the size again. Default False.
+    """
+
+    band_hz: tuple = (10e6, 300e6)
+    step_hz: float = 10e6
+    beats: tuple = (0.0, 1.0)
+    cameras_per_render: int = 32
+    doppler: bool = False
+    slopes: bool = False
+
+    def __post_init__(self):
+        band = self.band_hz
+        if not isinstance(band, (tuple, list)) or len(band) != 2:
+            raise ValueError(f"record: 'band_hz' must be (lowest, highest) in Hz, got {band!r}")
+        low, high = (checked("band_hz", b, "float", "record") for b in band)
+        if not 0 < low <= high <= MAX_MODULATION_FREQUENCY_HZ:
+            raise ValueError(f"record: 'band_hz' must satisfy 0 < lowest <= highest <= {MAX_MODULATION_FREQUENCY_HZ:g} Hz, got {band!r}")
+        step = checked("step_hz", self.step_hz, "float", "record")
+        if not step > 0:
+            raise ValueError(f"record: 'step_hz' must be > 0 Hz, got {self.step_hz!r}")
+        object.__setattr__(self, "band_hz", (low, high))
+        object.__setattr__(self, "step_hz", step)
+        n = self.frequencies_hz.size
+        if n == 0:
+            raise ValueError(f"record: no multiple of step_hz={step:g} Hz lies in band_hz={band!r}")
+        if n > MAX_FREQUENCIES:
+            raise ValueError(f"record: band_hz={band!r} at step_hz={step:g} Hz is {n} frequencies, more than {MAX_FREQUENCIES}; use a coarser step or a narrower band")
+        if isinstance(self.beats, (str, bytes)) or not hasattr(self.beats, "__iter__"):
+            raise ValueError(f"record: 'beats' must be a sequence of beat cycles per exposure, got {self.beats!r}")
+        beats = tuple(checked("beats", b, "float", "record") for b in self.beats)
+        if not 1 <= len(beats) <= MAX_BEATS:
+            raise ValueError(f"record: 'beats' must hold 1 to {MAX_BEATS} values, got {len(beats)}")
+        if len(set(beats)) != len(beats):
+            raise ValueError(f"record: 'beats' lists a value twice: {self.beats!r}")
+        if any(abs(b) > MAX_HETERODYNE for b in beats):
+            raise ValueError(f"record: 'beats' must be within +-{MAX_HETERODYNE:g}, got {self.beats!r}")
+        object.__setattr__(self, "beats", beats)
+        per = checked("cameras_per_render", self.cameras_per_render, "int", "record")
+        if per < 1:
+            raise ValueError(f"record: 'cameras_per_render' must be >= 1, got {per!r}")
+        object.__setattr__(self, "cameras_per_render", per)
+        object.__setattr__(self, "doppler", checked("doppler", self.doppler, "bool", "record"))
+        object.__setattr__(self, "slopes", checked("slopes", self.slopes, "bool", "record"))
+
+    @property
+    def frequencies_hz(self) -> np.ndarray:
+        """The recorded frequencies F (Hz): multiples j·step_hz within band_hz."""
+        low, high = self.band_hz
+        first = math.ceil(low / self.step_hz * (1 - GRID_TOLERANCE))
+        last = math.floor(high / self.step_hz * (1 + GRID_TOLERANCE))
+        return np.arange(first, last + 1, dtype=np.float64) * self.step_hz
+
+    def bytes_per_pixel(self, n_windows: int = 1) -> int:
+        """Record size per pixel (bytes): complex64 R(F, ν) (and R₁ with ``doppler``, their
+        slopes with ``slopes``) and float32 Ī per window."""
+        arrays = (2 if self.doppler else 1) * (2 if self.slopes else 1)
+        return n_windows * (8 * arrays * self.frequencies_hz.size * len(self.beats) + 4)
+
+    def as_dict(self) -> dict:
+        """The spec as a JSON-friendly dict (``RecordSpec(**spec.as_dict())`` is the same spec)."""
+        return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler, "slopes": self.slopes}
+
+
+def as_spec(value) -> RecordSpec:
+    """``record=`` of :func:`dopplertof.render` as a :class:`RecordSpec`: True (defaults),
+    a RecordSpec, or a dict of its fields."""
+    if value is True:
+        return RecordSpec()
+    if isinstance(value, RecordSpec):
+        return value
+    if isinstance(value, dict):
+        unknown = sorted(set(value) - {f.name for f in dataclasses.fields(RecordSpec)})
+        if unknown:
+            raise ValueError(f"record: unknown key(s) {unknown}; use band_hz, step_hz, beats, cameras_per_render, doppler, slopes")
+        return RecordSpec(**value)
+    raise ValueError(f"record must be True, a dict of RecordSpec fields or a dopplertof.design.RecordSpec, got {value!r}")
+
+
+@dataclass
+class Record:
+    """A scene's response record (module docstring).
+
+    Attributes
+    ----------
+    phasors : complex64 (windows, frequencies, beats, H, W). R(F, ν) per window and pixel.
+    luminance : float32 (windows, H, W). Ī, the window's mean luminance.
+    moments : complex64 like ``phasors``, or None. R₁(F, ν) (``spec.doppler``).
+    slopes, moment_slopes : complex64 like ``phasors``, or None. ∂R/∂F and ∂R₁/∂F (1/Hz;
+        ``spec.slopes``, the second also ``spec.doppler``).
+    spec : :class:`RecordSpec`.
+    windows : tuple of (start_s, exposure_s). The recorded exposure windows, in render order.
+    settings : RenderSettings of the render (its cameras dropped; the windows are above).
+    maps : dict. The render's intensity and ground truth (reference window).
+    spp : int. Paths per pixel.
+    """
+
+    phasors: np.ndarray
+    luminance: np.ndarray
+    spec: RecordSpec
+    windows: tuple
+    settings: object
+    maps: dict
+    spp: int
+    info: dict = field(default_factory=dict)
+    moments: np.ndarray | None = None
+    slopes: np.ndarray | None = None
+    moment_slopes: np.ndarray | None = None
+
+    RECORD_FORMAT = "dopplertof-record-1"
+
+    def to_arrays(self) -> dict:
+        """Every array of the record, and its metadata as a JSON string (``metadata``), for
+        :func:`dopplertof.io.write_record`."""
+        import json
+
+        settings = self.settings.as_dict()
+        settings.pop("cameras")
+        meta = {"format": self.RECORD_FORMAT, "spec": self.spec.as_dict(), "windows": [list(w) for w in self.windows], "settings": settings, "spp": self.spp, "info": self.info}
+        arrays = {"phasors": self.phasors, "luminance": self.luminance, "metadata": np.array(json.dumps(meta, default=float))}
+        for name in DERIVED:
+            if getattr(self, name) is not None:
+                arrays[name] = getattr(self, name)
+        arrays.update({f"map.{name}": value for name, value in self.maps.items()})
+        return arrays
+
+    @classmethod
+    def from_arrays(cls, arrays: dict, where: str = "record") -> "Record":
+        """The record :meth:`to_arrays` wrote; ValueError naming ``where`` if it is not one."""
+        import json
+
+        from ..settings import RenderSettings
+
+        try:
+            meta = json.loads(str(arrays["metadata"]))
+            if meta.get("format") != cls.RECORD_FORMAT:
+                raise ValueError(f"format {meta.get('format')!r}, expected {cls.RECORD_FORMAT!r}")
+            spec = RecordSpec(**meta["spec"])
+            windows = tuple(tuple(float(x) for x in w) for w in meta["windows"])
+            phasors, luminance = np.asarray(arrays["phasors"]), np.asarray(arrays["luminance"])
+            expected = (len(windows), spec.frequencies_hz.size, len(spec.beats))
+            if phasors.dtype != np.complex64 or phasors.shape[:3] != expected or luminance.shape != (len(windows), *phasors.shape[3:]):
+                raise ValueError(f"arrays of shape {phasors.shape} and {luminance.shape} do not match the record's grid {expected}")
+            derived = {name: np.asarray(arrays[name]) if name in _derived_of(spec) else None for name in DERIVED}
+            for name, value in derived.items():
+                if value is not None and (value.dtype != np.complex64 or value.shape != phasors.shape):
+                    raise ValueError(f"{name} of shape {value.shape} do not match the phasors {phasors.shape}")
+            settings = RenderSettings.build(meta["settings"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"{where}: not a dopplertof response record ({exc})") from None
+        maps = {name[4:]: np.asarray(value) for name, value in arrays.items() if name.startswith("map.")}
+        return cls(phasors, luminance, spec, windows, settings, maps, int(meta["spp"]), dict(meta["info"]), **derived)
+
+    @property
+    def nbytes(self) -> int:
+        """Memory the record's arrays take, in bytes."""
+        return int(self.phasors.nbytes + self.luminance.nbytes + sum(getattr(self, n).nbytes for n in DERIVED if getattr(self, n) is not None))
+
+    def window_index(self, camera: Camera, where: str) -> int:
+        """Index of ``camera``'s exposure window in :attr:`windows`; a ValueError starting with
+        ``where`` if the window was not recorded."""
+        window = camera.window(self.settings.exposure_start)
+        for index, recorded in enumerate(self.windows):
+            if math.isclose(window[0], recorded[0], rel_tol=1e-12, abs_tol=1e-15) and math.isclose(window[1], recorded[1], rel_tol=1e-12):
+                return index
+        raise ValueError(f"{where}: its exposure window (start {window[0]:g} s, {window[1]:g} s) was not recorded; the record holds {list(self.windows)}")
+
+    def frequency_index(self, frequency_hz: float, where: str) -> int:
+        """Index of ``frequency_hz`` (Hz) on the record's frequency grid; a ValueError starting
+        with ``where`` if it is off the grid or outside the band."""
+        low, high = self.spec.band_hz
+        grid = self.spec.frequencies_hz
+        j = round(frequency_hz / self.spec.step_hz)
+        index = j - round(grid[0] / self.spec.step_hz)
+        if not 0 <= index < grid.size or abs(frequency_hz - j * self.spec.step_hz) > GRID_TOLERANCE * frequency_hz:
+            raise ValueError(
+                f"{where}: needs the frequency {frequency_hz:.9g} Hz, which the record does not hold "
+                f"(multiples of {self.spec.step_hz:g} Hz in [{low:g}, {high:g}] Hz)"
+            )  # fmt: skip
+        return index
+
+    def beat_index(self, beat: float, where: str) -> int:
+        """Index of ``beat`` (cycles per exposure) among the record's beats; a ValueError
+        starting with ``where`` if it was not declared."""
+        for index, recorded in enumerate(self.spec.beats):
+            if abs(beat - recorded) <= GRID_TOLERANCE * max(1.0, abs(recorded)):
+                return index
+        raise ValueError(f"{where}: needs the beat {beat:.9g} cycles per exposure, which the record does not hold (beats {list(self.spec.beats)}); declare it in the record's beats")
+
+
+# ----------------------------------------------------------------------------------------
+# Recording
+
+
+def _sides(spec: RecordSpec) -> list[tuple[int, int]]:
+    """(beat side, frequency side) of the probes: (0, 0) is R(F, ν); ±1 are the steps ±δ in
+    ν (``doppler``) and ±δF in F (``slopes``) whose central differences give R₁ and ∂R/∂F."""
+    beat = (0, 1, -1) if spec.doppler else (0,)
+    frequency = (0, 1, -1) if spec.slopes else (0,)
+    return [(b, f) for b in beat for f in frequency]
+
+
+def _derived_of(spec: RecordSpec) -> tuple[str, ...]:
+    """The names of :data:`DERIVED` a record of ``spec`` holds."""
+    return tuple(n for n, held in zip(DERIVED, (spec.doppler, spec.slopes, spec.doppler and spec.slopes)) if held)
+
+
+def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
+    """(camera, frequency index, beat index, part, side) of one window: Ī first (part None),
+    then the real (ψ = 0) and imaginary (ψ = −π/2: cos(Δ − π/2) = sin Δ) part of R at every
+    (F + side[1] δF, ν + side[0] δ) (:func:`_sides`)."""
+    from ..sensors.frames import mean_light_camera
+
+    out = [(mean_light_camera(start_s, exposure_s), None, None, None, (0, 0))]
+    for j, frequency in enumerate(spec.frequencies_hz):
+        for b, beat in enumerate(spec.beats):
+            for side in _sides(spec):
+                for part, phase in ((0, 0.0), (1, -0.5 * math.pi)):
+                    camera = Camera(
+                        modulation_frequency=float(frequency) + side[1] * SLOPE_FREQUENCY_STEP_HZ, exposure=exposure_s, exposure_start=start_s,
+                        heterodyne=beat + side[0] * MOMENT_BEAT_STEP, phase=phase, g1=2.0, g0=0.0,
+                    )  # fmt: skip
+                    out.append((camera, j, b, part, side))
+    return out
+
+
+def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int) -> None:
+    """ValueError where the record of ``spec`` on a ``width`` × ``height`` film of
+    ``n_windows`` windows (and the probes' sides until their differences are taken) needs
+    more than the available memory."""
+    from ..render import available_memory_bytes
+
+    arrays = len(_sides(spec)) + len(_derived_of(spec))  # every side is held until the derived arrays are made
+    need = width * height * n_windows * (8 * arrays * spec.frequencies_hz.size * len(spec.beats) + 4)
+    available = available_memory_bytes()
+    if available is not None and need > available:
+        raise ValueError(
+            f"record: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats x {n_windows} window(s) on a {width}x{height} film need about "
+            f"{need / 2**30:.2g} GiB; {available / 2**30:.2g} GiB are available: use a coarser step_hz, a narrower band or fewer beats"
+        )  # fmt: skip
+
+
+def record_scene(scene, settings, spec: RecordSpec) -> Record:
+    """Render the record of ``scene`` for the windows of ``settings`` (same seed, same paths).
+
+    The probe cameras of every window are traced in chunks of ``spec.cameras_per_render``;
+    each chunk holds the same number of every window's probes, in the windows' order, so
+    each window keeps its seed (:func:`dopplertof.tracing.lanes.window_seed`). A Ctrl-C
+    raises KeyboardInterrupt: there is no partial record.
+    """
+    from ..render import render
+
+    windows = [(w.start_s, w.exposure_s) for w in settings.windows]
+    width, height = scene.resolution
+    n_freq, n_beats = spec.frequencies_hz.size, len(spec.beats)
+    check_memory(spec, width, height, len(windows))
+    phasors = np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64)
+    # complex64 holds the float32 maps exactly; their difference is exact (Sterbenz) where they are close
+    sides = {side: np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64) for side in _sides(spec) if side != (0, 0)}
+    luminance = np.zeros((len(windows), height, width), np.float32)
+    probes = [_probes(spec, *w) for w in windows]
+    per_window = max(1, spec.cameras_per_render // len(windows))
+    maps, seconds, spp = None, 0.0, settings.spp
+    for first in range(0, len(probes[0]), per_window):
+        chunk = [p for window in probes for p in window[first : first + per_window]]
+        result = render(scene, cameras=[p[0] for p in chunk], settings=settings)
+        if result.interrupted:  # a Ctrl-C: a record of partial chunks would silently mix sample counts
+            raise KeyboardInterrupt
+        seconds += result.info["render_seconds"]
+        spp = min(spp, result.spp)
+        if maps is None:
+            maps = {k: v for k, v in result.maps.items() if not k.startswith("measurement")}
+        for (camera, j, b, part, side), value in zip(chunk, result.measurements):
+            w = windows.index(camera.window(settings.exposure_start))
+            if part is None:
+                luminance[w] = value
+                continue
+            target = phasors if side == (0, 0) else sides[side]
+            if part == 0:
+                target[w, j, b].real = value
+            else:
+                target[w, j, b].imag = value
+    info = {"render_seconds": seconds, "renders": math.ceil(len(probes[0]) / per_window), "probe_cameras": len(probes[0]) * len(windows)}
+    sides[(0, 0)] = phasors
+    beat_step, frequency_step = 4j * math.pi * MOMENT_BEAT_STEP, 2.0 * SLOPE_FREQUENCY_STEP_HZ  # e^{±i2πδu}: ±i2πδ u; F ± δF
+    derived = {}
+    if spec.doppler:
+        derived["moments"] = (sides[(1, 0)] - sides[(-1, 0)]) / beat_step
+    if spec.slopes:
+        derived["slopes"] = (sides[(0, 1)] - sides[(0, -1)]) / frequency_step
+    if spec.doppler and spec.slopes:
+        derived["moment_slopes"] = ((sides[(1, 1)] - sides[(-1, 1)]) - (sides[(1, -1)] - sides[(-1, -1)])) / (beat_step * frequency_step)
+    derived = {name: value.astype(np.complex64) for name, value in derived.items()}
+    return Record(phasors, luminance, spec, tuple(windows), settings.replace(cameras=()), maps, spp, info, **derived)
+
+
+# ----------------------------------------------------------------------------------------
+# Reading out
+
+
+def harmonics(camera: Camera, where: str) -> tuple[float, list[tuple[int, complex]]]:
+    """(c₀, [(m, a_m)]) of ``camera``'s low-pass weight W = c₀ + Re Σ a_m e^{imΔ}
+    (module docstring); ValueError naming ``where`` for weights the record cannot hold."""
+    if not camera.low_pass:
+        raise ValueError(f"{where}: the full-waveform model (low_pass=False) has unbounded harmonics; a record reads out low-pass cameras only")
+    if camera.coded:
+        corr = camera.correlation
+        if corr.harmonics is None:
+            raise ValueError(f"{where}: two sampled codes correlate to unbounded harmonics; give the camera a light_bandwidth within the record's band")
+        k = np.asarray(corr.harmonics)
+        scale = np.abs(k).max()
+        terms = [(m, complex(camera.g1 * k[m])) for m in range(1, k.size) if abs(k[m]) > NEGLIGIBLE_HARMONIC * scale]
+        return float(camera.g1 * k[0].real + camera.g0 * camera.sensor_mean), terms
+    if camera.waveform != "sinusoidal":
+        raise ValueError(f"{where}: the {camera.waveform} waveform has unbounded harmonics; use the sinusoid or a band-limited code (light_bandwidth)")
+    return 0.0, [(1, complex(0.5 * camera.g1))]
+
+
+def readout_terms(record: Record, camera: Camera, where: str = "camera") -> tuple[int, float, list[tuple]]:
+    """(window, c₀, [(m, a_m e^{imψ}, frequency index, beat index)]) of ``camera``: where
+    in ``record`` its harmonics are read (module docstring); ValueError naming ``where``
+    for what the record does not hold."""
+    constant, terms = harmonics(camera, where)
+    w = record.window_index(camera, where)
+    located = [
+        (m, a * np.exp(1j * m * camera.phase), record.frequency_index(m * camera.modulation_frequency, where), record.beat_index(m * camera.heterodyne, where))
+        for m, a in terms
+    ]  # fmt: skip
+    return w, constant, located
+
+
+def measure(record: Record, camera: Camera, where: str = "camera") -> np.ndarray:
+    """The measurement (H, W) of ``camera`` read out of ``record`` (module docstring)."""
+    w, constant, terms = readout_terms(record, camera, where)
+    out = constant * record.luminance[w].astype(np.float64)
+    for _, coefficient, j, b in terms:
+        out += (coefficient * record.phasors[w, j, b]).real
+    return out
+
+
+def evaluate(record: Record, sensor):
+    """The result a direct render of ``sensor`` gives, read out of ``record``.
+
+    Parameters
+    ----------
+    record : :class:`Record` (``dopplertof.render(..., record=True).record`` or
+        :func:`dopplertof.io.read_record`).
+    sensor : :class:`dopplertof.Sensor`, or a list of :class:`dopplertof.Camera`.
+
+    Returns
+    -------
+    RenderResult with ``measurements`` (cameras, H, W), with a sensor its ``raw``
+    (frames, taps, H, W) electrons, and the record's intensity and ground truth. It has no
+    ``measurement_stderr`` (the record keeps no per-replicate values).
+
+    Raises
+    ------
+    ValueError
+        Naming the camera, for what the record cannot give (module docstring).
+    """
+    from ..render import RenderResult
+    from ..sensors import Sensor
+
+    if not isinstance(record, Record):
+        raise ValueError(f"evaluate: 'record' must be a dopplertof.design.Record, got {type(record).__name__}")
+    if isinstance(sensor, Sensor):
+        cameras = sensor.cameras()
+    elif isinstance(sensor, (list, tuple)) and sensor and all(isinstance(c, Camera) for c in sensor):
+        cameras, sensor = list(sensor), None
+    else:
+        raise ValueError(f"evaluate: 'sensor' must be a dopplertof.Sensor or a list of dopplertof.Camera, got {sensor!r}")
+    measurements = np.stack([measure(record, c, f"camera {i} ({c.label()})") for i, c in enumerate(cameras)])
+    maps = dict(record.maps, measurements=measurements.astype(np.float32))
+    if sensor is not None:
+        maps["raw"] = sensor.raw(measurements)
+    settings = record.settings.replace(cameras=tuple(cameras))
+    return RenderResult(maps=maps, settings=settings, spp=record.spp, info={"from_record": True}, sensor=sensor)

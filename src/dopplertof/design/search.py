@@ -1,0 +1,220 @@
+"""Sweeps and optimisation of a sensor's parameters on a recorded scene.
+
+A *variant* of a sensor sets one parameter on its frames (:data:`KEYS`):
+
+=========================  =========================================================
+key (alias)                what it sets
+=========================  =========================================================
+``modulation_frequency``   every frame's modulation frequency (Hz)
+(``f``)
+``heterodyne`` (``h``)     every heterodyne frame's offset h (beat cycles per
+                           exposure; homodyne frames stay homodyne)
+``exposure`` (``T``)       every frame's exposure (s; h kept, so the offset in Hz
+                           follows 1/T)
+=========================  =========================================================
+
+Each variant is rebuilt as a :class:`~dopplertof.Sensor` with the original's limits, so a
+preset refuses what its chip cannot capture; a sweep lists such variants as refused.
+:func:`record_spec` chooses a record that holds every variant of a sweep (its frequencies,
+their harmonics, its beats and, for exposures, one window per exposure).
+
+:func:`sweep` evaluates the objective (:data:`OBJECTIVES`, m/s or m: the mean bound over the
+moving pixels, :func:`~dopplertof.design.crb`) on the grid of every combination.
+:func:`optimize` minimises it from the sensor's own values: the phases of the frames by
+gradient descent (:func:`~dopplertof.design.gradient`; a step the chip refuses is no step), the modulation frequency
+by a pattern search on the record's frequency grid within the chip's range (the record
+gives the objective exactly there and only there: a gradient step would leave the grid).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+
+import numpy as np
+
+from .precision import crb
+
+KEYS = {"modulation_frequency": "modulation_frequency", "f": "modulation_frequency", "heterodyne": "heterodyne", "h": "heterodyne", "exposure": "exposure", "T": "exposure"}
+OBJECTIVES = ("velocity_crb", "depth_crb")
+OPTIMIZE_KEYS = ("modulation_frequency", "phase")
+MAX_SWEEP_POINTS = 10_000
+
+
+def parse_sweep(text: str) -> tuple[str, np.ndarray]:
+    """``KEY=LO:HI:N`` → (key, N values from LO to HI); ValueError naming the text."""
+    if "=" not in text:
+        raise ValueError(f"--sweep {text!r}: expected KEY=LO:HI:N, e.g. modulation_frequency=10e6:100e6:10")
+    key, _, grid = text.partition("=")
+    key = key.strip()
+    if key not in KEYS:
+        raise ValueError(f"--sweep {text!r}: unknown key {key!r}; choose one of {', '.join(KEYS)}")
+    parts = grid.split(":")
+    try:
+        low, high, count = float(parts[0]), float(parts[1]), int(parts[2])
+        if len(parts) != 3:
+            raise IndexError
+    except (ValueError, IndexError):
+        raise ValueError(f"--sweep {text!r}: expected KEY=LO:HI:N with numbers LO, HI and a whole N") from None
+    if not (math.isfinite(low) and math.isfinite(high)) or count < 1 or (count == 1 and low != high) or high < low:
+        raise ValueError(f"--sweep {text!r}: needs finite LO <= HI and N >= 1 (N = 1 only with LO = HI)")
+    return KEYS[key], np.linspace(low, high, count)
+
+
+def variant(sensor, changes: dict):
+    """``sensor`` with ``changes`` ({key: value}, keys of :data:`KEYS`) set on its frames,
+    checked against its limits (ValueError where its chip cannot capture them)."""
+    frames = []
+    for frame in sensor.frames:
+        update = {}
+        for key, value in changes.items():
+            key = KEYS[key]
+            if key == "heterodyne" and frame.heterodyne == 0:
+                continue
+            update[key] = float(value)
+        if update and getattr(frame, "heterodyne_hz", None) is not None:
+            update["heterodyne_hz"] = None  # h is the parameter kept (module docstring)
+        frames.append(dataclasses.replace(frame, **update))
+    return dataclasses.replace(sensor, frames=frames)
+
+
+def record_spec(sensor, sweeps, beats_extra=(), optimize=(), doppler=True):
+    """(RecordSpec, cameras) for a record holding every variant of ``sweeps`` (list of
+    (key, values)) and of ``optimize`` (the modulation frequency: the chip's whole range at
+    its frequency step, else 1 MHz): the cameras give its windows to ``render``."""
+    from .record import RecordSpec, harmonics
+
+    _check_size(sweeps)
+    variants = []
+    for values in itertools.product(*[v for _, v in sweeps]):
+        try:
+            variants.append(variant(sensor, dict(zip([k for k, _ in sweeps], values))))
+        except ValueError:
+            continue  # the chip refuses it: the sweep lists it as refused
+    variants = variants or [sensor]
+    frequencies, beats, cameras = set(), {0.0, *beats_extra}, []
+    for v in variants:
+        for index, camera in enumerate(v.cameras()):
+            _, terms = harmonics(camera, f"frame {index}")
+            for m, _ in terms:
+                frequency = m * camera.modulation_frequency
+                if frequency != round(frequency):
+                    raise ValueError(f"frame {index}: a record's frequencies are whole Hz, got {frequency!r} Hz; choose sweep values in whole Hz")
+                frequencies.add(round(frequency))
+                beats.add(m * camera.heterodyne)
+        cameras += [c for c in v.cameras() if (c.exposure_start, c.exposure) not in {(x.exposure_start, x.exposure) for x in cameras}]
+    if "modulation_frequency" in optimize:
+        limits = sensor.limits
+        low, high = limits.frequency_hz if limits is not None else (min(frequencies), max(frequencies))
+        step = (limits.frequency_step_hz if limits is not None and limits.frequency_step_hz else 1e6)
+        frequencies |= {round(f) for f in np.arange(math.ceil(low / step), math.floor(high / step) + 1) * step}
+    step = math.gcd(*sorted(frequencies))
+    return RecordSpec(band_hz=(float(min(frequencies)), float(max(frequencies))), step_hz=float(step), beats=tuple(sorted(beats)), doppler=doppler, cameras_per_render=128), cameras
+
+
+def _check_size(sweeps):
+    total = math.prod(len(v) for _, v in sweeps)
+    if total > MAX_SWEEP_POINTS:
+        raise ValueError(f"the sweep has {total} points, more than {MAX_SWEEP_POINTS}; use fewer values")
+
+
+def objective_value(record, sensor, objective: str) -> float:
+    """The mean bound (:data:`OBJECTIVES`) over the moving pixels where it is finite."""
+    if objective not in OBJECTIVES:
+        raise ValueError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}")
+    return crb(record, sensor).summary()[f"{objective}_mean"]
+
+
+def sweep(record, sensor, sweeps, objective: str = "velocity_crb") -> list[dict]:
+    """One row per combination of the sweeps' values: the values, ``objective`` (NaN and
+    ``status`` = the reason where the chip refuses the variant) and the mean and median
+    bounds."""
+    _check_size(sweeps)
+    keys = [k for k, _ in sweeps]
+    rows = []
+    for values in itertools.product(*[v for _, v in sweeps]):
+        row = dict(zip(keys, map(float, values)))
+        try:
+            candidate = variant(sensor, row)
+        except ValueError as exc:
+            rows.append({**row, "objective": float("nan"), "status": f"refused: {exc}"})
+            continue
+        summary = crb(record, candidate).summary()
+        rows.append({**row, "objective": summary[f"{objective}_mean"], **summary, "status": "ok"})
+    return rows
+
+
+def optimize(record, sensor, keys, objective: str = "velocity_crb", *, iterations: int = 50):
+    """Minimise ``objective`` over ``keys`` (:data:`OPTIMIZE_KEYS`) from ``sensor``'s values.
+
+    Returns (best sensor, history: one dict per step with the values and the objective).
+    """
+    from .gradient import gradient
+
+    unknown = [k for k in keys if k not in OPTIMIZE_KEYS]
+    if unknown or not keys:
+        raise ValueError(f"--optimize: choose keys among {', '.join(OPTIMIZE_KEYS)}, got {list(keys)!r}")
+    best, best_value = sensor, objective_value(record, sensor, objective)
+    history = [_state(best, best_value)]
+    for _ in range(iterations):
+        improved = False
+        if "modulation_frequency" in keys:
+            candidate, value = _frequency_step(record, best, best_value, objective)
+            if value < best_value:
+                best, best_value, improved = candidate, value, True
+        if "phase" in keys:
+            candidate, value = _phase_step(record, best, best_value, objective, gradient)
+            if value < best_value * (1 - 1e-9):
+                best, best_value, improved = candidate, value, True
+        history.append(_state(best, best_value))
+        if not improved:
+            break
+    return best, history
+
+
+def _state(sensor, value):
+    return {"objective": value, "modulation_frequency": sensor.frames[0].modulation_frequency, "phases": [f.phase for f in sensor.frames]}
+
+
+def _frequency_step(record, sensor, value, objective):
+    """The best of the grid frequencies at ±1, ±2, ±4, … grid steps from the current one
+    (within the record and the chip's range), or the current one."""
+    grid = record.spec.frequencies_hz
+    f0 = sensor.frames[0].modulation_frequency
+    here = int(np.argmin(np.abs(grid - f0)))
+    best, best_value = sensor, value
+    jump = 1
+    while jump < grid.size:
+        for index in (here - jump, here + jump):
+            if 0 <= index < grid.size:
+                try:
+                    candidate = variant(sensor, {"modulation_frequency": grid[index]})
+                    v = objective_value(record, candidate, objective)
+                except ValueError:
+                    continue  # outside the chip's range, or a harmonic beyond the record
+                if v < best_value:
+                    best, best_value = candidate, v
+        jump *= 2
+    return best, best_value
+
+
+def _phase_step(record, sensor, value, objective, gradient):
+    """One gradient step on the frames' phases with a backtracking line search."""
+    g = gradient(record, sensor, objective, [("phase", i) for i in range(len(sensor.frames))])
+    direction = np.array([g.by_parameter[("phase", i)] for i in range(len(sensor.frames))])
+    norm = np.linalg.norm(direction)
+    if norm == 0:
+        return sensor, value
+    step = 0.5 / norm  # at most half a radian first
+    for _ in range(20):
+        frames = [dataclasses.replace(f, phase=f.phase - step * d) for f, d in zip(sensor.frames, direction)]
+        try:
+            candidate = dataclasses.replace(sensor, frames=frames)
+            v = objective_value(record, candidate, objective)
+        except ValueError:
+            v = math.inf
+        if v < value:
+            return candidate, v
+        step *= 0.5
+    return sensor, value

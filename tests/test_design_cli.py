@@ -1,0 +1,99 @@
+"""``dopplertof design``: sweeps and optimisation from the command line (a real subprocess)."""
+
+import csv
+import subprocess
+import sys
+
+import pytest
+
+import dopplertof as dt
+
+FAST = ["--resolution", "8", "--spp", "4", "--max-depth", "2"]
+
+
+def _run(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "dopplertof.cli", *args], capture_output=True, text=True, cwd=cwd, timeout=600)
+
+
+def test_design_sweeps_optimises_and_writes_a_sensor_that_render_reads(tmp_path):
+    out = tmp_path / "design"
+    done = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:120e6:6", "--optimize", "phase", "--rmse-draws", "20", "-o", str(out), *FAST)
+    assert done.returncode == 0, done.stderr
+    assert "best of the sweep: modulation_frequency=" in done.stdout and "optimised (phase)" in done.stdout and "estimator RMSE" in done.stdout
+    for name in ("velocity_crb", "depth_crb", "velocity_rmse"):
+        assert dt.io.read_exr(out / f"{name}.exr").shape == (8, 8)
+    with open(out / "sweep.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [float(r["modulation_frequency"]) for r in rows] == [20e6, 40e6, 60e6, 80e6, 100e6, 120e6]
+    assert all(r["status"] == "ok" and float(r["velocity_crb_mean"]) > 0 for r in rows[:5])
+    assert rows[5]["status"].startswith("refused: D-ToF prototype") and "outside 1e+07 to 1e+08 Hz" in rows[5]["status"]  # the chip's 100 MHz
+    assert (out / "sweep_modulation_frequency.png").stat().st_size > 0 and (out / "optimize.csv").exists()
+    # the record is reused: the same sweep without a render gives the same numbers
+    again = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:120e6:6", "--record", str(out / "record.npz"), "-o", str(tmp_path / "again"))
+    assert again.returncode == 0, again.stderr
+    assert (tmp_path / "again" / "sweep.csv").read_text() == (out / "sweep.csv").read_text()
+    refused = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:120e6:6", "--record", str(out / "record.npz"), "-o", str(out))
+    assert refused.returncode == 2 and refused.stderr.strip() == f"error: {str(out)!r} holds an earlier design run (record.npz, sweep.csv, optimize.csv, best_sensor.toml, velocity_crb.exr, depth_crb.exr, velocity_rmse.exr, sweep_modulation_frequency.png); choose another folder or --overwrite"
+    rendered = _run("render", "cornell-box", "--sensor", str(out / "best_sensor.toml"), "-o", str(tmp_path / "render"), "--quiet", *FAST)
+    assert rendered.returncode == 0, rendered.stderr
+    assert (tmp_path / "render" / "raw_electrons.npy").exists()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--sensor", "dtof-prototype"], "give --sweep"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1:2"], "KEY=LO:HI:N"),
+        (["--sensor", "dtof-prototype", "--sweep", "gain=1:2:2"], "unknown key 'gain'"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--sweep", "f=3e7:4e7:2"], "each key once"),
+        (["--sensor", "nosuchchip", "--sweep", "f=1e7:2e7:2"], "neither a preset"),
+        (["--sensor", "dtof-prototype", "--optimize", "gain"], "'gain' is not one of"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--record", "missing.npz"], "missing.npz"),
+    ],
+)
+def test_design_refuses_bad_input_with_one_error_line(tmp_path, args, message):
+    done = _run("design", "cornell-box", *args, "-o", str(tmp_path / "o"), *FAST, cwd=tmp_path)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], done.stderr
+
+
+def test_render_until_noise_reports_the_spp_it_took(tmp_path):
+    sensor = tmp_path / "dim.toml"
+    sensor.write_text('preset = "dtof-prototype"\n\n[silicon]\nradiance_unit = 1e-3\n')
+    args = ["--sensor", str(sensor), "--resolution", "8", "--max-depth", "2", "--spp", "1024", "--lanes-per-pass", "1024", "--replicates", "64", "--quiet"]
+    done = _run("render", "cornell-box", "--until-noise", "0.5", "-o", str(tmp_path / "r"), *args)
+    assert done.returncode == 0, done.stderr
+    line = next(x for x in done.stdout.splitlines() if x.startswith("until-noise"))
+    assert "until-noise 0.5 reached" in line
+    spp = int(line.split(" at ")[1].split()[0])
+    assert 0 < spp < 1024 and f"rendered cornell-box at {spp} spp" in done.stdout
+
+
+@pytest.mark.parametrize("args, message", [(["--until-noise", "0.5"], "give --sensor"), (["--sensor", "dtof-prototype", "--until-noise", "-1"], "ratio > 0")])
+def test_render_until_noise_refuses_bad_input(tmp_path, args, message):
+    done = _run("render", "cornell-box", *args, "-o", str(tmp_path / "o"), *FAST)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], done.stderr
+
+
+def test_design_interrupted_writes_nothing_and_says_so(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "o"
+    # a record long enough to be interrupted while it renders
+    process = subprocess.Popen(
+        [sys.executable, "-m", "dopplertof.cli", "design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:10", "--resolution", "64", "--spp", "256", "-o", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    deadline = time.time() + 120
+    while time.time() < deadline and "rendering the record" not in process.stderr.readline():
+        pass
+    time.sleep(1.0)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert stderr.strip().splitlines()[-1] == "error: interrupted before the record was finished; nothing written"
+    assert not (out / "record.npz").exists() and not (out / "sweep.csv").exists()
