@@ -27,7 +27,7 @@ def main(argv=None):
     parser = _common.argument_parser(__doc__)
     parser.add_argument("--quick", action="store_true", help="64² and 256² only")
     parser.add_argument("--dir", default=tempfile.gettempdir(), help="where the checkpoints are written (default: the temporary folder)")
-    parser.add_argument("--csv", default=None, help="default: results/checkpoint_cost.csv (checkpoint_cost_quick.csv with --quick)")
+    parser.add_argument("--csv", default=None, help="default results/checkpoint_cost.csv (_quick.csv with --quick)")
     args = parser.parse_args(argv)
     _common.default_output_paths(args, "checkpoint_cost")
 
