@@ -3,7 +3,7 @@
 # As root with apt-get it installs what is missing: python3 with venv, and libLLVM >= 16
 # (Debian's libllvm19, for Dr.Jit's CPU backend). As anyone else it uses what is there and,
 # where something is missing, says in one line what to install and stops. Then it makes
-# the virtual environment and installs the package with its test extras.
+# the virtual environment and installs the package with its test and docs extras.
 # PYTHON=/path/to/python3 picks the interpreter (default: python3 on PATH).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -82,8 +82,8 @@ if ! .venv/bin/python -m pip --version >/dev/null 2>&1; then
     fi
     "$PY" -m venv .venv
 fi
-if ! .venv/bin/python -c "import dopplertof, pytest" 2>/dev/null; then
+if ! .venv/bin/python -c "import dopplertof, pytest, sphinx, myst_nb, furo, sphinx_click, ipykernel" 2>/dev/null; then
     echo "setup: installing dopplertof and its dependencies into .venv"
     .venv/bin/python -m pip install -q --upgrade pip
-    .venv/bin/python -m pip install -q -e '.[test]'
+    .venv/bin/python -m pip install -q -e '.[test,docs]'
 fi

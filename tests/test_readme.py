@@ -26,8 +26,10 @@ import dopplertof as dt
 
 ROOT = Path(__file__).resolve().parent.parent
 
-# The pages whose blocks run (paths from the repository root); docs pages join here.
-PAGES = ("README.md",)
+# The pages whose blocks run (paths from the repository root): the README and the docs pages
+# with shell or Python blocks (the executed notebook pages run in tests/test_docs.py).
+PAGES = ("README.md", "docs/installation.md", "docs/quickstart.md", "docs/cli.md", "docs/python-api.md", "docs/scene-format.md",
+         "docs/reconstruction.md", "docs/sensors.md", "docs/datasets.md", "docs/paper.md")
 
 # The repository's files and folders a page's commands use (linked into the session folder,
 # which keeps what the commands write: out/, data/, my.toml).
@@ -47,8 +49,17 @@ SUBSTITUTIONS = (
     ("experiment time-sampling cornell-box ", "experiment time-sampling cornell-box --quick "),
     ("experiment shifts cornell-box ", "experiment shifts cornell-box --quick "),
     ("experiment velocity cornell-box ", "experiment velocity cornell-box --quick "),
+    ("experiment paper-fig12 cornell-box ", "experiment paper-fig12 cornell-box --quick "),
+    ("experiment paper-fig9 cornell-box ", "experiment paper-fig9 cornell-box --quick "),
+    ("experiment paper-fig15 cornell-box ", "experiment paper-fig15 cornell-box --quick "),
     ("dt.scenes.cornell_box(resolution=128)", "dt.scenes.cornell_box(resolution=16)"),
+    ("dt.scenes.cornell_box(resolution=64)", "dt.scenes.cornell_box(resolution=16)"),
+    ("result = dt.render(scene, cameras=cameras, spp=64, max_depth=4)", "result = dt.render(scene, cameras=cameras, spp=4, max_depth=4)"),
+    ("render cornell-box --spp 64 --resolution 64 -o out/quick", "render cornell-box --spp 4 --resolution 16 -o out/quick"),
+    ("dt.scenes.rotating(resolution=64)", "dt.scenes.rotating(resolution=16)"),
+    ("res = dt.render(scene, sensor=S, spp=64)", "res = dt.render(scene, sensor=S, spp=4)"),
     ("spp=256, seed=0, max_depth=4", "spp=4, seed=0, max_depth=4"),
+    ("result = dt.render(scene, cameras=cameras, spp=256)", "result = dt.render(scene, cameras=cameras, spp=4)"),
     ("res = dt.render(scene, cameras=cameras, spp=256)", "res = dt.render(scene, cameras=cameras, spp=4)"),
     ("moving = dt.render(driving, cameras=cameras, spp=64", "moving = dt.render(driving, cameras=cameras, spp=4"),
     ("render falling-box -o out/seq", "render falling-box --spp 4 --resolution 16 -o out/seq"),
@@ -63,13 +74,18 @@ SKIP_COMMANDS = (
     ("pip install", "installs packages: CI's environment is made by scripts/setup.sh"),
     ("pip wheel", "its isolated build needs the package index (setuptools); test_one_version checks the version it gets"),
     ("conda install", "conda is not part of CI's environment"),
+    ("bash scripts/docs.sh", "the documentation build: tests/test_docs.py runs it"),
 )
 
 # Blocks that cannot run in CI (a block containing the text is skipped whole).
 SKIP_BLOCKS = (("#SBATCH", "a Slurm batch script: needs a Slurm cluster"),)
 
 # Languages of blocks that do not run, and why; a block in any other language fails the test.
-NOT_RUN = {"xml": "fragments of scene files; a whole file written from them, tests/data/readme_scene.xml, is the session's my_scene.xml"}
+NOT_RUN = {
+    "xml": "fragments of scene files; a whole file written from them, tests/data/readme_scene.xml, is the session's my_scene.xml",
+    "{include}": "a Sphinx directive inserting a generated file (the settings table); tests/test_docs.py builds it",
+    "{eval-rst}": "reStructuredText for Sphinx (the generated CLI reference); tests/test_docs.py builds it",
+}
 
 
 def _steps(page: str) -> tuple[list[tuple[str, int, str]], set, set]:

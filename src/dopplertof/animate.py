@@ -96,10 +96,13 @@ def motion_duration(scene) -> float | None:
 
 
 def frame_folder(output: str, index: int) -> str:
+    """The folder of frame ``index`` (from 0) of the clip in ``output``: ``output/frame_0000``, …"""
     return os.path.join(output, f"frame_{index:04d}")
 
 
 def is_done(output: str, index: int) -> bool:
+    """True when frame ``index`` of the clip in ``output`` is finished: its ``done.json``,
+    written last, exists."""
     return os.path.isfile(os.path.join(frame_folder(output, index), DONE_FILE))
 
 

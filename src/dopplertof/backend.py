@@ -438,6 +438,12 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
     ------
     BackendError
         The variant cannot start, or its libLLVM is older than 16 (before any kernel runs).
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> dt.set_variant("llvm_ad_rgb")
+    'llvm_ad_rgb'
     """
     mi = _import_mitsuba()
     name = variant or default_variant(mono)

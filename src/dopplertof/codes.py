@@ -52,16 +52,16 @@ MAX_HARMONICS = 4096
 class Code:
     """One period of a modulation code: ``samples`` (chips) or ``fourier`` coefficients.
 
+    Exactly one of the two is given. Build with :func:`sampled`, :func:`fourier` or
+    :func:`as_code`.
+
     Parameters
     ----------
     samples : tuple of float, optional
         N ≥ 8 finite values; sample n holds over [2πn/N, 2π(n+1)/N) of the period.
     fourier : tuple of complex, optional
-        c_0 … c_M (finite, M ≥ 1, at most :data:`MAX_HARMONICS`):
-        x(θ) = Re Σ_m c_m e^{imθ}.
-
-    Exactly one of the two is given. Build with :func:`sampled`, :func:`fourier` or
-    :func:`as_code`.
+        c_0 … c_M (finite, M ≥ 1, at most :data:`MAX_HARMONICS`) of
+        ``x(θ) = Re Σ_m c_m e^{imθ}``.
     """
 
     samples: tuple | None = None
@@ -131,6 +131,7 @@ class Code:
 
     @property
     def mean(self) -> float:
+        """The code's mean over one period (its DC coefficient), e.g. 0.5 for a 0/1 square."""
         return float(self.coefficients(0)[0].real)
 
     def _grid(self, parts: int) -> np.ndarray:

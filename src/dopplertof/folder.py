@@ -48,6 +48,8 @@ _PREVIEWS = {"intensity": "save_intensity_png", "signed": "save_signed_png", "ve
 
 
 def measurement_stem(index: int, camera) -> str:
+    """The file stem of camera ``index``'s measurement in a render folder, e.g.
+    ``measurement_2_h1_psi90deg`` (ψ in degrees)."""
     return f"measurement_{index}_h{camera.heterodyne:g}_psi{math.degrees(camera.phase):g}deg"
 
 

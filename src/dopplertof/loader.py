@@ -90,6 +90,25 @@ def load_scene(source, *, film_resolution=None, **params) -> DynamicScene:
         shutter interval that is not finite or of zero length, a motion key beyond
         :data:`~dopplertof.motion.MAX_COORDINATE_M`, a speed at or above the speed of
         light, bad ``<integrator>`` parameters, unknown ``$name`` parameters.
+
+    Examples
+    --------
+    A sphere moving at 1 m/s along +z in a dict (``"motion"`` beside the shape's entries):
+
+    >>> import dopplertof as dt
+    >>> scene = dt.load_scene({
+    ...     "type": "scene",
+    ...     "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 8, "height": 8}},
+    ...     "ball": {"type": "sphere", "motion": {"type": "parametric", "linear_velocity": [0, 0, 1]}},
+    ...     "light": {"type": "point", "position": [0, 0, -4]},
+    ... })
+    >>> len(scene.bodies)
+    1
+    >>> try:
+    ...     dt.load_scene("missing.xml")
+    ... except dt.SceneError as error:
+    ...     print(error)
+    missing.xml: scene file not found
     """
     from .backend import ensure_variant
 

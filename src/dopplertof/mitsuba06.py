@@ -40,49 +40,49 @@ Anything else Mitsuba 3 does not know stays as it is and Mitsuba 3 refuses it, n
 
 Integrator ``dopplertofpath`` (reference §8.1)
 ----------------------------------------------
-==================================  ======  =============================  =========================================
-0.6 key                             type    our setting                    note
-==================================  ======  =============================  =========================================
-``maxDepth``                        int     ``max_depth``                  same semantics
-``rrDepth``                         int     ``rr_depth``                   paired modes use no RR (as the original)
+==================================  ======  =================================  =========================================
+0.6 key                             type    our setting                        note
+==================================  ======  =================================  =========================================
+``maxDepth``                        int     ``max_depth``                      same semantics
+``rrDepth``                         int     ``rr_depth``                       paired modes use no RR (as the original)
 ``hideEmitters``                    bool    ``hide_emitters``
-``strictNormals``                   bool    –                              false is Mitsuba 3's behaviour; true is
-                                                                           accepted where it changes nothing (every
-                                                                           shading normal is the geometric one: no
-                                                                           smooth-shaded mesh, no bump/normal map),
-                                                                           else an error
-``time``, ``w_g``, ``w_s``,         float   same names                     exposure T [s], MHz, rad, fractions of 2π
+``strictNormals``                   bool    –                                  false is Mitsuba 3's behaviour; true is
+                                                                               accepted where it changes nothing (every
+                                                                               shading normal is the geometric one: no
+                                                                               smooth-shaded mesh, no bump/normal map),
+                                                                               else an error
+``time``, ``w_g``, ``w_s``,         float   same names                         exposure T [s], MHz, rad, fractions of 2π
 ``g_1``, ``g_0``,
 ``sensor_phase_offset``,
 ``hetero_offset``,
 ``hetero_frequency``
 ``wave_function_type``              string  ``wave_function_type``
-``low_srequency_component_only``    bool    ``low_frequency_component_only``  the key the original really read
-``low_frequency_component_only``    bool    (same)                         the documented key, which the original
-                                                                           ignored (always low-pass): true is
-                                                                           accepted, false is an error (ambiguous)
-``time_sampling_mode``              string  ``time_sampling``              uniform (0.6 default), stratified,
-                                                                           antithetic, antithetic_mirror, analytic
-``antithetic_shifts``               string  ``antithetic_shift`` /         whitespace-separated; default "0.5"
-                                            ``n_times``                    ("0.0" for mirror); one shift → the
-                                                                           shift, n = 2; k shifts → n = k + 1, which
-                                                                           antithetic needs to be {i/n}; uniform and
-                                                                           stratified use only the count
-``antithetic_shifts_number``        int     ``n_times``                    K > 0: shifts {i/K}, n = K (not mirror)
-``use_full_time_stratification``    bool    ``stratify_intervals``         default false (ours: true)
-``spatial_correlation_mode``        string  ``correlation``                none → none, pixel → pixel, sampler →
-                                                                           replay, ray_position → reconnection,
-                                                                           ray_sampler → replay, ray_adaptive →
-                                                                           adaptive; mis → error. The README swaps
-                                                                           the two ray_* labels; the code's meaning
-                                                                           is used (reference §3.1)
-``m_reconnection_threshold``        float   ``m_reconnection_threshold``   ray_adaptive roughness threshold
-``primal_antithetic_mis_power``     float   –                              only 1 (balance heuristic, ours)
-``force_constant_attenuation``      bool    –                              only false (first order, ours)
-``image_offset``                    float   –                              0 or 1 (the default); our output has no
-                                                                           offset and no factor T: ours =
-                                                                           (0.6 pixel − image_offset) / T
-==================================  ======  =============================  =========================================
+``low_srequency_component_only``    bool    ``low_frequency_component_only``   the key the original really read
+``low_frequency_component_only``    bool    (same)                             the documented key, which the original
+                                                                               ignored (always low-pass): true is
+                                                                               accepted, false is an error (ambiguous)
+``time_sampling_mode``              string  ``time_sampling``                  uniform (0.6 default), stratified,
+                                                                               antithetic, antithetic_mirror, analytic
+``antithetic_shifts``               string  ``antithetic_shift`` /             whitespace-separated; default "0.5"
+                                            ``n_times``                        ("0.0" for mirror); one shift → the
+                                                                               shift, n = 2; k shifts → n = k + 1, which
+                                                                               antithetic needs to be {i/n}; uniform and
+                                                                               stratified use only the count
+``antithetic_shifts_number``        int     ``n_times``                        K > 0: shifts {i/K}, n = K (not mirror)
+``use_full_time_stratification``    bool    ``stratify_intervals``             default false (ours: true)
+``spatial_correlation_mode``        string  ``correlation``                    none → none, pixel → pixel, sampler →
+                                                                               replay, ray_position → reconnection,
+                                                                               ray_sampler → replay, ray_adaptive →
+                                                                               adaptive; mis → error. The README swaps
+                                                                               the two ray_* labels; the code's meaning
+                                                                               is used (reference §3.1)
+``m_reconnection_threshold``        float   ``m_reconnection_threshold``       ray_adaptive roughness threshold
+``primal_antithetic_mis_power``     float   –                                  only 1 (balance heuristic, ours)
+``force_constant_attenuation``      bool    –                                  only false (first order, ours)
+``image_offset``                    float   –                                  0 or 1 (the default); our output has no
+                                                                               offset and no factor T: ours =
+                                                                               (0.6 pixel − image_offset) / T
+==================================  ======  =================================  =========================================
 
 ``ray_sampler`` is the original's paired tracing with random replay, whose primal/partner
 weights are ½ each: the same estimator as ``replay`` here. In ``analytic`` mode, ours adds

@@ -98,6 +98,13 @@ class Camera:
         [exposure_start, exposure_start + exposure]: configurations with the same window
         share paths, each other window is traced with its own (a capture schedule, such as
         four phase images one after another; README "Capture schedules").
+
+    Examples
+    --------
+    >>> import math, dopplertof as dt
+    >>> camera = dt.Camera(heterodyne=1.0, phase=math.pi / 2)   # 30 MHz, T = 1.5 ms
+    >>> camera.label(), round(camera.beat_frequency, 1)          # h / T in Hz
+    ('h=1,psi=1.5708', 666.7)
     """
 
     modulation_frequency: float = 30e6
@@ -182,15 +189,15 @@ class Camera:
 
     @property
     def light_mean(self) -> float:
-        """ḡ, the light waveform's mean over a period (the trapezoid's pulse: 1; the
-        other named waveforms: 0)."""
+        """ḡ, the light waveform's mean over a period (1 for the trapezoid's pulse, 0 for
+        the other named waveforms)."""
         if self.coded:
             return self.light.mean
         return 1.0 if self.waveform == "trapezoidal" else 0.0
 
     @property
     def sensor_mean(self) -> float:
-        """s̄, the demodulation's mean over a period (every named waveform: 0)."""
+        """s̄, the demodulation's mean over a period (0 for every named waveform)."""
         return self.sensor_code.mean if self.coded else 0.0
 
     @cached_property
@@ -216,6 +223,8 @@ class Camera:
         return self.heterodyne / self.exposure
 
     def label(self) -> str:
+        """Short text naming this camera in file names and tables, e.g. ``h=1,psi=1.5708``
+        (with ``,start=…`` in s when it has an ``exposure_start``)."""
         start = "" if self.exposure_start is None else f",start={self.exposure_start:g}"
         return f"h={self.heterodyne:g},psi={self.phase:g}{start}"
 

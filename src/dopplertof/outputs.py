@@ -22,6 +22,9 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class Output:
+    """One output of a render: its name, its kind (estimate, truth, coverage or label), its
+    channels, unit and meaning, the name of its standard error and of its preview kind.
+    :data:`OUTPUTS` lists them, once for the kernel, the writers, the plugin and the caches."""
     name: str
     kind: str  # estimate | truth | coverage | label
     channels: object  # int, "color" (3 in RGB variants, 1 in mono) or "cameras" (one image each)
@@ -32,6 +35,8 @@ class Output:
     preview: str | None = None  # intensity | signed | velocity | labels
 
     def n_channels(self, color_channels: int, n_cameras: int) -> int:
+        """How many channels this output has in a render with ``color_channels`` colour
+        channels (3 in RGB variants, 1 in mono) and ``n_cameras`` cameras."""
         return {"color": color_channels, "cameras": n_cameras}.get(self.channels, self.channels)
 
 

@@ -75,6 +75,13 @@ class RenderResult:
     standard error, the ground truth, ``coverage`` and ``instance_id`` are those of the
     *reference* window, the first camera's (``settings.windows[0]``). ``cameras`` are the
     rendered cameras with their window's ``exposure_start`` filled in.
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> result = dt.render(dt.scenes.cornell_box(resolution=16), spp=8, max_depth=2)   # intensity only
+    >>> result.spp, result.intensity.shape, result.depth.shape, result.measurements.shape
+    (8, (16, 16, 3), (16, 16), (0, 16, 16))
     """
 
     maps: dict
@@ -98,6 +105,7 @@ class RenderResult:
 
     @property
     def seed(self) -> int:
+        """The render's seed (``settings.seed``)."""
         return self.settings.seed
 
 
@@ -380,6 +388,15 @@ def render(
     CheckpointWriteError
         A checkpoint could not be written (full disk, ...): the render stops there; the
         message says which earlier checkpoint is kept.
+
+    Examples
+    --------
+    >>> import math, dopplertof as dt
+    >>> scene = dt.scenes.cornell_box(resolution=16)
+    >>> cameras = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
+    >>> result = dt.render(scene, cameras=cameras, spp=16, max_depth=3)
+    >>> result.measurements.shape, result.intensity.shape, result.velocity.shape
+    ((4, 16, 16), (16, 16, 3), (16, 16))
     """
     import time
 

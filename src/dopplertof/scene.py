@@ -88,7 +88,19 @@ def check_emitters(mi_scene, where: str) -> None:
 
 
 class SceneError(ValueError):
-    """A scene description that cannot be loaded; the message says what and where."""
+    """A scene description that cannot be loaded; the message says what and where.
+
+    A ``ValueError``, raised by :func:`dopplertof.load_scene`.
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> try:
+    ...     dt.load_scene({"type": "scene", "ball": {"type": "sphere"}})
+    ... except dt.SceneError as error:
+    ...     print(error)
+    <dict>: the scene has no sensor
+    """
 
 
 @dataclass
@@ -363,6 +375,13 @@ class DynamicScene:
     traversal      str       how a ray finds the bodies it hits (module docstring):
                              ``"auto"`` (default), ``"per-body"`` or ``"tree"``
     =============  ========  ============================================================
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> scene = dt.scenes.cornell_box(resolution=16)   # two boxes moving during the exposure
+    >>> len(scene.bodies), scene.camera_motion is None
+    (2, True)
     """
 
     static: object  # mi.Scene
@@ -449,6 +468,13 @@ class DynamicScene:
 
     @property
     def sensor(self):
+        """The scene's Mitsuba sensor (the first; dopplertof renders one camera).
+
+        Raises
+        ------
+        SceneError
+            If the scene has no sensor.
+        """
         sensors = self.static.sensors()
         if not sensors:
             raise SceneError(f"{self.source}: the scene has no sensor")

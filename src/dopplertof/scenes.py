@@ -129,6 +129,28 @@ def cornell_box(resolution=256, light="point", exposure=CORNELL_EXPOSURE_S, disp
     ceiling (``light="area"``). Over [0, exposure] the short box moves ``displacement`` m
     in +z (towards the camera, −10 m/s by default) and the tall box the same distance in −z
     (away, +10 m/s).
+
+    Parameters
+    ----------
+    resolution : int, default 256
+        Film width and height in pixels.
+    light : str, default "point"
+        ``"point"`` (at the camera) or ``"area"`` (in the ceiling).
+    exposure : float, s, default 1.5e-3
+        Exposure T: the sensor's shutter interval, over which the boxes move.
+    displacement : float, m, default 0.015
+        How far each box moves during the exposure (speed = displacement / exposure).
+
+    Returns
+    -------
+    DynamicScene
+        The loaded scene (the variant set first if none is).
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> len(dt.scenes.cornell_box(resolution=16).bodies)
+    2
     """
     from .backend import ensure_variant
 
@@ -161,7 +183,22 @@ def cornell_box(resolution=256, light="point", exposure=CORNELL_EXPOSURE_S, disp
 
 
 def cornell_box_area(resolution=256, exposure=CORNELL_EXPOSURE_S, displacement=0.015):
-    """The Cornell box of :func:`cornell_box` lit by a ceiling area light."""
+    """The Cornell box of :func:`cornell_box` lit by a ceiling area light.
+
+    Parameters
+    ----------
+    resolution : int, default 256
+        Film width and height in pixels.
+    exposure : float, s, default 1.5e-3
+        Exposure T (see :func:`cornell_box`).
+    displacement : float, m, default 0.015
+        How far each box moves during the exposure.
+
+    Returns
+    -------
+    DynamicScene
+        The loaded scene (the variant set first if none is).
+    """
     return cornell_box(resolution, light="area", exposure=exposure, displacement=displacement)
 
 
@@ -184,6 +221,20 @@ def rotating(resolution=256, radius=1.2, rim_speed=3.0):
     blue sphere ride on it at 0.8 · radius. Camera at (0, 2.4, 4.4) looking at
     (0, 0.35, 0), fov 40°, point light at the camera; grey floor. The motion is parametric
     (unbounded); its clip is one revolution, 2π · radius / rim_speed s.
+
+    Parameters
+    ----------
+    resolution : int, default 256
+        Film width and height in pixels.
+    radius : float, m, default 1.2
+        Radius of the platform.
+    rim_speed : float, m/s, default 3.0
+        Speed of the platform's rim.
+
+    Returns
+    -------
+    DynamicScene
+        The loaded scene (the variant set first if none is).
     """
     from .backend import ensure_variant
 
@@ -245,6 +296,26 @@ def falling_box(resolution=256, drop_height=1.5, size=0.5, gravity=STANDARD_GRAV
     velocity is piecewise constant: g · t at the middle of each interval. A white block
     stands beside it on a checkered floor, a wall behind. Camera at (0, 2.6, 3.6) looking
     at (0, 0.9, 0), fov 40°, point light at the camera.
+
+    Parameters
+    ----------
+    resolution : int, default 256
+        Film width and height in pixels.
+    drop_height : float, m, default 1.5
+        Height of the box's bottom above the floor at t = 0.
+    size : float, m, default 0.5
+        Edge of the box.
+    gravity : float, m/s², default 9.81
+        Gravitational acceleration.
+    spin_deg : float, degrees, default 90
+        Rotation about the x axis over the fall.
+    keyframes : int, default 24
+        Keyframe intervals over the fall.
+
+    Returns
+    -------
+    DynamicScene
+        The loaded scene (the variant set first if none is).
     """
     from .backend import ensure_variant
 
@@ -410,6 +481,26 @@ def dominoes(resolution=256, count=10, height=0.5, thickness=0.08, width=0.25, s
     velocity is piecewise constant. About 1.75 s from the first push to rest by default.
     Camera at (−0.4, 1.7, 3.4) looking at (0, 0.2, −0.05), fov 50°, point light at
     the camera.
+
+    Parameters
+    ----------
+    resolution : int, default 256
+        Film width and height in pixels.
+    count : int, default 10
+        Number of dominoes.
+    height, thickness, width : float, m, defaults 0.5, 0.08, 0.25
+        Size of a domino.
+    spacing : float, m, default 0.3
+        Distance between neighbouring dominoes.
+    push : float, rad/s, default 3.0
+        Angular velocity the first domino is pushed with.
+    gravity : float, m/s², default 9.81
+        Gravitational acceleration.
+
+    Returns
+    -------
+    DynamicScene
+        The loaded scene (the variant set first if none is).
     """
     import mitsuba as mi
 
@@ -472,6 +563,22 @@ def glossy(resolution=256, speed=2.0, spin_rate=2.0, roughness=0.15):
     (0.8, 0, 0.6) (towards the camera and to the right); its clip is 2 m of rolling,
     2 / speed s. Checkered floor, a diffuse back wall. Camera at (0, 1.6, 4) looking at
     (0, 0.45, −0.3), fov 45°; a point light at the camera and one 3 m above the floor.
+
+    Parameters
+    ----------
+    resolution : int, default 256
+        Film width and height in pixels.
+    speed : float, m/s, default 2.0
+        Speed of the rolling glass sphere.
+    spin_rate : float, rad/s, default 2.0
+        Spin of the gold cube about its vertical axis.
+    roughness : float, default 0.15
+        GGX α of the gold cube.
+
+    Returns
+    -------
+    DynamicScene
+        The loaded scene (the variant set first if none is).
     """
     from .backend import ensure_variant
 
@@ -571,6 +678,20 @@ def street(resolution=256, speed=15.0, seed=0):
     street and a cyclist (:data:`STREET_MOVING_BODIES` moving bodies). Cameras default to
     automotive modulation, 150 MHz, over a 1 ms exposure (``<integrator>`` of the scene);
     ``seed`` varies the buildings, the parked cars and the colours.
+
+    Parameters
+    ----------
+    resolution : int, default 256
+        Film width and height in pixels.
+    speed : float, m/s, default 15.0
+        Speed of the car carrying the camera.
+    seed : int, default 0
+        Varies the buildings, the parked cars and the colours.
+
+    Returns
+    -------
+    DynamicScene
+        The loaded scene (the variant set first if none is).
     """
     from .backend import ensure_variant
 

@@ -137,12 +137,16 @@ class RenderSettings:
 
     @property
     def shift(self) -> float:
+        """The antithetic shift a in units of T, its default filled in: ``antithetic_shift``,
+        else 0 for ``antithetic_mirror`` and 0.5 otherwise."""
         if self.antithetic_shift is not None:
             return self.antithetic_shift
         return 0.0 if self.time_sampling == "antithetic_mirror" else 0.5
 
     @property
     def threshold(self) -> float:
+        """The GGX/Beckmann α above which ``adaptive`` reconnects: ``reconnection_threshold``,
+        else 0.5."""
         return 0.5 if self.reconnection_threshold is None else self.reconnection_threshold
 
     @property
@@ -173,6 +177,8 @@ class RenderSettings:
 
     @property
     def correlation_spec(self) -> Correlation:
+        """The path correlation as the tracer takes it: mode, replay depth and the
+        reconnection threshold with their defaults filled in."""
         return Correlation(self.correlation, self.correlation_depth, self.threshold)
 
     def _check_combination(self):
@@ -223,6 +229,34 @@ class RenderSettings:
 
 
 FIELDS = {f.name: f for f in dataclasses.fields(RenderSettings)}
+
+
+def _parameters_section() -> str:
+    """The numpy-style parameter table of :class:`RenderSettings`, from the declarations."""
+    lines = ["Parameters", "----------"]
+    for name, unit, default, meaning in RenderSettings.table():
+        meta = FIELDS[name].metadata
+        kind = "sequence of dopplertof.Camera" if meta["kind"] == "cameras" else meta["kind"]
+        choices = f" ({', '.join(meta['choices'])})" if meta["choices"] else ""
+        lines += [f"{name} : {kind}{', ' + unit if unit else ''}, default {default}", f"    {meaning}{choices}."]
+    return "\n".join("    " + line for line in lines)
+
+
+RenderSettings.__doc__ = f"""{RenderSettings.__doc__}
+
+{_parameters_section()}
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> settings = dt.RenderSettings.build({{"spp": 256, "correlation": "adaptive"}})
+    >>> settings.spp, settings.time_sampling, settings.threshold
+    (256, 'antithetic', 0.5)
+    >>> dt.RenderSettings.build({{"spp": 0}})
+    Traceback (most recent call last):
+    ...
+    ValueError: 'spp' must be >= 1, got 0
+    """
 
 
 @dataclass(frozen=True)

@@ -82,6 +82,8 @@ class Dataset:
 
     @property
     def complete(self) -> bool:
+        """True when every shard of the dataset is written (``dataset.json`` says so); an
+        interrupted generation is incomplete until it is rerun."""
         return bool(self.manifest.get("complete"))
 
     def _locate(self, i: int) -> tuple[dict, int]:

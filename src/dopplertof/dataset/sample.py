@@ -32,6 +32,8 @@ def streams(seed: int, index: int) -> dict:
 
 
 def versions(variant: str) -> dict:
+    """The versions a sample's bytes depend on: dopplertof, Mitsuba, Dr.Jit, numpy and the
+    Mitsuba ``variant`` (str) the sample is rendered with."""
     import drjit
     import mitsuba
 

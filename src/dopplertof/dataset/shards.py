@@ -37,10 +37,12 @@ SHARD_PATTERN = "shard-{:06d}.tar"
 
 
 def shard_name(index: int) -> str:
+    """The file name of shard ``index``: ``shard-000003.tar``."""
     return SHARD_PATTERN.format(index)
 
 
 def sample_key(index: int) -> str:
+    """The WebDataset key of sample ``index``: ``sample-00000042``."""
     return f"sample-{index:08d}"
 
 
@@ -55,6 +57,7 @@ def dumps_json(obj) -> bytes:
 
 
 def npy_bytes(array: np.ndarray) -> bytes:
+    """The ``.npy`` file of ``array`` (C order, no pickles), as bytes: a shard member."""
     buf = io.BytesIO()
     np.save(buf, np.ascontiguousarray(array), allow_pickle=False)
     return buf.getvalue()
@@ -72,6 +75,8 @@ def _member(name: str, size: int) -> tarfile.TarInfo:
 
 
 def fsync_dir(path: str) -> None:
+    """Flush the folder ``path`` to disk, so that a rename into it survives a crash; a file
+    system that cannot fsync a folder is left as it is."""
     with contextlib.suppress(OSError):  # not every file system lets a folder be fsynced
         fd = os.open(path, os.O_RDONLY)
         try:
@@ -104,6 +109,7 @@ def shard_bytes(samples) -> bytes:
 
 
 def sha256_file(path: str) -> str:
+    """The SHA-256 of the file at ``path``, as hex digits (read in 1 MiB blocks)."""
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):
@@ -125,6 +131,8 @@ def write_shard(folder: str, index: int, first: int, samples) -> dict:
 
 
 def read_record(folder: str, index: int) -> dict | None:
+    """The manifest record of shard ``index`` (``folder/.manifest/shard-NNNNNN.json``), or None
+    if it is missing or unreadable (the shard is then not complete)."""
     path = os.path.join(folder, RECORDS, shard_name(index).replace(".tar", ".json"))
     try:
         with open(path, "rb") as f:
@@ -164,6 +172,13 @@ def manifest_lock(folder: str):
 
 
 def read_manifest(folder: str) -> dict | None:
+    """The content of ``folder/dataset.json``, or None if there is none.
+
+    Raises
+    ------
+    ValueError
+        If the file is not valid JSON (naming the file).
+    """
     try:
         with open(os.path.join(folder, MANIFEST), "rb") as f:
             return json.loads(f.read())

@@ -14,8 +14,8 @@ parameter              ∂M                                               needs
 ``light_code`` c^g_n   Re g₁ e^{inψ} c^s_n/2 R(nf, nh) (∂/∂Re; −i ×     the record
                        that for ∂/∂Im)
 ``heterodyne`` h       Re Σ a_m e^{imψ} 2πi m R₁(mf, mh)                first moments
-``modulation_           Re Σ a_m e^{imψ} m ∂R/∂F(mf, mh), and the        slopes (and for
-frequency`` f (Hz)     silicon's contrast slope c'(f)/c × M             bounds, ∂R₁/∂F)
+f (Hz), the            Re Σ a_m e^{imψ} m ∂R/∂F(mf, mh), and the        slopes (and for
+modulation frequency   silicon's contrast slope c'(f)/c × M             bounds, ∂R₁/∂F)
 =====================  ===============================================  ==================
 
 and so are those of ∂M/∂L and ∂M/∂L̇ (:mod:`dopplertof.design.precision`), so the Fisher

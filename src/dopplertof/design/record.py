@@ -147,6 +147,7 @@ class RecordSpec:
         return n_windows * (8 * arrays * self.frequencies_hz.size * len(self.beats) + 4)
 
     def as_dict(self) -> dict:
+        """The spec as a JSON-friendly dict (``RecordSpec(**spec.as_dict())`` is the same spec)."""
         return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler, "slopes": self.slopes}
 
 
@@ -241,9 +242,12 @@ class Record:
 
     @property
     def nbytes(self) -> int:
+        """Memory the record's arrays take, in bytes."""
         return int(self.phasors.nbytes + self.luminance.nbytes + sum(getattr(self, n).nbytes for n in DERIVED if getattr(self, n) is not None))
 
     def window_index(self, camera: Camera, where: str) -> int:
+        """Index of ``camera``'s exposure window in :attr:`windows`; a ValueError starting with
+        ``where`` if the window was not recorded."""
         window = camera.window(self.settings.exposure_start)
         for index, recorded in enumerate(self.windows):
             if math.isclose(window[0], recorded[0], rel_tol=1e-12, abs_tol=1e-15) and math.isclose(window[1], recorded[1], rel_tol=1e-12):
@@ -251,6 +255,8 @@ class Record:
         raise ValueError(f"{where}: its exposure window (start {window[0]:g} s, {window[1]:g} s) was not recorded; the record holds {list(self.windows)}")
 
     def frequency_index(self, frequency_hz: float, where: str) -> int:
+        """Index of ``frequency_hz`` (Hz) on the record's frequency grid; a ValueError starting
+        with ``where`` if it is off the grid or outside the band."""
         low, high = self.spec.band_hz
         grid = self.spec.frequencies_hz
         j = round(frequency_hz / self.spec.step_hz)
@@ -263,6 +269,8 @@ class Record:
         return index
 
     def beat_index(self, beat: float, where: str) -> int:
+        """Index of ``beat`` (cycles per exposure) among the record's beats; a ValueError
+        starting with ``where`` if it was not declared."""
         for index, recorded in enumerate(self.spec.beats):
             if abs(beat - recorded) <= GRID_TOLERANCE * max(1.0, abs(recorded)):
                 return index

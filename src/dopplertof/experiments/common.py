@@ -71,16 +71,24 @@ _SCENE_RENDER_SETTINGS = ("rr_depth", "hide_emitters", "exposure_start")
 class ExperimentScene:
     """A loaded scene with its name for files and its identity for the reference cache.
 
-    label : short name for output folders and CSV rows (built-in name or file stem)
-    scene : the :class:`~dopplertof.scene.DynamicScene`
-    identity : JSON-able description hashed into the cache key
-    base_camera : camera whose modulation settings every experiment camera inherits (from
-        the scene's ``<integrator type="dopplertofpath">``, else :class:`Camera` defaults
-        with the exposure of the sensor's shutter: :func:`~dopplertof.settings.scene_camera`)
-    max_depth : path depth from the scene's integrator; None where it gives none (the
-        commands then use :data:`DEFAULT_MAX_DEPTH` or their protocol's)
-    render_settings : ``rr_depth``, ``hide_emitters``, ``exposure_start`` (s) where the
-        scene's integrator gives them; passed to every render
+    Attributes
+    ----------
+    label : str
+        Short name for output folders and CSV rows (built-in name or file stem).
+    scene : DynamicScene
+        The loaded scene (:class:`~dopplertof.scene.DynamicScene`).
+    identity : dict
+        JSON-able description hashed into the cache key.
+    base_camera : Camera
+        Camera whose modulation settings every experiment camera inherits (from the
+        scene's ``<integrator type="dopplertofpath">``, else :class:`Camera` defaults with
+        the exposure of the sensor's shutter: :func:`~dopplertof.settings.scene_camera`).
+    max_depth : int or None
+        Path depth from the scene's integrator; None where it gives none (the commands
+        then use :data:`DEFAULT_MAX_DEPTH` or their protocol's).
+    render_settings : dict
+        ``rr_depth``, ``hide_emitters``, ``exposure_start`` (s) where the scene's
+        integrator gives them; passed to every render.
     """
 
     label: str
@@ -142,6 +150,8 @@ class Estimator:
 
     @property
     def antithetic_shift(self) -> float:
+        """The antithetic shift in units of T: ``shift`` if given, else the original scripts'
+        default for the time sampling (0.5; 0 for ``antithetic_mirror``)."""
         return self.shift if self.shift is not None else _DEFAULT_SHIFT.get(self.time_sampling, 0.5)
 
     @property
@@ -156,6 +166,8 @@ class Estimator:
 
     @property
     def label(self) -> str:
+        """``time_sampling/correlation`` (and ``/no further stratification`` where the time
+        intervals are not stratified), the estimator's name in tables and plots."""
         return f"{self.time_sampling}/{self.correlation}" + ("" if self.stratified else "/no further stratification")
 
     def render_settings(self) -> dict:
@@ -286,6 +298,7 @@ class ReferenceCache:
         return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()
 
     def path(self, key: str) -> Path:
+        """The cache file of the reference with cache key ``key``: ``<folder>/<key>.npz``."""
         return self.folder / f"{key}.npz"
 
     def load(self, key: str, cameras) -> RenderResult | None:

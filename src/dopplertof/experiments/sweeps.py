@@ -70,14 +70,22 @@ SUMMARY_COLUMNS = (*SUMMARY_GROUP, "count", *(f"{m}_{s}" for m in METRICS for s 
 class SweepSettings:
     """The camera grid and sample counts of a sweep.
 
-    h_values : heterodyne ratios h (beat cycles per exposure)
-    phases_rad : sensor phase offsets ψ (rad), each averaged over with equal weight
-    spp, reference_spp : paths per pixel of the compared renders and of the reference
-    seed : seed of the compared renders (the reference uses another)
-    max_depth : path depth
-    replicates : replicates per pixel of every render (default :data:`~.common.SWEEP_REPLICATES`)
-    waveforms : the cameras' waveforms, all in the same renders (default: the scene's
-        camera's)
+    Attributes
+    ----------
+    h_values : tuple of float
+        Heterodyne ratios h (beat cycles per exposure).
+    phases_rad : tuple of float
+        Sensor phase offsets ψ (rad), each averaged over with equal weight.
+    spp, reference_spp : int
+        Paths per pixel of the compared renders and of the reference.
+    seed : int
+        Seed of the compared renders (the reference uses another).
+    max_depth : int
+        Path depth.
+    replicates : int
+        Replicates per pixel of every render (default :data:`~.common.SWEEP_REPLICATES`).
+    waveforms : tuple of str
+        The cameras' waveforms, all in the same renders (default: the scene's camera's).
     """
 
     h_values: tuple

@@ -68,6 +68,13 @@ class RawFrame(Camera):
     **camera
         Every other :class:`~dopplertof.Camera` parameter (``modulation_frequency``,
         ``phase``, ``exposure``, ``exposure_start``, ``light_code``, ``sensor_code``, …).
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> frame = dt.RawFrame(modulation_frequency=30e6, exposure=1.5e-3, heterodyne_hz=667.0)
+    >>> round(frame.heterodyne, 4)                          # h = 667 Hz × 1.5 ms
+    1.0005
     """
 
     heterodyne: float | None = None
@@ -88,6 +95,8 @@ class RawFrame(Camera):
         super().__post_init__()
 
     def label(self) -> str:
+        """Short text naming this frame: its modulation frequency (Hz), then the
+        :meth:`Camera.label <dopplertof.Camera.label>`."""
         return f"f={self.modulation_frequency:g},{super().label()}"
 
 
@@ -120,6 +129,16 @@ class Sensor:
         Naming the frame, for what ``limits`` refuse, a demodulation outside [−1, 1], a
         4-tap layout whose shares do not sum to 1, or a frequency outside the silicon's
         contrast table.
+
+    Examples
+    --------
+    >>> import dopplertof as dt
+    >>> sensor = dt.sensors.preset("dtof-prototype")       # 4 frames read by 2 taps
+    >>> result = dt.render(dt.scenes.cornell_box(resolution=16), sensor=sensor, spp=8, max_depth=2)
+    >>> result.raw.shape                                    # (frames, taps, H, W), electrons
+    (4, 2, 16, 16)
+    >>> sensor.read_out(result, seed=1, mode="A-B").shape   # digital numbers
+    (4, 16, 16)
     """
 
     frames: tuple

@@ -40,9 +40,9 @@ name                         unit                 default     meaning
 ``read_noise_e``             e⁻ rms               0.0         read noise per tap
 ``full_well_e``              e⁻                   1e5         tap capacity
 ``gain_e_per_dn``            e⁻/DN                None        inverse conversion gain; None: the
-                                                             ADC spans the full well
-                                                             (full_well_e / (2^bits − 1), set
-                                                             at construction)
+                                                              ADC spans the full well
+                                                              (full_well_e / (2^bits − 1), set
+                                                              at construction)
 ``adc_bits``                 bits                 16          ADC resolution
 ``black_level_dn``           DN                   0.0         ADC offset
 ``tap_gain_mismatch``        – rms                0.0         per-tap, per-pixel gain spread
@@ -84,7 +84,8 @@ def digitize(expected_e, rng: np.random.Generator, *, full_well_e, read_noise_e,
 
     Returns
     -------
-    ndarray of int64, the shape of ``expected_e``: DN in [0, max_dn].
+    ndarray of int64
+        DN in [0, max_dn], the shape of ``expected_e``.
 
     Raises
     ------

@@ -51,10 +51,13 @@ class LaneSetup:
 
     @property
     def n_groups(self) -> int:
+        """Groups of correlated times per pixel: spp / n_times (at least 1)."""
         return max(self.spp_total // self.n_times, 1)
 
     @property
     def layout(self) -> tuple[int, int, int]:
+        """(R, base, extra) of a pixel's groups: :func:`replicate_layout` of
+        :attr:`n_groups` and ``replicates``."""
         return replicate_layout(self.n_groups, self.replicates)
 
 
@@ -116,6 +119,8 @@ class Streams:
         self.shared, self.own = shared, own
 
     def next_1d(self, correlated):
+        """The next uniform number in [0, 1) per lane: the group's stream where ``correlated``
+        (a bool for every lane, or a per-lane Bool), else the lane's own (class docstring)."""
         import drjit as dr
 
         if correlated is True:
@@ -127,6 +132,7 @@ class Streams:
         return dr.select(correlated, a, b)
 
     def next_2d(self, correlated):
+        """Two numbers of :meth:`next_1d` as a ``mi.Point2f``."""
         import mitsuba as mi
 
         return mi.Point2f(self.next_1d(correlated), self.next_1d(correlated))

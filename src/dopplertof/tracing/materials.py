@@ -24,6 +24,8 @@ _STRAIGHT_THROUGH = ("ThinDielectric", "MaskBSDF", "NullBSDF")  # transmit witho
 
 @dataclass
 class MaterialTables:
+    """Per-BSDF tables the kernel gathers from (roughness for ``adaptive``, relative index
+    of refraction for optical lengths), with the film's filter and the sensor's projection."""
     roughness: object  # mi.Float indexed by BSDF id
     relative_ior: object  # mi.Float indexed by BSDF id
     film: object = None  # the FilterSampler of the scene's film (dopplertof.tracing.film)
@@ -32,6 +34,8 @@ class MaterialTables:
 
     @classmethod
     def of(cls, scene) -> "MaterialTables":
+        """The tables of ``scene`` (a :class:`~dopplertof.DynamicScene`): every BSDF of the
+        static scene and of the bodies, its film's filter and its sensor's projection."""
         import drjit as dr
         import mitsuba as mi
 
@@ -61,6 +65,8 @@ class MaterialTables:
         return cls(*arrays, film=FilterSampler(scene.sensor.film()), pinhole=pinhole, refracts=any(v != 1.0 for v in ior.values()))
 
     def gather(self, table, bsdf, active):
+        """The entry of ``table`` (``roughness`` or ``relative_ior``) of each lane's BSDF
+        pointer ``bsdf``, where ``active``."""
         import drjit as dr
         import mitsuba as mi
 

@@ -18,6 +18,7 @@ class Sink:
         self.cameras = list(cameras)
 
     def empty(self):
+        """Zero contributions: the intensity and one value per camera."""
         import mitsuba as mi
 
         return mi.Spectrum(0), [mi.Float(0) for _ in self.cameras]
