@@ -1,7 +1,7 @@
 """The dataset configuration: every knob of the scene randomizer, the renders and the sensor.
 
 The table :data:`PARAMETERS` is the one home of the defaults: :func:`default_toml` (what
-``dopplertof dataset config --print`` prints) and :func:`markdown_table` (the README's table)
+``dopplertof dataset config --print`` prints) and :func:`markdown_table` (the table of docs/datasets.md)
 are generated from it, and :func:`load_config` validates a user file against it.
 
 A user file (TOML) sets any subset of the keys; an unknown key, a value of the wrong type,
