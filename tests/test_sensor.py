@@ -242,3 +242,53 @@ def test_luminance():
     assert luminance(np.ones((2, 3, 3))).shape == (2, 3)
     with pytest.raises(ValueError, match=r"\(\.\.\., 3\)"):
         luminance(np.ones((4, 4)))
+
+
+# ------------------------------------------------------------------ an alias onto Silicon
+
+
+def _old_chain(sensor_kwargs, intensity, m, cam, seed):
+    """The tap chain as SensorModel computed it before it became an alias (frozen here):
+    κ = electrons_per_unit × QE, N = κT(g0 I ± m)/2 + qT, tap A then tap B through digitize."""
+    from dopplertof.sensors.noise import digitize
+
+    kw = {"quantum_efficiency": 1.0, "ambient_electrons_per_s": 0.0, "read_noise_e": 3.0, "full_well_e": 20_000.0,
+          "adc_bits": 12, "gain_e_per_dn": 5.0, "black_level_dn": 0.0, "shot_noise": True, **sensor_kwargs}
+    kappa_t = kw["electrons_per_unit"] * kw["quantum_efficiency"] * cam.exposure
+    ambient = kw["ambient_electrons_per_s"] * cam.exposure
+    taps = [np.maximum(0.5 * kappa_t * (cam.g0 * intensity + sign * m) + ambient, 0.0) for sign in (1, -1)]
+    rng = np.random.default_rng(seed)
+    return [digitize(t, rng, full_well_e=kw["full_well_e"], read_noise_e=kw["read_noise_e"], gain_e_per_dn=kw["gain_e_per_dn"],
+                     black_level_dn=kw["black_level_dn"], max_dn=(1 << kw["adc_bits"]) - 1, shot_noise=kw["shot_noise"]) for t in taps]
+
+
+@pytest.mark.parametrize("kwargs", [
+    dict(electrons_per_unit=2e6, quantum_efficiency=0.8, ambient_electrons_per_s=3e5, read_noise_e=4.0, black_level_dn=50.0),
+    dict(electrons_per_unit=3.2e7, read_noise_e=0.0, full_well_e=12_000.0, gain_e_per_dn=4.0),
+    dict(electrons_per_unit=5e6, shot_noise=False, gain_e_per_dn=3.7, full_well_e=50_000.0, adc_bits=14),
+])
+def test_old_calls_give_the_same_digital_numbers(kwargs):
+    cam = Cam(g0=0.6)
+    rng = np.random.default_rng(0)
+    intensity = rng.uniform(0.0, 2.0, 20_000)
+    m = 0.3 * intensity * rng.uniform(-1.0, 1.0, intensity.size)  # |m| < g0 I: no clipping
+    new = SensorModel(**kwargs).sample_taps(intensity, m, cam, rng=12)
+    old = _old_chain(kwargs, intensity, m, cam, seed=12)
+    for tap_new, tap_old in zip(new, old):
+        np.testing.assert_array_equal(tap_new, tap_old)
+
+
+def test_sensor_model_is_a_one_frame_two_tap_sensor_on_its_silicon():
+    import dopplertof as dt
+
+    model = SensorModel(electrons_per_unit=2e6, quantum_efficiency=0.8, ambient_electrons_per_s=3e5, read_noise_e=4.0)
+    assert model.silicon.electrons_per_unit_s == pytest.approx(2e6 * 0.8, rel=1e-15)
+    assert model.silicon.ambient_e_per_s == 6e5 and model.silicon.read_noise_e == 4.0 and model.silicon.gain_e_per_dn == 5.0
+    frame = dt.RawFrame(exposure=T, g0=0.6)
+    sensor = dt.Sensor(frames=[frame], taps=2, noise=model.silicon)
+    intensity = np.linspace(0.1, 2.0, 50)
+    m = 0.2 * intensity * np.cos(np.arange(50.0))
+    electrons = sensor.expected_electrons(sensor.raw(np.stack([m, intensity]), clip=False))
+    np.testing.assert_allclose(np.stack(model.expected_taps(intensity, m, frame)), electrons[0], rtol=1e-12)
+    np.testing.assert_allclose(model.measurement_std(intensity, m, frame) * model.electrons_per_unit_exposure(frame),
+                               np.sqrt(model.silicon.tap_variance_e2(electrons[0]).sum(axis=0)), rtol=1e-12)

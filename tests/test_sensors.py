@@ -234,3 +234,20 @@ def test_ambient_light_splits_as_the_taps_mean_shares():
     np.testing.assert_allclose(ambient, [1e6 * T * (1 + 0.4) / 2, 1e6 * T * (1 - 0.4) / 2])
     named = Sensor(frames=[RawFrame(exposure=T)], taps=4, noise=Silicon(ambient_e_per_s=1e6))
     np.testing.assert_allclose(named.expected_electrons(np.zeros((1, 4, 1, 1)))[0, :, 0, 0], 1e6 * T / 4)
+
+
+@pytest.mark.parametrize("bounds, value, message", [
+    (dict(above=0), 0.0, "'x' must be > 0, got 0.0"),
+    (dict(at_least=0), -1, "'x' must be >= 0, got -1.0"),
+    (dict(above=0, at_most=1), 1.5, "'x' must be in (0, 1], got 1.5"),
+    (dict(at_least=0, below=0.5, unit="m"), 0.5, "'x' must be in [0, 0.5) m, got 0.5"),
+    (dict(at_most=3, kind="int"), 4, "'x' must be <= 3, got 4"),
+    (dict(above=0), "2", "'x' must be a finite number, got '2'"),
+])
+def test_checked_in_range_messages(bounds, value, message):
+    from dopplertof.validation import checked_in_range
+
+    with pytest.raises(ValueError) as info:
+        checked_in_range("x", value, where="Thing", **bounds)
+    assert str(info.value) == f"Thing: {message}"
+    assert checked_in_range("x", 0.25, at_least=0, below=0.5) == 0.25

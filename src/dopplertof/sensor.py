@@ -1,8 +1,12 @@
 """Physically based noise for D-ToF measurements, applied to the raw taps (pure numpy).
 
-The post-process model of a rendered measurement with a fixed 2-tap layout; a sensor with
-its own raw frames, taps and silicon is :mod:`dopplertof.sensors`, whose noise chain
-(:func:`dopplertof.sensors.noise.digitize`) this model's taps go through too.
+:class:`SensorModel` is the older post-process model of one rendered camera read by a
+2-tap pixel, kept for the scripts written against it. It is an alias onto
+:class:`dopplertof.sensors.Silicon` (the one home of a pixel's physics and noise chain):
+its parameters become a ``Silicon`` (:attr:`SensorModel.silicon`, table below), its taps
+are :func:`dopplertof.sensors.frames.tap_electrons` with demodulation contrast 1, and they
+go through ``Silicon.digitize``. New code should use :class:`dopplertof.Sensor` (raw
+frames, 1/2/4 taps, contrast, dark current, tap mismatch, presets).
 
 A differential 2-tap pixel steers the photo-electrons generated during the exposure into
 tap A with weight (1 + s(t))/2 and into tap B with weight (1 − s(t))/2, s being the
@@ -51,20 +55,31 @@ name                         unit                    default   meaning
 ===========================  ======================  ========  =================================
 
 The camera configuration supplies the exposure T (``exposure``, s) and the light's DC
-offset g0 (``g0``, default 0.5). Expected tap charges below zero (possible only when a noisy
-render has |m| > g0 I) are clipped to zero.
+offset g0 (``g0``, default 0.5). A signal charge below zero (possible only when a noisy
+render has |m| > g0 I) is clipped to zero before the ambient charge is added, as
+:class:`dopplertof.Sensor` does.
+
+How the parameters map onto :class:`~dopplertof.sensors.Silicon`
+(``Silicon.with_electrons_per_unit_s``): ``electrons_per_unit`` → the silicon's radiance
+scale (its ``electrons_per_unit_s`` is ``electrons_per_unit × quantum_efficiency``),
+``quantum_efficiency`` → ``quantum_efficiency``, ``ambient_electrons_per_s`` (per tap) →
+``ambient_e_per_s`` = 2 × it (per pixel: each of the two taps takes half), and
+``read_noise_e``, ``full_well_e``, ``adc_bits``, ``gain_e_per_dn``, ``black_level_dn``,
+``shot_noise`` → the same names; demodulation contrast 1, no dark current, no tap
+mismatch. Out-of-range values are refused by ``Silicon`` with its message (naming the
+parameter and value); ``electrons_per_unit`` and ``ambient_electrons_per_s`` by this class.
 """
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
-from .sensors.noise import MAX_ADC_BITS as _MAX_ADC_BITS
-from .sensors.noise import digitize
+from .sensors.frames import tap_electrons
+from .sensors.noise import Silicon
+from .validation import checked_in_range
 
 LUMINANCE_WEIGHTS_REC709 = (0.2126, 0.7152, 0.0722)
 """Rec. 709 / sRGB weights of R, G, B in the luminance, as used by the original scripts."""
@@ -116,15 +131,32 @@ def _as_generator(rng) -> np.random.Generator:
 
 @dataclass(frozen=True)
 class SensorModel:
-    """Differential 2-tap ToF pixel: expected taps, noise, saturation and ADC.
+    """Differential 2-tap ToF pixel: expected taps, noise, saturation and ADC; an alias onto
+    :class:`dopplertof.sensors.Silicon` (module docstring: the model, the parameter table
+    and how it maps).
 
-    See the module docstring for the model and the parameter table.
+    Parameters
+    ----------
+    electrons_per_unit : float, e⁻ / (s · radiance). Required, > 0.
+    quantum_efficiency : float. In (0, 1]; default 1.0.
+    ambient_electrons_per_s : float, e⁻/s per tap. >= 0; default 0.0.
+    read_noise_e : float, e⁻ rms. Default 3.0.
+    full_well_e : float, e⁻. Default 20000.
+    adc_bits : int. Default 12.
+    gain_e_per_dn : float, e⁻/DN. Default 5.0.
+    black_level_dn : float, DN. Default 0.0.
+    shot_noise : bool. Default True.
+
+    Attributes
+    ----------
+    silicon : :class:`~dopplertof.sensors.Silicon`. The same pixel as a ``Silicon``.
 
     Raises
     ------
     ValueError
-        On construction, naming the parameter, if a value is out of range (negative noise,
-        non-positive full well or gain, quantum efficiency outside (0, 1], ...).
+        On construction, naming the parameter and value, if a value is out of range
+        (negative noise, non-positive full well or gain, quantum efficiency outside (0, 1],
+        ...).
     """
 
     electrons_per_unit: float
@@ -138,41 +170,34 @@ class SensorModel:
     shot_noise: bool = True
 
     def __post_init__(self):
-        def check(name, ok, requirement):
-            value = getattr(self, name)
-            try:
-                good = bool(np.isfinite(value)) and ok(value)
-            except TypeError:
-                good = False
-            if not good:
-                raise ValueError(f"{name} must be {requirement}, got {value!r}")
-
-        check("electrons_per_unit", lambda x: x > 0, "a finite number > 0")
-        check("quantum_efficiency", lambda x: 0 < x <= 1, "in (0, 1]")
-        check("ambient_electrons_per_s", lambda x: x >= 0, "a finite number >= 0")
-        check("read_noise_e", lambda x: x >= 0, "a finite number >= 0")
-        check("full_well_e", lambda x: x > 0, "a finite number > 0")
-        check("gain_e_per_dn", lambda x: x > 0, "a finite number > 0")
-        if (
-            isinstance(self.adc_bits, bool)
-            or not isinstance(self.adc_bits, numbers.Integral)
-            or not 1 <= self.adc_bits <= _MAX_ADC_BITS
-        ):
-            raise ValueError(
-                f"adc_bits must be an integer in [1, {_MAX_ADC_BITS}], got {self.adc_bits!r}"
-            )
-        check("black_level_dn", lambda x: 0 <= x < self.max_dn, f"in [0, {self.max_dn})")
-        if not isinstance(self.shot_noise, (bool, np.bool_)):
-            raise ValueError(f"shot_noise must be True or False, got {self.shot_noise!r}")
+        checked_in_range("electrons_per_unit", self.electrons_per_unit, above=0, where="SensorModel")
+        ambient = checked_in_range("ambient_electrons_per_s", self.ambient_electrons_per_s, at_least=0, where="SensorModel")
+        silicon = Silicon.with_electrons_per_unit_s(
+            self.electrons_per_unit, quantum_efficiency=self.quantum_efficiency, ambient_e_per_s=2.0 * ambient,
+            read_noise_e=self.read_noise_e, full_well_e=self.full_well_e, adc_bits=self.adc_bits, gain_e_per_dn=self.gain_e_per_dn,
+            black_level_dn=self.black_level_dn, shot_noise=self.shot_noise,
+        )  # fmt: skip
+        # not a dataclass field: dataclasses.asdict(model) stays the old parameter set
+        object.__setattr__(self, "silicon", silicon)
 
     @property
     def max_dn(self) -> int:
         """Largest ADC output, 2^adc_bits − 1 (DN)."""
-        return (1 << int(self.adc_bits)) - 1
+        return self.silicon.max_dn
 
     def electrons_per_unit_exposure(self, camera) -> float:
-        """κ T: photo-electrons per unit of rendered radiance over one exposure (e⁻)."""
-        return self.electrons_per_unit * self.quantum_efficiency * _exposure_s(camera)
+        """κ T: photo-electrons per unit of rendered radiance over one exposure (e⁻).
+
+        Parameters
+        ----------
+        camera : camera configuration. Supplies ``exposure`` (s).
+
+        Returns
+        -------
+        float
+            ``silicon.electrons_per_unit_s × exposure`` = electrons_per_unit × QE × T.
+        """
+        return self.silicon.electrons_per_unit_s * _exposure_s(camera)
 
     def expected_taps(self, intensity, measurement, camera) -> tuple[np.ndarray, np.ndarray]:
         """Mean tap charges, no noise.
@@ -189,22 +214,21 @@ class SensorModel:
         Returns
         -------
         tap_a_e, tap_b_e : ndarray, broadcast shape
-            Expected electrons in taps A and B, each κT(g0 I ± m)/2 + q T, clipped at 0.
+            Expected electrons in taps A and B: max(κT(g0 I ± m)/2, 0) + q T.
+
+        Raises
+        ------
+        ValueError
+            If the camera's exposure is not > 0 or its g0 not >= 0.
         """
         intensity = np.asarray(intensity, dtype=np.float64)
         measurement = np.asarray(measurement, dtype=np.float64)
-        kappa_t = self.electrons_per_unit_exposure(camera)
-        dc = _light_offset(camera) * intensity
-        ambient_e = self.ambient_electrons_per_s * _exposure_s(camera)
-        tap_a = 0.5 * kappa_t * (dc + measurement) + ambient_e
-        tap_b = 0.5 * kappa_t * (dc - measurement) + ambient_e
-        return np.maximum(tap_a, 0.0), np.maximum(tap_b, 0.0)
-
-    def _tap_to_dn(self, expected_e: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        return digitize(
-            expected_e, rng, full_well_e=self.full_well_e, read_noise_e=self.read_noise_e, gain_e_per_dn=self.gain_e_per_dn,
-            black_level_dn=self.black_level_dn, max_dn=self.max_dn, shot_noise=self.shot_noise,
-        )  # fmt: skip
+        light = _light_offset(camera) * intensity
+        signal = tap_electrons(self.electrons_per_unit_exposure(camera), light, measurement, taps=2)
+        # unmodulated light splits evenly between two counter-phase taps of a zero-mean s
+        ambient_e = 0.5 * self.silicon.ambient_e_per_s * _exposure_s(camera)
+        tap_a, tap_b = (np.maximum(tap, 0.0) + ambient_e for tap in signal)
+        return tap_a, tap_b
 
     def sample_taps(self, intensity, measurement, camera, rng=None):
         """Noisy, saturated, quantised tap values.
@@ -223,7 +247,7 @@ class SensorModel:
         """
         rng = _as_generator(rng)
         tap_a_e, tap_b_e = self.expected_taps(intensity, measurement, camera)
-        return self._tap_to_dn(tap_a_e, rng), self._tap_to_dn(tap_b_e, rng)
+        return self.silicon.digitize(tap_a_e, rng), self.silicon.digitize(tap_b_e, rng)
 
     def taps_to_measurement(self, tap_a_dn, tap_b_dn, camera) -> np.ndarray:
         """Measurement from the taps, m̂ = (DN_A − DN_B) · gain / (κ T).
@@ -245,7 +269,7 @@ class SensorModel:
             Measurement in rendered units (radiance × g1/2), float64.
         """
         difference_dn = np.asarray(tap_a_dn, dtype=np.float64) - np.asarray(tap_b_dn, np.float64)
-        return difference_dn * self.gain_e_per_dn / self.electrons_per_unit_exposure(camera)
+        return difference_dn * self.silicon.gain_e_per_dn / self.electrons_per_unit_exposure(camera)
 
     def measurement_std(self, intensity, measurement, camera) -> np.ndarray:
         """Theoretical standard deviation of :meth:`taps_to_measurement` of noisy taps.
@@ -259,8 +283,7 @@ class SensorModel:
             Standard deviation in measurement units.
         """
         tap_a_e, tap_b_e = self.expected_taps(intensity, measurement, camera)
-        shot = (tap_a_e + tap_b_e) if self.shot_noise else 0.0
-        variance_e = shot + 2.0 * self.read_noise_e**2 + 2.0 * self.gain_e_per_dn**2 / 12.0
+        variance_e = self.silicon.tap_variance_e2(tap_a_e) + self.silicon.tap_variance_e2(tap_b_e)
         return np.sqrt(variance_e) / self.electrons_per_unit_exposure(camera)
 
     def noisy_measurements(self, intensity, measurements, cameras: Sequence, seed=None):

@@ -56,3 +56,52 @@ def parse_bool(text: str, name: str) -> bool:
     if lowered in ("false", "no", "0", "off"):
         return False
     raise ValueError(f"{name} must be true or false, got {text!r}")
+
+
+def checked_in_range(name: str, value, *, above=None, at_least=None, below=None, at_most=None, kind: str = "float", where: str = "", unit: str = ""):
+    """``value`` as :func:`checked` gives it, and inside the given bounds; else ValueError.
+
+    One message for every range check: ``"{where}: {name!r} must be {requirement}, got
+    {value!r}"``, the requirement written from the bounds (``> 0``, ``>= 0``, ``in (0, 1]``,
+    ``in [0, 0.5)``, followed by ``unit``).
+
+    Parameters
+    ----------
+    name : str. The setting, as the user wrote it.
+    value : object. What the user gave.
+    above, at_least : float or None. Exclusive or inclusive lower bound (at most one);
+        None: no lower bound.
+    below, at_most : float or None. Exclusive or inclusive upper bound (at most one);
+        None: no upper bound.
+    kind : str. ``"float"`` (default) or ``"int"``: the type :func:`checked` converts to.
+    where : str. What holds the setting (``"Silicon"``), the message's prefix; default none.
+    unit : str. The bounds' unit, appended to the requirement; default none.
+
+    Returns
+    -------
+    float or int
+        ``value`` converted to ``kind``.
+
+    Raises
+    ------
+    ValueError
+        If ``value`` is not a ``kind`` or lies outside the bounds, naming ``name`` and
+        ``value``.
+    """
+    value = checked(name, value, kind, where)
+    low = above if above is not None else at_least
+    high = below if below is not None else at_most
+    ok = (low is None or (value > low if above is not None else value >= low)) and (
+        high is None or (value < high if below is not None else value <= high)
+    )
+    if ok:
+        return value
+    if low is not None and high is not None:
+        requirement = f"in {'(' if above is not None else '['}{low:g}, {high:g}{')' if below is not None else ']'}"
+    elif low is not None:
+        requirement = f"{'>' if above is not None else '>='} {low:g}"
+    else:
+        requirement = f"{'<' if below is not None else '<='} {high:g}"
+    prefix = f"{where}: " if where else ""
+    suffix = f" {unit}" if unit else ""
+    raise ValueError(f"{prefix}{name!r} must be {requirement}{suffix}, got {value!r}")

@@ -100,6 +100,29 @@ class RawFrame(Camera):
         return f"f={self.modulation_frequency:g},{super().label()}"
 
 
+def tap_electrons(kappa_t, light, signal, taps: int) -> list:
+    """Noiseless signal charge of each tap (the module docstring's table), unclipped.
+
+    Parameters
+    ----------
+    kappa_t : float, e⁻ per rendered unit. κT: the silicon's photo-electrons per second per
+        unit of radiance times the frame's exposure.
+    light : ndarray. D, the exposure average of the light reaching the pixel (rendered units).
+    signal : ndarray, or (4 taps) a sequence of the four ndarrays. c M (c M_j): the frame's
+        measurement(s) times the demodulation contrast.
+    taps : int. 1, 2 or 4.
+
+    Returns
+    -------
+    list of ndarray
+        One charge array (e⁻) per tap: κT(D ± cM)/2, or κT(D + cM_j)/4 for 4 taps.
+    """
+    if taps == 4:
+        return [0.25 * kappa_t * (light + s) for s in signal]
+    tap_a = 0.5 * kappa_t * (light + signal)
+    return [tap_a] if taps == 1 else [tap_a, 0.5 * kappa_t * (light - signal)]
+
+
 def mean_light_camera(start_s, exposure_s) -> Camera:
     """The camera that measures a window's mean luminance Ī (constant weight 1)."""
     return Camera(exposure=exposure_s, exposure_start=start_s, heterodyne=0.0, g1=0.0, g0=1.0, light_code=_CONSTANT, sensor_code=_CONSTANT)
@@ -210,13 +233,8 @@ class Sensor:
             kappa_t = self.noise.electrons_per_unit_s * frame.exposure
             contrast = self.noise.contrast(frame.modulation_frequency)
             light = (frame.g1 * frame.light_mean + frame.g0) * mean_luminance[windows.index((frame.exposure_start, frame.exposure))]
-            if self.taps == 4:
-                for j in range(4):
-                    raw[index, j] = 0.25 * kappa_t * (light + contrast * m[index + j * n_frames])
-            else:
-                raw[index, 0] = 0.5 * kappa_t * (light + contrast * m[index])
-                if self.taps == 2:
-                    raw[index, 1] = 0.5 * kappa_t * (light - contrast * m[index])
+            signal = [contrast * m[index + j * n_frames] for j in range(4)] if self.taps == 4 else contrast * m[index]
+            raw[index] = tap_electrons(kappa_t, light, signal, self.taps)
         if not clip:
             return raw
         # A noisy render can make |M| exceed D where little light arrives: no charge is negative.

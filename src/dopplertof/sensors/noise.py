@@ -57,13 +57,14 @@ noting); :mod:`dopplertof.sensors.presets` holds real ones.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..validation import checked
+from ..validation import checked, checked_in_range
 
 PLANCK_J_S = 6.626_070_15e-34
 SPEED_OF_LIGHT_M_S = 299_792_458.0
@@ -167,45 +168,64 @@ class Silicon:
 
     def __post_init__(self):
         ranges = {
-            "pixel_pitch_m": (lambda x: x > 0, "> 0"),
-            "fill_factor": (lambda x: 0 < x <= 1, "in (0, 1]"),
-            "f_number": (lambda x: x > 0, "> 0"),
-            "wavelength_m": (lambda x: 0 < x < 1e-3, "in (0, 1e-3) m"),
-            "radiance_unit": (lambda x: x > 0, "> 0"),
-            "ambient_e_per_s": (lambda x: x >= 0, ">= 0"),
-            "dark_current_e_per_s": (lambda x: x >= 0, ">= 0"),
-            "read_noise_e": (lambda x: x >= 0, ">= 0"),
-            "full_well_e": (lambda x: x > 0, "> 0"),
-            "tap_gain_mismatch": (lambda x: 0 <= x < 0.5, "in [0, 0.5)"),
-            "tap_offset_mismatch_e": (lambda x: x >= 0, ">= 0"),
+            "pixel_pitch_m": dict(above=0),
+            "fill_factor": dict(above=0, at_most=1),
+            "f_number": dict(above=0),
+            "wavelength_m": dict(above=0, below=1e-3, unit="m"),
+            "radiance_unit": dict(above=0),
+            "ambient_e_per_s": dict(at_least=0),
+            "dark_current_e_per_s": dict(at_least=0),
+            "read_noise_e": dict(at_least=0),
+            "full_well_e": dict(above=0),
+            "tap_gain_mismatch": dict(at_least=0, below=0.5),
+            "tap_offset_mismatch_e": dict(at_least=0),
         }
-        for name, (ok, requirement) in ranges.items():
-            value = checked(name, getattr(self, name), "float", "Silicon")
-            if not ok(value):
-                raise ValueError(f"Silicon: {name!r} must be {requirement}, got {value!r}")
-            object.__setattr__(self, name, value)
-        bits = checked("adc_bits", self.adc_bits, "int", "Silicon")
-        if not 1 <= bits <= MAX_ADC_BITS:
-            raise ValueError(f"Silicon: 'adc_bits' must be in [1, {MAX_ADC_BITS}], got {self.adc_bits!r}")
-        object.__setattr__(self, "adc_bits", bits)
+        for name, bounds in ranges.items():
+            object.__setattr__(self, name, checked_in_range(name, getattr(self, name), where="Silicon", **bounds))
+        object.__setattr__(self, "adc_bits", checked_in_range("adc_bits", self.adc_bits, at_least=1, at_most=MAX_ADC_BITS, kind="int", where="Silicon"))
         if self.gain_e_per_dn is None:
             object.__setattr__(self, "gain_e_per_dn", self.full_well_e / self.max_dn)
-        gain = checked("gain_e_per_dn", self.gain_e_per_dn, "float", "Silicon")
-        if not gain > 0:
-            raise ValueError(f"Silicon: 'gain_e_per_dn' must be > 0, got {gain!r}")
-        object.__setattr__(self, "gain_e_per_dn", gain)
-        black = checked("black_level_dn", self.black_level_dn, "float", "Silicon")
-        if not 0 <= black < self.max_dn:
-            raise ValueError(f"Silicon: 'black_level_dn' must be in [0, {self.max_dn}), got {black!r}")
-        object.__setattr__(self, "black_level_dn", black)
-        seed = checked("pattern_seed", self.pattern_seed, "int", "Silicon")
-        if seed < 0:
-            raise ValueError(f"Silicon: 'pattern_seed' must be >= 0, got {seed!r}")
-        object.__setattr__(self, "pattern_seed", seed)
+        object.__setattr__(self, "gain_e_per_dn", checked_in_range("gain_e_per_dn", self.gain_e_per_dn, above=0, where="Silicon"))
+        object.__setattr__(self, "black_level_dn", checked_in_range("black_level_dn", self.black_level_dn, at_least=0, below=self.max_dn, where="Silicon"))
+        object.__setattr__(self, "pattern_seed", checked_in_range("pattern_seed", self.pattern_seed, at_least=0, kind="int", where="Silicon"))
         object.__setattr__(self, "shot_noise", checked("shot_noise", self.shot_noise, "bool", "Silicon"))
         object.__setattr__(self, "quantum_efficiency", _table("quantum_efficiency", self.quantum_efficiency, "wavelength m"))
         object.__setattr__(self, "demodulation_contrast", _table("demodulation_contrast", self.demodulation_contrast, "frequency Hz"))
         self.qe  # a QE table must cover the source's wavelength
+
+    @classmethod
+    def with_electrons_per_unit_s(cls, electrons_per_unit_s: float, **parameters) -> "Silicon":
+        """The silicon whose pixel turns one rendered unit of radiance into
+        ``electrons_per_unit_s`` photo-electrons per second before the quantum efficiency:
+        its ``radiance_unit`` solved from the camera equation (module docstring) and its
+        optics. How a signal level given in electrons (``dopplertof.sensor.SensorModel``'s
+        ``electrons_per_unit``, a dataset's ``sensor.signal_electrons``) becomes a silicon.
+
+        Parameters
+        ----------
+        electrons_per_unit_s : float, e⁻ / (s · rendered radiance unit). > 0.
+        **parameters
+            Every other :class:`Silicon` parameter (not ``radiance_unit``), as in the
+            constructor.
+
+        Returns
+        -------
+        Silicon
+            With :attr:`electrons_per_unit_s` = ``electrons_per_unit_s`` × :attr:`qe`
+            (to rounding).
+
+        Raises
+        ------
+        ValueError
+            If ``electrons_per_unit_s`` is not a finite number > 0, ``radiance_unit`` is
+            given, or a parameter is out of range.
+        """
+        target = checked_in_range("electrons_per_unit_s", electrons_per_unit_s, above=0, where="Silicon")
+        if "radiance_unit" in parameters:
+            raise ValueError("Silicon.with_electrons_per_unit_s: give electrons_per_unit_s or radiance_unit, not both")
+        unit = cls(**parameters)
+        per_radiance_unit = unit.electrons_per_unit_s / (unit.qe * unit.radiance_unit)
+        return dataclasses.replace(unit, radiance_unit=target / per_radiance_unit)
 
     @property
     def max_dn(self) -> int:
