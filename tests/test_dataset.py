@@ -67,7 +67,8 @@ def test_reference_layout_and_manifest(reference):
     assert m["config"]["render"] == {**config_mod.defaults()["render"], "resolution": 16, "spp": 4}
     for s in m["shards"]:
         assert s["sha256"] == hashlib.sha256((reference / s["name"]).read_bytes()).hexdigest()
-    assert set(m["fields"]) | set(m["missing_fields"]) == set(schema.FIELD_NAMES)
+    sensor_fields = {f.name for f in schema.FIELDS if f.needs == schema.SENSOR_MODEL}
+    assert set(m["fields"]) | set(m["missing_fields"]) == set(schema.FIELD_NAMES) - sensor_fields  # no sensor.model: no sensor fields
     assert {"measurements", "measurement_stderr", "measurements_direct", "raw", "intensity", "depth", "velocity"} <= set(m["fields"])
     assert not list(reference.glob(".*.tmp"))
     # a rerun skips every (checked) shard and rewrites nothing
@@ -340,6 +341,10 @@ def test_default_config_is_printed_and_round_trips():
         ("[scene]\nkinds = { forest = 1.0 }\n", "unknown name(s) ['forest']"),
         ("[ego]\nstreet_probability = 1.5\n", "'ego.street_probability' is a probability in [0, 1]"),
         ("render = [\n", "not valid TOML"),
+        ("[sensor]\nmodel = 'mlx9'\n", "'sensor.model': --sensor 'mlx9': neither a preset"),
+        ("[sensor]\nmodel = 3\n", "'sensor.model' must be a sensor (preset name or .toml file)"),
+        ("[sensor]\nmodel = { mlx75027 = -1.0 }\n", "'sensor.model': weights must be finite numbers ≥ 0"),
+        ("[sensor]\nmodel = ['missing.toml']\n", "No such file or directory: 'missing.toml'"),
     ],
 )
 def test_bad_config_is_one_error_line_and_exit_2(tmp_path, toml, message):
@@ -420,3 +425,106 @@ def test_the_subpackage_is_reached_from_the_package_alone():
     code = "import sys, dopplertof as dt; print(callable(dt.dataset.generate), callable(dt.dataset.open), 'drjit' in sys.modules)"
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert run.stdout.split() == ["True", "True", "False"], run.stderr
+
+
+# ------------------------------------------------------------------ datasets that take a sensor
+
+CUSTOM_SENSOR = """
+taps = 1
+[silicon]
+read_noise_e = 5.0
+adc_bits = 14
+[[frames]]
+modulation_frequency = 30e6
+exposure = 1.5e-3
+[[frames]]
+modulation_frequency = 30e6
+exposure = 1.5e-3
+heterodyne_hz = 666.6666666666666
+"""
+
+
+@pytest.fixture(scope="module")
+def sensor_dataset(tmp_path_factory):
+    """3 samples (16², 4 spp) drawing from a preset and a sensor file of one tap."""
+    folder = tmp_path_factory.mktemp("sensors")
+    (folder / "one_tap.toml").write_text(CUSTOM_SENSOR)
+    config = folder / "config.toml"
+    config.write_text(f'[sensor]\nmodel = {{ mlx75027 = 1.0, "{folder / "one_tap.toml"}" = 1.0 }}\n')
+    out = folder / "ds"
+    dt.dataset.generate(out, samples=3, seed=2, resolution=16, spp=4, shard_size=3, config=str(config))
+    return out
+
+
+def test_sensor_dataset_stores_raw_frames_and_schedule_readable_with_tarfile_and_numpy(sensor_dataset):
+    import io
+    import tarfile
+
+    manifest = json.loads((sensor_dataset / "dataset.json").read_text())
+    assert {"raw_electrons", "raw_dn"} <= set(manifest["fields"])
+    assert manifest["schema"]["raw_dn"]["shape"] == ["F", "K", 16, 16]  # the two sensors differ
+    samples = {}
+    with tarfile.open(sensor_dataset / "shard-000000.tar") as tar:
+        for member in tar:
+            key, field = member.name.split(".", 1)
+            data = tar.extractfile(member).read()
+            samples.setdefault(key, {})[field] = json.loads(data) if field == "json" else np.load(io.BytesIO(data))
+    names = set()
+    for sample in samples.values():
+        model = sample["json"]["sensor"]["model"]
+        names.add(Path(model["name"]).name)
+        schedule = model["schedule"]
+        shape = (len(schedule["frames"]), schedule["taps"], 16, 16)
+        electrons, dn = sample["raw_electrons.npy"], sample["raw_dn.npy"]
+        assert electrons.shape == dn.shape == shape and electrons.dtype == np.float32 and dn.dtype == np.uint16
+        # the radiance scale puts the 99th-percentile pixel of frame 0 at signal_electrons (all its taps)
+        bright = np.percentile(electrons[0].astype(np.float64).sum(axis=0), 99)
+        assert bright == pytest.approx(sample["json"]["sensor"]["signal_electrons"], rel=1e-5)
+        assert schedule["frames"][0]["modulation_frequency"] in (100e6, 30e6) and schedule["silicon"]["adc_bits"] in (12, 14)
+    assert names == {"mlx75027", "one_tap.toml"}
+
+
+def test_sensor_dataset_raw_dn_is_the_read_out_of_raw_electrons_and_rerenders(sensor_dataset):
+    import dataclasses
+
+    from dopplertof.sensors.files import loads_sensor
+
+    ds = dt.dataset.open(sensor_dataset)
+    for stored in ds:
+        model = stored["json"]["sensor"]["model"]
+        sensor = loads_sensor(model["toml"])
+        assert [f.as_dict() for f in sensor.frames] == [{k: v for k, v in f.items() if k != "heterodyne_hz"} for f in model["schedule"]["frames"]]
+        scaled = dataclasses.replace(sensor, noise=dataclasses.replace(sensor.noise, radiance_unit=stored["json"]["sensor_derived"]["model"]["radiance_unit"]))
+        np.testing.assert_array_equal(scaled.read_out(stored["raw_electrons"], seed=model["noise_seed"]), stored["raw_dn"])
+    stored = ds[1]
+    record = {k: v for k, v in stored["json"].items() if k != "sensor_derived"}
+    assert record == make_record(config_mod.validate(ds.manifest["config"]), 2, 1, ds.manifest["variant"])  # a function of (S, i)
+    arrays, derived, _ = render_record(record)
+    assert derived == stored["json"]["sensor_derived"]
+    for f in ds.fields:
+        assert arrays[f].tobytes() == stored[f].tobytes(), f
+
+
+def test_sensor_draws_follow_the_weights_and_leave_other_draws_alone():
+    plain = config_mod.validate({})
+    weighted = config_mod.validate({"sensor": {"model": {"mlx75027": 3.0, "opt8241": 1.0}}})
+    assert config_mod.validate({"sensor": {"model": ["mlx75027", "mlx75027", "opt8241"]}})["sensor"]["model"] == {"mlx75027": 2.0, "opt8241": 1.0}
+    assert config_mod.validate({"sensor": {"model": "imx556"}})["sensor"]["model"] == {"imx556": 1.0}
+    n = 300
+    drawn = [make_record(weighted, 7, i, "llvm_ad_rgb") for i in range(n)]
+    share = np.mean([r["sensor"]["model"]["name"] == "mlx75027" for r in drawn])
+    assert abs(share - 0.75) < 5 * np.sqrt(0.75 * 0.25 / n)
+    for i in (0, 5):  # the scene, render seeds and the `raw` sensor are those of the same sample without a model
+        without = make_record(plain, 7, i, "llvm_ad_rgb")
+        assert "model" not in without["sensor"]
+        assert {k: v for k, v in drawn[i]["sensor"].items() if k != "model"} == without["sensor"]
+        assert drawn[i]["scene"] == without["scene"] and drawn[i]["render"] == without["render"]
+
+
+def test_sensor_with_too_many_adc_bits_is_refused_in_a_subprocess(tmp_path):
+    (tmp_path / "deep.toml").write_text(CUSTOM_SENSOR.replace("adc_bits = 14", "adc_bits = 20"))
+    (tmp_path / "config.toml").write_text('[sensor]\nmodel = "deep.toml"\n')
+    res = subprocess.run([sys.executable, "-m", "dopplertof.cli", "dataset", "generate", "-o", str(tmp_path / "out"), "--samples", "1",
+                          "--config", str(tmp_path / "config.toml")], capture_output=True, text=True, cwd=tmp_path, env=_run_env(), timeout=120)
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.strip().splitlines() == ["error: config key 'sensor.model': sensor 'deep.toml' has a 20-bit ADC; `raw_dn` is uint16 (at most 16 bits)"]

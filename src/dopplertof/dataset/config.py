@@ -20,6 +20,10 @@ kind           meaning
 ``floats``     a list of finite numbers
 ``weights``    a table ``{name = weight}`` over ``choices`` (weights ≥ 0, not all 0); the
                relative probabilities of the names
+``sensors``    sensors to draw from per sample: ``""`` (none), a preset name or a sensor
+               TOML file (:mod:`dopplertof.sensors.files`; a relative path is relative to
+               the working folder), a list of them (equally likely) or a table
+               ``{name = weight}``; normalised to the table (``{}``: none)
 =============  ==============================================================================
 """
 
@@ -117,6 +121,12 @@ PARAMETERS: tuple[Param, ...] = (
     Param("sensor.full_well_e", 100000.0, "e⁻", "tap capacity (the ADC spans it: gain = full_well / (2^adc_bits − 1))", "float", minimum=0.0),
     Param("sensor.adc_bits", 12, "bits", f"ADC resolution (≤ {MAX_RAW_ADC_BITS}: raw taps are uint16)", "int", minimum=1),
     Param("sensor.black_level_dn", 64.0, "DN", "ADC offset", "float", minimum=0.0),
+    Param("sensor.model", "", "-",
+          "a dopplertof.Sensor whose raw frames each sample also renders (fields `raw_electrons`, `raw_dn`; its schedule in the record's "
+          "sensor.model): a preset (mlx75027, opt8241, imx556, kinect-v2, dtof-prototype) or a sensor TOML file, a list of them "
+          "(equally likely) or a table {name = weight}, drawn per sample; empty: none. Its radiance scale is set per sample so that "
+          "all taps of its first frame at the 99th-percentile pixel collect `signal_electrons`; the rest of its silicon "
+          "(noise, ambient, ADC) is its own, not the keys above", "sensors"),
 )
 
 _BY_KEY = {p.key: p for p in PARAMETERS}
@@ -128,7 +138,7 @@ SECTION_DOCS = {
     "scene": "the procedural scene: an indoor room or a street",
     "bodies": "the rigid bodies: shape, placement and motion over the exposure",
     "materials": "materials of the bodies",
-    "sensor": "the noise model of the `raw` taps (dopplertof.sensor)",
+    "sensor": "the noise model of the `raw` taps (dopplertof.sensor), and the sensor whose raw frames a sample renders (dopplertof.sensors)",
 }
 
 
@@ -238,7 +248,41 @@ def _check(p: Param, value):
         if sum(full.values()) <= 0:
             raise ValueError(f"{where}: at least one weight must be > 0, got {value!r}")
         return full
+    if p.kind == "sensors":
+        return _check_sensors(where, value)
     raise AssertionError(p.kind)
+
+
+def _check_sensors(where: str, value) -> dict:
+    """``{name: weight}`` of the sensors ``value`` names (kind ``sensors``), each loaded once
+    to refuse what cannot be rendered or stored."""
+    if value in ("", [], {}):
+        return {}
+    if isinstance(value, str):
+        table = {value: 1.0}
+    elif isinstance(value, list) and all(isinstance(v, str) for v in value):
+        table = {}
+        for name in value:
+            table[name] = table.get(name, 0.0) + 1.0
+    elif isinstance(value, dict):
+        if not all(_is_number(v) and v >= 0 for v in value.values()):
+            raise ValueError(f"{where}: weights must be finite numbers ≥ 0, got {value!r}")
+        if sum(value.values()) <= 0:
+            raise ValueError(f"{where}: at least one weight must be > 0, got {value!r}")
+        table = {name: float(weight) for name, weight in value.items()}
+    else:
+        raise ValueError(f"{where} must be a sensor (preset name or .toml file), a list of them or a table {{name = weight}}, got {value!r}")
+    from ..sensors.files import load_sensor
+
+    for name in table:
+        try:
+            sensor = load_sensor(name)
+        except (ValueError, OSError) as exc:
+            raise ValueError(f"{where}: {exc}") from None
+        if sensor.noise.adc_bits > MAX_RAW_ADC_BITS:
+            raise ValueError(f"{where}: sensor {name!r} has a {sensor.noise.adc_bits}-bit ADC; `raw_dn` is uint16 (at most {MAX_RAW_ADC_BITS} bits)")
+    # sorted: the draw must not depend on the order a file (or dataset.json) lists the names in
+    return dict(sorted(table.items()))
 
 
 def _flatten(user: dict, prefix: str = "") -> dict:

@@ -98,9 +98,14 @@ def header_for(cfg: dict, samples: int, seed: int, shard_size: int, variant: str
     """The manifest's fixed part: identity, schema, record documentation."""
     from .sample import versions
 
+    from ..sensors.files import load_sensor
+
     res = cfg["render"]["resolution"]
     n_cameras = len(cfg["camera"]["heterodyne"])
-    fields, missing = schema.available_fields(n_cameras)
+    models = cfg["sensor"]["model"]
+    fields, missing = schema.available_fields(n_cameras, sensor_model=bool(models))
+    layouts = {(len(s.frames), s.taps) for s in map(load_sensor, models)}
+    frames, taps = layouts.pop() if len(layouts) == 1 else (None, None)
     return {
         "format": schema.FORMAT_NAME,
         "format_version": schema.FORMAT_VERSION,
@@ -113,7 +118,7 @@ def header_for(cfg: dict, samples: int, seed: int, shard_size: int, variant: str
         "config": cfg,
         "fields": fields,
         "missing_fields": missing,
-        "schema": schema.schema_table(fields, n_cameras, res, res),
+        "schema": schema.schema_table(fields, n_cameras, res, res, frames, taps),
         "record": schema.RECORD,
     }
 

@@ -3,7 +3,8 @@ its arrays (rendered from the record alone).
 
 :func:`make_record` draws everything random about sample ``i`` of a dataset with seed ``S``
 from counter-based streams, ``numpy.random.SeedSequence(S, spawn_key=(i,))`` spawned into
-four independent children (scene, render seeds, sensor settings, sensor noise): the sample
+five independent children (scene, render seeds, sensor settings, sensor noise, and the
+sensor model of ``sensor.model``, which only datasets with one draw from): the sample
 depends on (S, i) and the configuration only, never on which worker renders it, in which
 order, or how many samples came before. :func:`render_record` renders a record; the JSON
 record stored next to a sample's arrays is that record, so it re-renders the sample.
@@ -18,15 +19,17 @@ import time
 import numpy as np
 
 from . import randomize, schema
-from .config import draw
+from .config import choose, draw
 
 DIRECT_MAX_DEPTH = 2  # Mitsuba semantics: emitter hits + one bounce, i.e. direct light only
-_STREAMS = ("scene", "render", "sensor_settings", "sensor_noise")
+# a stream is appended, never inserted: SeedSequence children keep their keys, so older datasets keep their bytes
+_STREAMS = ("scene", "render", "sensor_settings", "sensor_noise", "sensor_model")
 _SEED_MASK = 0x7FFFFFFF  # render seeds are 31-bit non-negative integers
 
 
 def streams(seed: int, index: int) -> dict:
-    """The four independent ``SeedSequence`` streams of sample ``index`` of dataset ``seed``."""
+    """The independent ``SeedSequence`` streams of sample ``index`` of dataset ``seed``
+    (module docstring), by name."""
     root = np.random.SeedSequence(int(seed), spawn_key=(int(index),))
     return dict(zip(_STREAMS, root.spawn(len(_STREAMS))))
 
@@ -86,6 +89,8 @@ def make_record(config: dict, seed: int, index: int, variant: str) -> dict:
         "black_level_dn": sen["black_level_dn"],
         "noise_seed": int(s["sensor_noise"].generate_state(1, np.uint64)[0]),
     }
+    if sen["model"]:
+        sensor["model"] = sensor_model_record(np.random.default_rng(s["sensor_model"]), sen["model"])
     r = config["render"]
     bodies = [
         {"instance_id": k, "name": b["name"], "shape": b["shape"], "speed_m_s": float(np.linalg.norm(b["linear_velocity_m_s"])),
@@ -110,6 +115,78 @@ def make_record(config: dict, seed: int, index: int, variant: str) -> dict:
     }
 
 
+def sensor_model_record(rng: np.random.Generator, models: dict) -> dict:
+    """The record of a sample's sensor (config key ``sensor.model``), JSON-friendly.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator. The sample's ``sensor_model`` stream: draws the sensor,
+        then its render seed and its noise seed.
+    models : dict. ``{name: weight}``: preset names or sensor TOML files.
+
+    Returns
+    -------
+    dict
+        ``name`` (as configured), ``toml`` (the sensor, :func:`dopplertof.sensors.files.sensor_toml`:
+        rebuilt from it alone), ``schedule`` (its frames, taps and silicon,
+        :func:`~dopplertof.sensors.files.sensor_record`), ``render_seed``, ``noise_seed``.
+    """
+    import json
+
+    from ..sensors.files import load_sensor, sensor_record, sensor_toml
+
+    name = choose(rng, models)
+    sensor = load_sensor(name)
+    render_seed, noise_seed = rng.integers(0, _SEED_MASK + 1, size=2)
+    return {"name": name, "toml": sensor_toml(sensor), "schedule": json.loads(json.dumps(sensor_record(sensor))),
+            "render_seed": int(render_seed), "noise_seed": int(noise_seed)}
+
+
+def render_sensor_model(scene, record: dict) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Render a record's sensor (``record["sensor"]["model"]``) and read it out.
+
+    The sensor's radiance scale (``Silicon.radiance_unit``) is set so that all taps of its
+    first frame at the 99th-percentile pixel collect the record's ``signal_electrons``; the
+    rest of its silicon is its own.
+
+    Parameters
+    ----------
+    scene : DynamicScene. The sample's scene.
+    record : dict. The sample's record (:func:`make_record`).
+
+    Returns
+    -------
+    raw_electrons : ndarray of float32, (frames, taps, H, W). Signal electrons before noise
+        (:meth:`dopplertof.Sensor.raw`).
+    raw_dn : ndarray of uint16, (frames, taps, H, W). :meth:`dopplertof.Sensor.read_out`
+        of them with the record's noise seed, mode ``"raw"``.
+    derived : dict. ``radiance_unit`` and ``electrons_per_unit_s`` of the scaled silicon.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        If the render was interrupted.
+    """
+    from ..render import render
+    from ..sensors.files import loads_sensor
+
+    model, r = record["sensor"]["model"], record["render"]
+    sensor = loads_sensor(model["toml"], where=f"sensor {model['name']!r} of {record['key']}")
+    result = render(scene, sensor=sensor, seed=model["render_seed"], spp=r["spp"], max_depth=r["max_depth"],
+                    time_sampling=r["time_sampling"], correlation=r["correlation"])  # fmt: skip
+    if result.interrupted:
+        raise KeyboardInterrupt("render interrupted")
+    collected = np.asarray(result.raw[0], dtype=np.float64).sum(axis=0)
+    finite = collected[np.isfinite(collected)]
+    bright = float(np.percentile(finite, 99)) if finite.size else 0.0
+    scale = record["sensor"]["signal_electrons"] / bright if bright > 0 else 1.0  # a black image: any scale gives no signal
+    silicon = dataclasses.replace(sensor.noise, radiance_unit=sensor.noise.radiance_unit * scale)
+    scaled = dataclasses.replace(sensor, noise=silicon)
+    raw = scaled.raw(result.measurements)
+    dn = scaled.read_out(raw, seed=model["noise_seed"], mode="raw").astype(np.uint16)
+    return raw, dn, {"radiance_unit": silicon.radiance_unit, "electrons_per_unit_s": silicon.electrons_per_unit_s}
+
+
 def sensor_model(record: dict, intensity_luminance: np.ndarray):
     """The :class:`dopplertof.sensor.SensorModel` of a record, given the clean luminance:
     both taps of the 99th-percentile pixel collect ``signal_electrons`` per exposure."""
@@ -132,15 +209,17 @@ def sensor_model(record: dict, intensity_luminance: np.ndarray):
     )
 
 
-def render_record(record: dict, fields=schema.FIELD_NAMES) -> tuple[dict, dict, dict]:
+def render_record(record: dict, fields=None) -> tuple[dict, dict, dict]:
     """Render a sample from its record.
 
     Parameters
     ----------
     record : dict
         From :func:`make_record` (or a sample's ``<key>.json``).
-    fields : sequence of str
-        The fields to return; a field the renderer cannot provide is a ValueError.
+    fields : sequence of str or None
+        The fields to return; a field the renderer cannot provide, or ``raw_electrons`` /
+        ``raw_dn`` of a record without a sensor model, is a ValueError. Default: every
+        field the record gives (:func:`dopplertof.dataset.schema.available_fields`).
 
     Returns
     -------
@@ -150,7 +229,8 @@ def render_record(record: dict, fields=schema.FIELD_NAMES) -> tuple[dict, dict, 
         Values computed while rendering (the sensor's ``electrons_per_unit``), added to
         the stored record under ``sensor_derived``.
     seconds : dict
-        Wall time of ``scene`` (building), ``render`` (both renders) and ``sensor``.
+        Wall time of ``scene`` (building), ``render`` (both renders, and the sensor
+        model's render and read-out) and ``sensor`` (the `raw` taps).
     """
     from ..backend import set_variant
     from ..modulation import Camera
@@ -158,6 +238,9 @@ def render_record(record: dict, fields=schema.FIELD_NAMES) -> tuple[dict, dict, 
     from ..sensor import luminance
 
     set_variant(record["versions"]["variant"])
+    modelled = "model" in record["sensor"]
+    if fields is None:
+        fields = schema.available_fields(len(record["cameras"]), sensor_model=modelled)[0]
     r = record["render"]
     t0 = time.perf_counter()
     scene = randomize.build_scene(record["scene"], r["resolution"])
@@ -168,6 +251,8 @@ def render_record(record: dict, fields=schema.FIELD_NAMES) -> tuple[dict, dict, 
     direct = render(scene, seed=r["direct_seed"], max_depth=r["direct_max_depth"], **common)
     if full.interrupted or direct.interrupted:
         raise KeyboardInterrupt("render interrupted")
+    if modelled:
+        raw_electrons, raw_dn, model_derived = render_sensor_model(scene, record)
     t2 = time.perf_counter()
 
     lum = luminance(full.intensity)
@@ -186,6 +271,8 @@ def render_record(record: dict, fields=schema.FIELD_NAMES) -> tuple[dict, dict, 
         "depth": full.depth,
         "velocity": full.velocity,
     }
+    if modelled:
+        out.update(raw_electrons=raw_electrons, raw_dn=raw_dn)
     covariance = {"measurement_covariance": full, "measurements_direct_covariance": direct}
     for name in ("velocity_3d", "flow", "instance_id", *covariance):
         if name in fields:
@@ -199,7 +286,11 @@ def render_record(record: dict, fields=schema.FIELD_NAMES) -> tuple[dict, dict, 
         out["moving_mask"] = ((ids >= 0) & moving[np.where(ids >= 0, ids, len(scene.bodies))]).astype(np.uint8)
     arrays = {}
     for name in fields:
+        if name not in out:
+            raise ValueError(f"field {name!r} needs a sensor: set the config key 'sensor.model'")
         spec = schema.BY_NAME[name]
         arrays[name] = np.ascontiguousarray(np.asarray(out[name]).astype(spec.dtype, copy=False))
     derived = {"electrons_per_unit": model.electrons_per_unit}
+    if modelled:
+        derived["model"] = model_derived
     return arrays, derived, {"scene": t1 - t0, "render": t2 - t1, "sensor": t3 - t2}

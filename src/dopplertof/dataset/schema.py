@@ -2,8 +2,10 @@
 
 Every sample of a shard has one ``<key>.<field>.npy`` member per field below (``key`` is
 ``sample-%08d`` of the sample index) and one ``<key>.json`` record (:data:`RECORD`).
-Shapes use ``C`` for the number of cameras of the capture set, ``H`` × ``W`` for the film.
-``dataset.json`` carries this table under ``schema`` (with ``C``, ``H``, ``W`` filled in).
+Shapes use ``C`` for the number of cameras of the capture set, ``H`` × ``W`` for the film,
+``F`` × ``K`` for the raw frames and taps of the sample's sensor (config key ``sensor.model``).
+``dataset.json`` carries this table under ``schema`` (with ``C``, ``H``, ``W`` filled in, and
+``F``, ``K`` where every sensor the dataset draws from has the same).
 
 Fields whose ``needs`` names a render output (:data:`dopplertof.outputs.OUTPUTS`) are written
 only when the renderer provides it; ``dataset.json`` lists the others under ``missing_fields``.
@@ -26,8 +28,10 @@ class Field:
     shape: tuple
     unit: str
     meaning: str
-    needs: str | None = None  # RenderResult attribute the field needs, if not always present
+    needs: str | None = None  # RenderResult attribute (or SENSOR_MODEL) the field needs, if not always present
 
+
+SENSOR_MODEL = "sensor.model"  # the `needs` of the fields a dataset has only with that config key
 
 FIELDS: tuple[Field, ...] = (
     Field("measurements", "float32", ("C", "H", "W"), "radiance × g1/2",
@@ -43,6 +47,12 @@ FIELDS: tuple[Field, ...] = (
     Field("raw", "uint16", ("C", 2, "H", "W"), "DN",
           "noisy raw taps A, B of a 2-tap pixel per camera (dopplertof.sensor: shot, read noise, ambient, full well, ADC); "
           "(A − B) · gain_e_per_dn / (electrons_per_unit · T) is the measurement (record: sensor)"),
+    Field("raw_electrons", "float32", ("F", "K", "H", "W"), "e⁻",
+          "signal electrons of each raw frame and tap of the sample's sensor (record: sensor.model; dopplertof.Sensor.raw), before "
+          "ambient light, dark current, tap mismatch, shot and read noise, full well and ADC", needs=SENSOR_MODEL),
+    Field("raw_dn", "uint16", ("F", "K", "H", "W"), "DN",
+          "`raw_electrons` read out: dopplertof.Sensor.read_out(raw_electrons, seed=sensor.model.noise_seed, mode='raw') "
+          "(ambient, dark current, fixed pattern, shot and read noise, full well, ADC)", needs=SENSOR_MODEL),
     Field("intensity", "float32", ("H", "W", 3), "radiance", "standard (intensity) image, linear RGB"),
     Field("depth", "float32", ("H", "W"), "m", "camera-ray hit distance from the aperture (NaN: no hit)"),
     Field("velocity", "float32", ("H", "W"), "m/s",
@@ -66,38 +76,65 @@ RECORD = {
              "moving bodies in instance order",
     "cameras": "the capture set: dopplertof.Camera parameters per measurement",
     "render": "resolution, spp, max_depth, time sampling, correlation, and the seeds of the full and direct renders",
-    "sensor": "sensor parameters of `raw` (dopplertof.sensor.SensorModel arguments) and its noise seed",
+    "sensor": "sensor parameters of `raw` (dopplertof.sensor.SensorModel arguments) and its noise seed; with the config key sensor.model, "
+              "`model`: the sensor drawn (name, toml: the sensor file that rebuilds it, schedule: its frames, taps and silicon, "
+              "render_seed, noise_seed)",
     "bodies": "per moving body: instance id, shape, speed (m/s), spin rate (rad/s), moving",
     "camera_motion": "the camera's own motion (ego-motion): moving, speed (m/s), yaw rate (rad/s, about the vertical, right-handed)",
     "versions": "dopplertof, mitsuba, drjit, numpy and the Mitsuba variant",
 }
 
 
-def resolve(shape: tuple, cameras: int, height: int, width: int) -> list:
-    """A shape template with ``C``, ``H``, ``W`` replaced by numbers."""
-    sizes = {"C": cameras, "H": height, "W": width}
-    return [sizes.get(s, s) for s in shape]
+def resolve(shape: tuple, cameras: int, height: int, width: int, frames: int | None = None, taps: int | None = None) -> list:
+    """A shape template with ``C``, ``H``, ``W`` (and ``F``, ``K`` where given) replaced by numbers.
+
+    Parameters
+    ----------
+    shape : tuple. A :class:`Field` shape.
+    cameras, height, width : int. C, H, W.
+    frames, taps : int or None. F and K; None leaves the letter (sensors that differ).
+
+    Returns
+    -------
+    list
+    """
+    sizes = {"C": cameras, "H": height, "W": width, "F": frames, "K": taps}
+    return [s if sizes.get(s) is None else sizes[s] for s in shape]
 
 
-def available_fields(n_cameras: int) -> tuple[list[str], list[str]]:
-    """(fields written, fields missing): those whose ``needs`` the renderer does not output
-    (:data:`dopplertof.outputs.OUTPUTS`, and the camera covariance for 2 to
-    ``MAX_COVARIANCE_CAMERAS`` cameras) are missing."""
+def available_fields(n_cameras: int, sensor_model: bool = False) -> tuple[list[str], list[str]]:
+    """(fields written, fields missing).
+
+    Parameters
+    ----------
+    n_cameras : int. Cameras of the capture set.
+    sensor_model : bool. Whether the dataset has a sensor (config key ``sensor.model``);
+        without one its fields are neither written nor missing. Default False.
+
+    Returns
+    -------
+    written, missing : list of str
+        Missing: those whose ``needs`` the renderer does not output
+        (:data:`dopplertof.outputs.OUTPUTS`, and the camera covariance for 2 to
+        ``MAX_COVARIANCE_CAMERAS`` cameras).
+    """
     from ..outputs import OUTPUTS
     from ..passes import MAX_COVARIANCE_CAMERAS
 
     outputs = {o.name for o in OUTPUTS}
     if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:
         outputs.add("measurement_covariance")
-    present = [f.name for f in FIELDS if f.needs is None or f.needs in outputs]
-    return present, [f.name for f in FIELDS if f.name not in present]
+    candidates = [f for f in FIELDS if sensor_model or f.needs != SENSOR_MODEL]
+    present = [f.name for f in candidates if f.needs in (None, SENSOR_MODEL) or f.needs in outputs]
+    return present, [f.name for f in candidates if f.name not in present]
 
 
-def schema_table(fields, cameras: int, height: int, width: int) -> dict:
-    """``{field: {dtype, shape, unit, meaning}}`` of the written ``fields``."""
+def schema_table(fields, cameras: int, height: int, width: int, frames: int | None = None, taps: int | None = None) -> dict:
+    """``{field: {dtype, shape, unit, meaning}}`` of the written ``fields`` (shapes as
+    :func:`resolve` fills them)."""
     return {
-        name: {"dtype": BY_NAME[name].dtype, "shape": resolve(BY_NAME[name].shape, cameras, height, width), "unit": BY_NAME[name].unit,
-               "meaning": BY_NAME[name].meaning}
+        name: {"dtype": BY_NAME[name].dtype, "shape": resolve(BY_NAME[name].shape, cameras, height, width, frames, taps),
+               "unit": BY_NAME[name].unit, "meaning": BY_NAME[name].meaning}
         for name in fields
     }
 

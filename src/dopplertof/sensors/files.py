@@ -58,17 +58,44 @@ def load_sensor(spec: str) -> Sensor:
         return preset(spec)
     if not spec.endswith(".toml"):
         raise ValueError(f"--sensor {spec!r}: neither a preset ({', '.join(PRESETS)}) nor a .toml file")
+    with open(spec, "rb") as f:
+        data = f.read()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{spec}: not valid TOML (not UTF-8 text: {exc.reason} at byte {exc.start})") from None
+    return loads_sensor(text, os.path.dirname(os.path.abspath(spec)), where=spec)
+
+
+def loads_sensor(text: str, folder: str = ".", where: str = "sensor TOML") -> Sensor:
+    """A sensor from the text of a sensor file (module docstring), such as
+    :func:`sensor_toml` writes.
+
+    Parameters
+    ----------
+    text : str. The TOML document.
+    folder : str. Where code tables named in it are looked up; default the working folder.
+    where : str. What the text is (a file name), the prefix of error messages.
+
+    Returns
+    -------
+    Sensor
+
+    Raises
+    ------
+    ValueError
+        Naming ``where`` and the key, for anything the text does not describe.
+    """
     import tomllib
 
-    with open(spec, "rb") as f:
-        try:
-            data = tomllib.load(f)
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{spec}: not valid TOML ({exc})") from None
     try:
-        return _from_dict(data, os.path.dirname(os.path.abspath(spec)))
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{where}: not valid TOML ({exc})") from None
+    try:
+        return _from_dict(data, folder)
     except ValueError as exc:
-        raise ValueError(f"{spec}: {exc}") from None
+        raise ValueError(f"{where}: {exc}") from None
 
 
 def _unknown(keys, known, where):
