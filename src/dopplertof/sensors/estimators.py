@@ -33,6 +33,17 @@ by ≈ β²/(π a) relative, = 2|Δs|/(π k s²) (6·10⁻⁴ for the moving pla
 30 MHz, 1.5 ms; as for Heide's pair). Whole offsets ±1 fare worse: about (β/a)²/2
 = 1/(2 k² s²) (5 % there).
 
+Two-capture velocity (:func:`two_capture_velocity`), for chips whose light and pixel share
+one clock (no heterodyne offset): two homodyne captures of a quadrature set, the second
+the first's frames repeated Δt later (in one window each or frame after frame), give the
+change of the depth phase θ = kL between them, so v = Δθ c/(4π f Δt), |v| < c/(4 f Δt)
+without ambiguity (motion within a capture alters both captures alike). The phase of Q₀ is the depth phase
+exactly for the sinusoid in one window; for another correlation (a square wave's triangle,
+a code: the "wiggling" of real chips) and for frames taken one after another (the phase
+runs on between them) the phase is found by Newton's method through the frames' own
+low-pass correlation, which must be monotone in θ, jointly with v. Error: the delta
+method, σ_θ = Im(conj(Q) ∂Q/∂m)/(|Q|² ∂φ/∂θ) per capture.
+
 Multi-frequency depth (:func:`multifrequency_depth`): per frequency the phase of Q₀
 (homodyne) gives the distance at mid-exposure modulo c/(2f); the distance in
 [0, ``max_depth_m``) most consistent with every frequency (weighted by 1/σ²) is chosen by
@@ -250,6 +261,142 @@ def two_offset_velocity(measurements, cameras, *, measurement_stderr=None, min_a
         doppler_hz=np.where(valid, a / (2 * math.pi * cams.exposure_s), np.nan).reshape(shape),
         ratio=rho.reshape(shape),
         valid=valid.reshape(shape),
+    )
+
+
+# --------------------------------------------------------------------------- two captures
+
+_NEWTON_STEPS = 12
+_NEWTON_PROBE_RAD = 1e-4
+
+
+@dataclass
+class TwoCaptureResult:
+    """:func:`two_capture_velocity`'s per-pixel maps.
+
+    Attributes
+    ----------
+    velocity : ndarray. Radial velocity (m/s), positive when the distance grows; NaN
+        where invalid.
+    velocity_stderr : ndarray or None. Its standard error (m/s) from the measurements'.
+    phase_change_rad : ndarray. Δθ, the depth phase's change between the captures (rad).
+    interval_s : float. Δt, between the two captures (s).
+    valid : ndarray of bool. Finite, both captures' |Q₀| above ``min_amplitude``.
+    """
+
+    velocity: np.ndarray
+    velocity_stderr: np.ndarray | None
+    phase_change_rad: np.ndarray
+    interval_s: float
+    valid: np.ndarray
+
+
+def _capture_phase(frames, weights, theta, drift):
+    """arg Q₀ of a capture (its quadrature ``weights``) whose depth phase is ``theta`` at its
+    start and advances by ``drift[j]`` at frame j: the frames' low-pass correlation."""
+    from ..modulation import lowpass_weight
+
+    q = sum(w * np.asarray(lowpass_weight(f, f.phase + theta + d), dtype=np.float64) for f, w, d in zip(frames, weights, drift) if w != 0)
+    return q
+
+
+def two_capture_velocity(measurements, cameras, *, measurement_stderr=None, min_amplitude=None) -> TwoCaptureResult:
+    """Radial velocity from two homodyne captures Δt apart (module docstring), in closed form.
+
+    Parameters
+    ----------
+    measurements : array_like (n, ...). One image per camera (frame).
+    cameras : sequence of n cameras (or raw frames) that give ``exposure_start``: one
+        frequency f and exposure T, homodyne (h = 0); frames [:n/2] are the first capture,
+        at phases with Σ e^{2iψ} = 0 (0°, 90°, 180°, 270°; 0°, 120°, 240°), frames [n/2:]
+        the same phases, each a constant Δt after its partner.
+    measurement_stderr : array_like (n, ...), optional. Independent standard errors;
+        gives ``velocity_stderr``.
+    min_amplitude : float, optional. |Q₀| (radiance units) at or below which a pixel is
+        invalid in either capture; default 1e-3 × each capture's 99th percentile.
+
+    Returns
+    -------
+    TwoCaptureResult
+
+    Raises
+    ------
+    ValueError
+        For cameras that do not form such a set, a correlation whose phase folds, or
+        shapes that do not match.
+    """
+    frames = list(cameras)
+    cams = _camera_set(frames)
+    if np.any(cams.heterodyne != 0):
+        raise ValueError(f"two_capture_velocity needs homodyne frames (h = 0), got h = {sorted(set(cams.heterodyne.tolist()))}; for heterodyne offsets use two_offset_velocity")
+    half = len(frames) // 2
+    paired = len(frames) % 2 == 0 and half > 0
+    shifts = cams.window_offset[half:] - cams.window_offset[:half] if paired else np.zeros(1)
+    same_phases = paired and np.allclose(np.exp(1j * cams.phase_rad[half:]), np.exp(1j * cams.phase_rad[:half]), atol=1e-9)
+    if not same_phases or not np.allclose(shifts, shifts[0], rtol=1e-9, atol=1e-12) or not shifts[0] > 0:
+        raise ValueError(
+            "two_capture_velocity needs two captures of the same phases, the second frame for frame a constant interval after "
+            f"the first (frames [:n/2] then [n/2:]); got phases {np.degrees(cams.phase_rad).round(6).tolist()} deg starting at "
+            f"{cams.window_offset.round(9).tolist()} x T (give exposure_start, or a result's cameras)"
+        )
+    idx_1, idx_2, interval = np.arange(half), np.arange(half, len(frames)), float(shifts[0])
+    m = np.asarray(measurements, dtype=np.float64)
+    if m.ndim < 1 or m.shape[0] != len(cams):
+        raise ValueError(f"measurements must have shape ({len(cams)}, ...), got {m.shape}")
+    shape = m.shape[1:]
+    flat = m.reshape(len(cams), -1)
+    quad = _quadratures(flat, cams, {1: idx_1, 2: idx_2})
+    to_velocity = SPEED_OF_LIGHT_M_S / (4 * math.pi * cams.frequency_hz * interval * cams.exposure_s)
+    sigma = None
+    if measurement_stderr is not None:
+        sigma = np.asarray(measurement_stderr, dtype=np.float64)
+        if sigma.shape != m.shape:
+            raise ValueError(f"measurement_stderr must have the measurements' shape {m.shape}, got {sigma.shape}")
+        sigma = sigma.reshape(len(cams), -1)
+    k_2 = 4 * math.pi * cams.frequency_hz / SPEED_OF_LIGHT_M_S  # d(depth phase)/d(distance): k · 2 (there and back)
+    # when frame j of a capture starts after its first: its depth phase runs ahead by k·2·v·that
+    lag_s = (cams.window_offset[idx_1] - cams.window_offset[idx_1[0]]) * cams.exposure_s
+    observed, ok = [], np.ones(flat.shape[1], bool)
+    for key in (1, 2):
+        q, w = quad[key]
+        amplitude = np.abs(q)
+        threshold = (1e-3 * np.nanpercentile(amplitude, 99)) if min_amplitude is None else float(min_amplitude)
+        ok &= np.isfinite(amplitude) & (amplitude > threshold)
+        observed.append((q, w))
+    # Solve arg Q_c(θ_c; v) = arg q_c for θ₁, θ₂ = θ₁ + k·2·v·Δt by Newton on each capture's
+    # phase, v from their difference, repeated: exact for any monotone correlation, with
+    # the motion between a capture's frames (which shears both captures' phase alike).
+    thetas = [np.angle(q) for q, _ in observed]
+    velocity = np.zeros(flat.shape[1])
+    for _ in range(_NEWTON_STEPS):
+        slopes = []
+        for c, (q, w) in enumerate(observed):
+            frames_c = [frames[i] for i in (idx_1 if c == 0 else idx_2)]
+            w_c = w[idx_1 if c == 0 else idx_2]
+            drift = [k_2 * velocity * lag for lag in lag_s]
+            model = _capture_phase(frames_c, w_c, thetas[c], drift)
+            ahead = _capture_phase(frames_c, w_c, thetas[c] + _NEWTON_PROBE_RAD, drift)
+            behind = _capture_phase(frames_c, w_c, thetas[c] - _NEWTON_PROBE_RAD, drift)
+            slope = np.angle(ahead * np.conj(behind)) / (2 * _NEWTON_PROBE_RAD)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                thetas[c] = thetas[c] + np.angle(q * np.conj(model)) / slope
+            slopes.append(slope)
+        change = np.mod(thetas[1] - thetas[0] + math.pi, 2 * math.pi) - math.pi
+        velocity = change / (k_2 * interval * cams.exposure_s)
+    ok &= np.isfinite(velocity) & (slopes[0] > 0) & (slopes[1] > 0)  # a folding correlation has no unique phase
+    variances = []
+    if sigma is not None:
+        for (q, w), slope in zip(observed, slopes):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                d_phi = np.imag(np.conj(q)[None] * w[:, None]) / (np.abs(q) ** 2)[None]
+            variances.append(_variance(d_phi / slope[None], sigma))
+    stderr = None if sigma is None else np.where(ok, np.sqrt(variances[0] + variances[1]) * abs(to_velocity), np.nan).reshape(shape)
+    return TwoCaptureResult(
+        velocity=np.where(ok, velocity, np.nan).reshape(shape),
+        velocity_stderr=stderr,
+        phase_change_rad=change.reshape(shape),
+        interval_s=interval * cams.exposure_s,
+        valid=ok.reshape(shape),
     )
 
 
