@@ -251,3 +251,17 @@ def test_checked_in_range_messages(bounds, value, message):
         checked_in_range("x", value, where="Thing", **bounds)
     assert str(info.value) == f"Thing: {message}"
     assert checked_in_range("x", 0.25, at_least=0, below=0.5) == 0.25
+
+
+def test_with_signal_sets_the_light_level_in_electrons():
+    sensor = dt.sensors.preset("mlx75027")
+    rng = np.random.default_rng(0)
+    intensity = rng.uniform(0.0, 3.0, (16, 16))
+    measurements = np.concatenate([0.2 * intensity[None] * rng.uniform(-1, 1, (4, 16, 16)), intensity[None]])
+    scaled = sensor.with_signal(measurements, 40_000.0)
+    assert np.percentile(scaled.raw(measurements)[0].astype(np.float64).sum(axis=0), 99) == pytest.approx(40_000.0, rel=1e-5)
+    assert scaled.noise.radiance_unit != sensor.noise.radiance_unit
+    assert dataclasses.replace(scaled.noise, radiance_unit=1.0) == sensor.noise  # nothing else changes
+    assert sensor.with_signal(np.zeros_like(measurements), 1e3) == sensor  # no light: unscaled
+    with pytest.raises(ValueError, match="Sensor.with_signal: 'electrons' must be > 0, got -1.0"):
+        sensor.with_signal(measurements, -1.0)

@@ -176,15 +176,10 @@ def render_sensor_model(scene, record: dict) -> tuple[np.ndarray, np.ndarray, di
                     time_sampling=r["time_sampling"], correlation=r["correlation"])  # fmt: skip
     if result.interrupted:
         raise KeyboardInterrupt("render interrupted")
-    collected = np.asarray(result.raw[0], dtype=np.float64).sum(axis=0)
-    finite = collected[np.isfinite(collected)]
-    bright = float(np.percentile(finite, 99)) if finite.size else 0.0
-    scale = record["sensor"]["signal_electrons"] / bright if bright > 0 else 1.0  # a black image: any scale gives no signal
-    silicon = dataclasses.replace(sensor.noise, radiance_unit=sensor.noise.radiance_unit * scale)
-    scaled = dataclasses.replace(sensor, noise=silicon)
+    scaled = sensor.with_signal(result.measurements, record["sensor"]["signal_electrons"])
     raw = scaled.raw(result.measurements)
     dn = scaled.read_out(raw, seed=model["noise_seed"], mode="raw").astype(np.uint16)
-    return raw, dn, {"radiance_unit": silicon.radiance_unit, "electrons_per_unit_s": silicon.electrons_per_unit_s}
+    return raw, dn, {"radiance_unit": scaled.noise.radiance_unit, "electrons_per_unit_s": scaled.noise.electrons_per_unit_s}
 
 
 def sensor_model(record: dict, intensity_luminance: np.ndarray):

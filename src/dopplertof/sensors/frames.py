@@ -46,7 +46,7 @@ import numpy as np
 
 from ..codes import fourier
 from ..modulation import Camera
-from ..validation import checked
+from ..validation import checked, checked_in_range
 from .noise import Silicon
 
 TAP_LAYOUTS = (1, 2, 4)
@@ -239,6 +239,36 @@ class Sensor:
             return raw
         # A noisy render can make |M| exceed D where little light arrives: no charge is negative.
         return np.maximum(raw, 0.0).astype(np.float32)
+
+    def with_signal(self, measurements, electrons: float, percentile: float = 99.0) -> "Sensor":
+        """This sensor with its silicon's radiance scale (``radiance_unit``) set so that all
+        taps of its first frame together collect ``electrons`` at the ``percentile`` pixel:
+        the light level of a render stated in electrons (a dataset's photon level, a
+        benchmark's full well). The rest of the silicon is unchanged.
+
+        Parameters
+        ----------
+        measurements : array_like. The measurements of :meth:`cameras` (a render's).
+        electrons : float, e⁻. > 0.
+        percentile : float. In (0, 100]; default 99 (the brightest pixels may exceed it).
+
+        Returns
+        -------
+        Sensor
+            A copy; itself scaled by 1 where the frame collects nothing (a black image).
+
+        Raises
+        ------
+        ValueError
+            For ``electrons`` or ``percentile`` out of range, or measurements of another shape.
+        """
+        electrons = checked_in_range("electrons", electrons, above=0, where="Sensor.with_signal")
+        percentile = checked_in_range("percentile", percentile, above=0, at_most=100, where="Sensor.with_signal")
+        collected = np.asarray(self.raw(measurements)[0], dtype=np.float64).sum(axis=0)
+        finite = collected[np.isfinite(collected)]
+        level = float(np.percentile(finite, percentile)) if finite.size else 0.0
+        scale = electrons / level if level > 0 else 1.0
+        return dataclasses.replace(self, noise=dataclasses.replace(self.noise, radiance_unit=self.noise.radiance_unit * scale))
 
     # ------------------------------------------------------------------ read-out
     def expected_electrons(self, raw) -> np.ndarray:
