@@ -381,7 +381,8 @@ def two_capture_velocity(measurements, cameras, *, measurement_stderr=None, min_
             with np.errstate(divide="ignore", invalid="ignore"):
                 thetas[c] = thetas[c] + np.angle(q * np.conj(model)) / slope
             slopes.append(slope)
-        change = np.mod(thetas[1] - thetas[0] + math.pi, 2 * math.pi) - math.pi
+        with np.errstate(invalid="ignore"):  # NaN where a capture has no light
+            change = np.mod(thetas[1] - thetas[0] + math.pi, 2 * math.pi) - math.pi
         velocity = change / (k_2 * interval * cams.exposure_s)
     ok &= np.isfinite(velocity) & (slopes[0] > 0) & (slopes[1] > 0)  # a folding correlation has no unique phase
     variances = []
