@@ -390,7 +390,7 @@ def two_capture_velocity(measurements, cameras, *, measurement_stderr=None, min_
         for (q, w), slope in zip(observed, slopes):
             with np.errstate(divide="ignore", invalid="ignore"):
                 d_phi = np.imag(np.conj(q)[None] * w[:, None]) / (np.abs(q) ** 2)[None]
-            variances.append(_variance(d_phi / slope[None], sigma))
+                variances.append(_variance(d_phi / slope[None], sigma))
     stderr = None if sigma is None else np.where(ok, np.sqrt(variances[0] + variances[1]) * abs(to_velocity), np.nan).reshape(shape)
     return TwoCaptureResult(
         velocity=np.where(ok, velocity, np.nan).reshape(shape),
