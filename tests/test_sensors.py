@@ -265,3 +265,16 @@ def test_with_signal_sets_the_light_level_in_electrons():
     assert sensor.with_signal(np.zeros_like(measurements), 1e3) == sensor  # no light: unscaled
     with pytest.raises(ValueError, match="Sensor.with_signal: 'electrons' must be > 0, got -1.0"):
         sensor.with_signal(measurements, -1.0)
+
+
+def test_a_sensor_file_that_is_not_utf8_is_refused(tmp_path):
+    from dopplertof.sensors.files import load_sensor, loads_sensor, sensor_toml
+
+    path = tmp_path / "bad.toml"
+    path.write_bytes(b'taps = 2\n# \xff\xfe\n')
+    with pytest.raises(ValueError, match=r"bad\.toml: not valid TOML \(not UTF-8 text"):
+        load_sensor(str(path))
+    sensor = dt.sensors.preset("kinect-v2")
+    assert loads_sensor(sensor_toml(sensor)) == sensor
+    with pytest.raises(ValueError, match="^my text: not valid TOML"):
+        loads_sensor("taps = [", where="my text")
