@@ -242,15 +242,19 @@ def _check(p: Param, value):
         unknown = sorted(set(value) - set(p.choices))
         if unknown:
             raise ValueError(f"{where}: unknown name(s) {unknown}; choose from {', '.join(p.choices)}")
-        if not all(_is_number(v) and v >= 0 for v in value.values()):
-            raise ValueError(f"{where}: weights must be finite numbers ≥ 0, got {value!r}")
-        full = {name: float(value.get(name, 0.0)) for name in p.choices}
-        if sum(full.values()) <= 0:
-            raise ValueError(f"{where}: at least one weight must be > 0, got {value!r}")
-        return full
+        _check_weights(where, value)
+        return {name: float(value.get(name, 0.0)) for name in p.choices}
     if p.kind == "sensors":
         return _check_sensors(where, value)
     raise AssertionError(p.kind)
+
+
+def _check_weights(where: str, weights: dict) -> None:
+    """ValueError unless every weight is a finite number ≥ 0 and one is > 0."""
+    if not all(_is_number(v) and v >= 0 for v in weights.values()):
+        raise ValueError(f"{where}: weights must be finite numbers ≥ 0, got {weights!r}")
+    if sum(weights.values()) <= 0:
+        raise ValueError(f"{where}: at least one weight must be > 0, got {weights!r}")
 
 
 def _check_sensors(where: str, value) -> dict:
@@ -265,10 +269,7 @@ def _check_sensors(where: str, value) -> dict:
         for name in value:
             table[name] = table.get(name, 0.0) + 1.0
     elif isinstance(value, dict):
-        if not all(_is_number(v) and v >= 0 for v in value.values()):
-            raise ValueError(f"{where}: weights must be finite numbers ≥ 0, got {value!r}")
-        if sum(value.values()) <= 0:
-            raise ValueError(f"{where}: at least one weight must be > 0, got {value!r}")
+        _check_weights(where, value)
         table = {name: float(weight) for name, weight in value.items()}
     else:
         raise ValueError(f"{where} must be a sensor (preset name or .toml file), a list of them or a table {{name = weight}}, got {value!r}")

@@ -37,8 +37,8 @@ Two-capture velocity (:func:`two_capture_velocity`), for chips whose light and p
 one clock (no heterodyne offset): two homodyne captures of a quadrature set, the second
 the first's frames repeated Δt later (in one window each or frame after frame), give the
 change of the depth phase θ = kL between them, so v = Δθ c/(4π f Δt), |v| < c/(4 f Δt)
-without ambiguity (motion within a capture alters both captures alike). The phase of Q₀ is the depth phase
-exactly for the sinusoid in one window; for another correlation (a square wave's triangle,
+without ambiguity (motion within a capture alters both captures alike). The phase of Q₀
+is the depth phase exactly for the sinusoid in one window; for another correlation (a square wave's triangle,
 a code: the "wiggling" of real chips) and for frames taken one after another (the phase
 runs on between them) the phase is found by Newton's method through the frames' own
 low-pass correlation, which must be monotone in θ, jointly with v. Error: the delta
@@ -281,7 +281,8 @@ class TwoCaptureResult:
     velocity_stderr : ndarray or None. Its standard error (m/s) from the measurements'.
     phase_change_rad : ndarray. Δθ, the depth phase's change between the captures (rad).
     interval_s : float. Δt, between the two captures (s).
-    valid : ndarray of bool. Finite, both captures' |Q₀| above ``min_amplitude``.
+    valid : ndarray of bool. Finite, both captures' |Q₀| above ``min_amplitude``, and a
+        phase that grows with the depth there (a correlation that folds has no unique one).
     """
 
     velocity: np.ndarray
@@ -291,17 +292,17 @@ class TwoCaptureResult:
     valid: np.ndarray
 
 
-def _capture_phase(frames, weights, theta, drift):
-    """arg Q₀ of a capture (its quadrature ``weights``) whose depth phase is ``theta`` at its
-    start and advances by ``drift[j]`` at frame j: the frames' low-pass correlation."""
+def _capture_quadrature(frames, weights, theta, drift):
+    """Q₀ of a capture (its quadrature ``weights``) whose depth phase is ``theta`` at its
+    first frame and ``theta + drift[j]`` at frame j, from the frames' low-pass correlation
+    (unit amplitude)."""
     from ..modulation import lowpass_weight
 
-    q = sum(w * np.asarray(lowpass_weight(f, f.phase + theta + d), dtype=np.float64) for f, w, d in zip(frames, weights, drift) if w != 0)
-    return q
+    return sum(w * np.asarray(lowpass_weight(f, f.phase + theta + d), dtype=np.float64) for f, w, d in zip(frames, weights, drift) if w != 0)
 
 
 def two_capture_velocity(measurements, cameras, *, measurement_stderr=None, min_amplitude=None) -> TwoCaptureResult:
-    """Radial velocity from two homodyne captures Δt apart (module docstring), in closed form.
+    """Radial velocity from two homodyne captures Δt apart (module docstring).
 
     Parameters
     ----------
@@ -322,8 +323,7 @@ def two_capture_velocity(measurements, cameras, *, measurement_stderr=None, min_
     Raises
     ------
     ValueError
-        For cameras that do not form such a set, a correlation whose phase folds, or
-        shapes that do not match.
+        For cameras that do not form such a set, or shapes that do not match.
     """
     frames = list(cameras)
     cams = _camera_set(frames)
@@ -374,16 +374,16 @@ def two_capture_velocity(measurements, cameras, *, measurement_stderr=None, min_
             frames_c = [frames[i] for i in (idx_1 if c == 0 else idx_2)]
             w_c = w[idx_1 if c == 0 else idx_2]
             drift = [k_2 * velocity * lag for lag in lag_s]
-            model = _capture_phase(frames_c, w_c, thetas[c], drift)
-            ahead = _capture_phase(frames_c, w_c, thetas[c] + _NEWTON_PROBE_RAD, drift)
-            behind = _capture_phase(frames_c, w_c, thetas[c] - _NEWTON_PROBE_RAD, drift)
+            model = _capture_quadrature(frames_c, w_c, thetas[c], drift)
+            ahead = _capture_quadrature(frames_c, w_c, thetas[c] + _NEWTON_PROBE_RAD, drift)
+            behind = _capture_quadrature(frames_c, w_c, thetas[c] - _NEWTON_PROBE_RAD, drift)
             slope = np.angle(ahead * np.conj(behind)) / (2 * _NEWTON_PROBE_RAD)
             with np.errstate(divide="ignore", invalid="ignore"):
                 thetas[c] = thetas[c] + np.angle(q * np.conj(model)) / slope
             slopes.append(slope)
         with np.errstate(invalid="ignore"):  # NaN where a capture has no light
             change = np.mod(thetas[1] - thetas[0] + math.pi, 2 * math.pi) - math.pi
-        velocity = change / (k_2 * interval * cams.exposure_s)
+        velocity = change * to_velocity
     ok &= np.isfinite(velocity) & (slopes[0] > 0) & (slopes[1] > 0)  # a folding correlation has no unique phase
     variances = []
     if sigma is not None:
