@@ -56,7 +56,7 @@ silhouettes that move between captures included: the floor below the sensor nois
 Printed and written to CSV (and the velocity RMSEs plotted): per configuration the median
 render time (s) and its ratio to the named sinusoid's (part 1) or to one camera (part 3);
 the read-out's time per sensor frame (ms) and its rate (Mpixel·taps/s); the velocity
-errors (m/s). The machine is shared: compare ratios, not seconds.
+errors (m/s) and the time of each sensor's render(s) (``render_s``). The machine is shared: compare ratios, not seconds.
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ import _common
 
 PARTS = ("render", "read_out", "frames", "velocity")
 CSV_FIELDS = ["part", "configuration", "median_s", "relative_to_named_sinusoid", "rate", "relative_to_one_camera",
-              "scene", "sensor", "rmse_m_s", "rmse_spread_m_s", "median_abs_error_m_s", "valid_fraction", "render_only_rmse_m_s"]
+              "scene", "render_s", "sensor", "rmse_m_s", "rmse_spread_m_s", "median_abs_error_m_s", "valid_fraction", "render_only_rmse_m_s"]
 VELOCITY_SCENES = ("cornell-box", "street")
 CORNELL_SPEED_M_S = 10.0  # the boxes' speed in dopplertof.scenes.cornell_box (15 mm over 1.5 ms)
 
@@ -189,6 +189,8 @@ def _render_schedule(scene, sensor, estimator, args):
         result = dopplertof.render(scene, sensor=sensor, **render)
         return result.measurements, result.velocity
     half = len(sensor.frames) // 2
+    if len(sensor.cameras()) != 2 * len(sensor.frames):
+        raise RuntimeError("the captures' frames must each have a window of their own (distinct exposure_start)")
     parts = [dopplertof.render(scene, sensor=dataclasses.replace(sensor, frames=frames), **render) for frames in (sensor.frames[:half], sensor.frames[half:])]
     # every frame is its own window here: cameras() = the frames, then one mean-luminance camera per frame
     m = np.concatenate([parts[0].measurements[:half], parts[1].measurements[:half], parts[0].measurements[half:], parts[1].measurements[half:]])
@@ -210,7 +212,7 @@ def measure_velocity(args, log):
 
     schedules = velocity_schedules()
     span_s = max(max((f.exposure_start or 0.0) + f.exposure for f in frames) for frames, _ in schedules.values())
-    rows, errors = [], {}
+    rows = []
     for scene_name in args.scenes:
         scene = _velocity_scene(scene_name, args.velocity_resolution, span_s)
         for name, (frames, estimator) in schedules.items():
@@ -233,20 +235,17 @@ def measure_velocity(args, log):
                 valid.append(confident.mean())
             render_error = (render_only - truth)[hit]
             row = {
-                "part": "velocity", "configuration": f"{scene_name} / {name}", "median_s": spent, "scene": scene_name, "sensor": name,
+                "part": "velocity", "configuration": f"{scene_name} / {name}", "render_s": spent, "scene": scene_name, "sensor": name,
                 "rmse_m_s": float(np.mean(per_draw)), "rmse_spread_m_s": float(np.std(per_draw)), "median_abs_error_m_s": float(np.median(np.concatenate(absolute))),
                 "valid_fraction": float(np.mean(valid)), "render_only_rmse_m_s": float(np.sqrt(np.nanmean(render_error**2))),
             }  # fmt: skip
             rows.append(row)
-            errors[(scene_name, name)] = row
             log(f"{scene_name:12s} {name:15s} RMSE {row['rmse_m_s']:8.3f} m/s (render alone {row['render_only_rmse_m_s']:.3f}), valid {row['valid_fraction']:.2f}, render {spent:.1f} s")
     return rows
 
 
 def plot_velocity(path, rows):
     from matplotlib.figure import Figure
-
-    import _common as common
 
     velocity = [r for r in rows if r["part"] == "velocity"]
     sensors = list(dict.fromkeys(r["sensor"] for r in velocity))
@@ -263,7 +262,7 @@ def plot_velocity(path, rows):
     axes.set_yscale("log")
     axes.set_ylabel("velocity RMSE (m/s)")
     axes.set_title("velocity RMSE per sensor preset at its legal best settings", fontsize=9)
-    common.save_figure(figure, axes, path)
+    _common.save_figure(figure, axes, path)
 
 
 def parse(argv):
