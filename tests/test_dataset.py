@@ -505,6 +505,14 @@ def test_sensor_dataset_raw_dn_is_the_read_out_of_raw_electrons_and_rerenders(se
         assert arrays[f].tobytes() == stored[f].tobytes(), f
 
 
+def test_info_counts_the_sensors_drawn(sensor_dataset):
+    res = CliRunner().invoke(main, ["dataset", "info", str(sensor_dataset)])
+    assert res.exit_code == 0, res.output
+    line = next(x for x in res.output.splitlines() if x.startswith("sensors (raw_electrons, raw_dn): "))
+    names = [s["json"]["sensor"]["model"]["name"] for s in dt.dataset.open(sensor_dataset)]
+    assert line == "sensors (raw_electrons, raw_dn): " + ", ".join(f"{k} {names.count(k)}" for k in sorted(set(names)))
+
+
 def test_sensor_draws_follow_the_weights_and_leave_other_draws_alone():
     plain = config_mod.validate({})
     weighted = config_mod.validate({"sensor": {"model": {"mlx75027": 3.0, "opt8241": 1.0}}})

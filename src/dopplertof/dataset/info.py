@@ -48,12 +48,14 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
     -------
     dict
         ``lines`` (the printable report) and ``stats`` (numbers: samples, shards, scene
-        kinds, depth and velocity ranges, moving fractions, body speeds, moving cameras).
+        kinds, sensors drawn, depth and velocity ranges, moving fractions, body speeds, moving
+        cameras).
     """
     ds = open_dataset(folder)
     m = ds.manifest
     depths, speeds, body_speeds, spins, ego_speeds = [], [], [], [], []
     kinds: Counter = Counter()
+    sensors: Counter = Counter()  # the sensor model of each sample (config key sensor.model), if any
     moving_px = total_px = sees_motion_px = 0
     rows = []
     n = 0
@@ -62,6 +64,8 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
             break
         rec = sample["json"]
         kinds[rec["scene"]["kind"]] += 1
+        if "model" in rec["sensor"]:
+            sensors[rec["sensor"]["model"]["name"]] += 1
         depths.append(sample["depth"].ravel())
         v = sample["velocity"].ravel()
         speeds.append(np.abs(v))
@@ -87,6 +91,7 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
         "shards": len(m["shards"]),
         "complete": m["complete"],
         "scene_kinds": dict(kinds),
+        "sensors": dict(sensors),
         "depth_m": [float(np.nanmin(depth)), float(np.nanmax(depth))] if np.isfinite(depth).any() else None,
         "speed_m_s": [float(np.nanmin(speed)), float(np.nanmax(speed))] if np.isfinite(speed).any() else None,
         "no_hit_fraction": float(np.mean(~np.isfinite(depth))) if depth.size else None,
@@ -101,6 +106,7 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
         f"variant {m['variant']}",
         f"fields: {', '.join(ds.fields)}" + (f"; missing (renderer lacks them): {', '.join(m['missing_fields'])}" if m["missing_fields"] else ""),
         f"scene kinds: {', '.join(f'{k} {c}' for k, c in sorted(kinds.items()))}; moving bodies: {len(body_speeds)}; moving cameras: {len(ego_speeds)}",
+        *([f"sensors (raw_electrons, raw_dn): {', '.join(f'{k} {c}' for k, c in sorted(sensors.items()))}"] if sensors else []),
         f"moving fraction: {stats['moving_mask_fraction']:.4f} of pixels (moving_mask)" if stats["moving_mask_fraction"] is not None
         else "moving fraction (moving_mask): n/a, the dataset has no instance_id",
         f"pixels whose radial velocity exceeds {MOVING_PIXEL_SPEED_M_S * 1e3:g} mm/s: {stats['pixels_seeing_motion_fraction']:.4f}"
