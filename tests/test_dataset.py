@@ -536,3 +536,18 @@ def test_sensor_with_too_many_adc_bits_is_refused_in_a_subprocess(tmp_path):
                           "--config", str(tmp_path / "config.toml")], capture_output=True, text=True, cwd=tmp_path, env=_run_env(), timeout=120)
     assert res.returncode == 2, res.stderr
     assert res.stderr.strip().splitlines() == ["error: config key 'sensor.model': sensor 'deep.toml' has a 20-bit ADC; `raw_dn` is uint16 (at most 16 bits)"]
+
+
+def test_a_sensor_file_edited_between_runs_is_not_mixed_in(tmp_path):
+    sensor_file = tmp_path / "one_tap.toml"
+    sensor_file.write_text(CUSTOM_SENSOR)
+    config = tmp_path / "config.toml"
+    config.write_text(f'[sensor]\nmodel = "{sensor_file}"\n')
+    small = dict(samples=1, seed=0, resolution=8, spp=4, config=str(config))
+    dt.dataset.generate(tmp_path / "ds", **small)
+    manifest = json.loads((tmp_path / "ds" / "dataset.json").read_text())
+    assert "read_noise_e = 5.0" in manifest["sensor_models"][str(sensor_file)]
+    assert dt.dataset.generate(tmp_path / "ds", **small)["generated"] == []  # unchanged: resumes
+    sensor_file.write_text(CUSTOM_SENSOR.replace("read_noise_e = 5.0", "read_noise_e = 6.0"))
+    with pytest.raises(ValueError, match="holds another dataset \\(it differs in sensor_models\\)"):
+        dt.dataset.generate(tmp_path / "ds", **small)

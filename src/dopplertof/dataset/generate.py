@@ -17,7 +17,8 @@ from . import execute, schema, shards
 
 DEFAULT_SHARD_SIZE = 16
 RGB_VARIANTS = ("llvm_ad_rgb", "cuda_ad_rgb")
-_IDENTITY_KEYS = ("format", "format_version", "samples", "seed", "shard_size", "variant", "versions", "config", "fields")
+# sensor_models: the sensors' own descriptions, so that a sensor file edited between runs is not mixed into one dataset
+_IDENTITY_KEYS = ("format", "format_version", "samples", "seed", "shard_size", "variant", "versions", "config", "fields", "sensor_models")
 
 
 def _positive_int(name, value, minimum=1):
@@ -98,14 +99,16 @@ def header_for(cfg: dict, samples: int, seed: int, shard_size: int, variant: str
     """The manifest's fixed part: identity, schema, record documentation."""
     from .sample import versions
 
-    from ..sensors.files import load_sensor
+    from ..sensors.files import load_sensor, sensor_toml
 
     res = cfg["render"]["resolution"]
     n_cameras = len(cfg["camera"]["heterodyne"])
-    models = cfg["sensor"]["model"]
+    models = {name: load_sensor(name) for name in cfg["sensor"]["model"]}
     fields, missing = schema.available_fields(n_cameras, sensor_model=bool(models))
-    layouts = {(len(s.frames), s.taps) for s in map(load_sensor, models)}
+    layouts = {(len(s.frames), s.taps) for s in models.values()}
     frames, taps = layouts.pop() if len(layouts) == 1 else (None, None)
+    # only with sensors: the manifest of a dataset without one keeps its bytes
+    described = {"sensor_models": {name: sensor_toml(s) for name, s in models.items()}} if models else {}
     return {
         "format": schema.FORMAT_NAME,
         "format_version": schema.FORMAT_VERSION,
@@ -120,6 +123,7 @@ def header_for(cfg: dict, samples: int, seed: int, shard_size: int, variant: str
         "missing_fields": missing,
         "schema": schema.schema_table(fields, n_cameras, res, res, frames, taps),
         "record": schema.RECORD,
+        **described,
     }
 
 
@@ -211,7 +215,7 @@ def generate(
     with shards.manifest_lock(output):
         existing = shards.read_manifest(output)
         if existing is not None:
-            differ = [k for k in _IDENTITY_KEYS if existing.get(k) != header[k]]
+            differ = [k for k in _IDENTITY_KEYS if existing.get(k) != header.get(k)]
             if differ:
                 raise ValueError(f"{output} holds another dataset (it differs in {', '.join(differ)}); use another folder")
         shards.rebuild_manifest(output, header, layout)
