@@ -366,6 +366,7 @@ def test_bad_config_is_one_error_line_and_exit_2(tmp_path, toml, message):
         (["--samples", "4", "--shards", "3:9"], "shard range '3:9'"),
         (["--samples", "4", "--spp", "3"], "'render.spp' must be a multiple of 2"),
         (["--samples", "4", "--address", "ray://x:1"], "--address needs --ray"),
+        (["--samples", "4", "--spp", "2"], "'render.spp' must be at least 4 (antithetic, replay: two independent groups"),
     ],
 )
 def test_bad_arguments_are_one_error_line_and_exit_2(tmp_path, args, message):

@@ -364,9 +364,15 @@ def validate(config: dict) -> dict:
     if not (0 <= lo and hi <= 1):
         raise ValueError(f"config key 'materials.albedo' must lie in [0, 1], got {[lo, hi]!r}")
     r = out["render"]
-    if r["time_sampling"] != "uniform" or r["correlation"] in ("reconnection", "adaptive"):
-        if r["spp"] % 2:
-            raise ValueError(f"config key 'render.spp' must be a multiple of 2 with paired times ({r['time_sampling']}, {r['correlation']}), got {r['spp']!r}")
+    paired = r["time_sampling"] != "uniform" or r["correlation"] in ("reconnection", "adaptive")
+    if paired and r["spp"] % 2:
+        raise ValueError(f"config key 'render.spp' must be a multiple of 2 with paired times ({r['time_sampling']}, {r['correlation']}), got {r['spp']!r}")
+    group = 2 if paired else 1
+    if r["spp"] < 2 * group:  # one group per pixel: no replicates, so no standard errors or camera covariance
+        raise ValueError(
+            f"config key 'render.spp' must be at least {2 * group} ({r['time_sampling']}, {r['correlation']}: two independent groups of "
+            f"{group} correlated time(s) per pixel give the standard errors and the camera covariance), got {r['spp']!r}"
+        )
     return out
 
 
