@@ -189,6 +189,65 @@ def test_an_undocumented_name_is_found(monkeypatch):
     assert {"dopplertof.reconstruct.VelocityResult", "dopplertof.reconstruct.velocity"} <= set(public_api.undocumented())
 
 
+# Modules whose docstrings do not yet document every parameter (issue 21, item 4): the
+# check leaves them out until their docstrings are written; remove a module once it passes.
+PARAMETERS_TO_DO = (
+    "dopplertof.animate",
+    "dopplertof.codes",
+    "dopplertof.dataset.config",
+    "dopplertof.dataset.execute",
+    "dopplertof.dataset.generate",
+    "dopplertof.dataset.randomize",
+    "dopplertof.dataset.reader",
+    "dopplertof.dataset.sample",
+    "dopplertof.dataset.schema",
+    "dopplertof.dataset.shards",
+    "dopplertof.design.convergence",
+    "dopplertof.design.precision",
+    "dopplertof.design.record",
+    "dopplertof.design.search",
+    "dopplertof.experiments.common",
+    "dopplertof.experiments.paper",
+    "dopplertof.experiments.sweeps",
+    "dopplertof.experiments.velocity",
+    "dopplertof.folder",
+    "dopplertof.io",
+    "dopplertof.modulation",
+    "dopplertof.oracles",
+    "dopplertof.outputs",
+    "dopplertof.reconstruct.estimate",
+    "dopplertof.reconstruct.frequencies",
+    "dopplertof.reconstruct.model",
+    "dopplertof.render",
+    "dopplertof.scene",
+    "dopplertof.scenes",
+    "dopplertof.sensor",
+    "dopplertof.sensors.files",
+    "dopplertof.sensors.frames",
+    "dopplertof.sensors.noise",
+    "dopplertof.sensors.presets",
+    "dopplertof.settings",
+    "dopplertof.tracing",
+    "dopplertof.tracing.film",
+    "dopplertof.tracing.lanes",
+    "dopplertof.tracing.materials",
+    "dopplertof.tracing.paired",
+    "dopplertof.tracing.path",
+    "dopplertof.tracing.single",
+    "dopplertof.tracing.sink",
+)
+
+
+def test_every_public_callable_documents_its_parameters():
+    assert public_api.undocumented_parameters(PARAMETERS_TO_DO) == []
+
+
+def test_the_modules_still_to_do_are_not_done():
+    """A module on the to-do list that already passes is taken off it (the list stays honest)."""
+    done = [m for m in PARAMETERS_TO_DO if not public_api.undocumented_parameters([o for o in PARAMETERS_TO_DO if o != m])]
+    assert done == []
+
+
 # ------------------------------------------------------------------------------ the checkers
 
 
@@ -213,3 +272,45 @@ def test_a_missing_cli_option_is_found():
 
     page = "dopplertof run --fast --no-fast -n"
     assert missing_from_cli_page(page, group) == ["dopplertof run --count"]
+
+
+def test_a_missing_parameter_is_found():
+    def documented(distance_m, speed_m_s=1.0, **extra):
+        """A function.
+
+        Parameters
+        ----------
+        distance_m : float, metres
+            How far.
+        speed_m_s : float, m/s, default 1
+        **extra
+            More.
+        """
+
+    def one_missing(distance_m, speed_m_s=1.0):
+        """A function.
+
+        Parameters
+        ----------
+        distance_m, other : float. How far.
+        """
+
+    def no_section(distance_m):
+        """A function without sections."""
+
+    class Plugin:
+        """A plugin with a table.
+
+        ============  =========
+        ``props``     its properties
+        ============  =========
+        """
+
+        def __init__(self, props):
+            pass
+
+    assert public_api.parameter_gaps(documented) == []
+    assert public_api.parameter_gaps(one_missing) == ["missing parameter speed_m_s"]
+    assert public_api.parameter_gaps(no_section) == ["no parameter section"]
+    assert public_api.parameter_gaps(Plugin) == []
+    assert public_api.parameter_gaps(lambda: None) == []

@@ -10,9 +10,11 @@ start with ``_``; of a public class, its public methods and properties.
 from __future__ import annotations
 
 import dataclasses
+import enum
 import importlib
 import inspect
 import pkgutil
+import re
 
 
 def public_modules() -> list[str]:
@@ -67,3 +69,127 @@ def undocumented() -> list[str]:
                     if not (function.__doc__ or "").strip():
                         missing.append(f"{name}.{attribute}")
     return sorted(set(missing))
+
+
+# A numpy section header: its name, then a line of dashes.
+_SECTION = re.compile(r"^(?P<name>[A-Z][A-Za-z ]*)\n[ \t]*-{3,}[ \t]*$", re.MULTILINE)
+# Sections that name a callable's parameters (a class's fields may be its Attributes).
+_PARAMETER_SECTIONS = {"Parameters", "Other Parameters", "Keyword Arguments"}
+_CLASS_PARAMETER_SECTIONS = _PARAMETER_SECTIONS | {"Attributes"}
+
+
+def _sections(doc: str) -> dict[str, str]:
+    """The numpy sections of a cleaned docstring, by name (the text under the dashes)."""
+    found = {}
+    matches = list(_SECTION.finditer(doc))
+    for match, following in zip(matches, [*matches[1:], None]):
+        found[match.group("name").strip()] = doc[match.end() : following.start() if following else len(doc)]
+    return found
+
+
+def _section_names(body: str) -> set[str]:
+    """The parameter names of one section: the entries at its least indentation,
+    ``name : type …`` or ``a, b : type`` or ``**overrides``."""
+    lines = [line for line in body.splitlines() if line.strip()]
+    if not lines:
+        return set()
+    indent = min(len(line) - len(line.lstrip()) for line in lines)
+    names = set()
+    for line in lines:
+        if len(line) - len(line.lstrip()) == indent:
+            head = line.strip().split(" :")[0].split(":")[0] if ":" in line else line.strip()
+            names.update(part.strip().lstrip("*").strip("`") for part in head.split(","))
+    return names
+
+
+def _table_names(doc: str) -> set[str]:
+    """The first column of every ``=====`` table (plugin-style parameter tables)."""
+    names, inside = set(), False
+    for line in doc.splitlines():
+        stripped = line.strip()
+        if stripped and set(stripped) <= {"=", " "}:
+            inside = not inside if stripped.count("=") else inside
+            continue
+        if inside and stripped and not line.startswith(" "):
+            names.add(stripped.split()[0].strip("`"))
+    return names
+
+
+def _parameters(obj) -> list[str] | None:
+    """The parameter names a caller passes (``self``/``cls`` left out), None where Python
+    shows no signature (a built-in base's constructor)."""
+    try:
+        signature = inspect.signature(obj)
+    except (TypeError, ValueError):
+        return None
+    names = list(signature.parameters)
+    if inspect.isfunction(obj) and names and names[0] in ("self", "cls") and "." in obj.__qualname__:
+        names = names[1:]
+    return names
+
+
+def parameter_gaps(obj, kind: str = "function") -> list[str]:
+    """What the docstring of a callable lacks for its parameters: ``no parameter section``
+    where it takes parameters and has none, else ``missing parameter NAME`` for each one
+    (compared with :func:`inspect.signature`).
+
+    Parameters
+    ----------
+    obj : function or class
+        A class's parameters are its constructor's; its Attributes section (a dataclass's
+        fields) and a ``=====`` table (a plugin's properties) count as parameter sections.
+    kind : str, default ``"function"``
+        ``"method"`` for a function reached through its class (its ``self`` or ``cls``
+        is left out).
+
+    Returns
+    -------
+    list of str
+        Empty where every parameter is documented.
+    """
+    parameters = _parameters(obj)
+    if kind == "method" and parameters and parameters[0] in ("self", "cls"):
+        parameters = parameters[1:]
+    if not parameters:
+        return []
+    doc = inspect.cleandoc(obj.__doc__ or "")
+    sections = _sections(doc)
+    wanted = _CLASS_PARAMETER_SECTIONS if inspect.isclass(obj) else _PARAMETER_SECTIONS
+    documented = set().union(*(_section_names(body) for name, body in sections.items() if name in wanted))
+    documented |= _table_names(doc)
+    if not documented:
+        return ["no parameter section"]
+    return [f"missing parameter {name}" for name in parameters if name not in documented]
+
+
+def _public_callables():
+    """(dotted name, object, kind) of every public function, class and method."""
+    import dopplertof
+
+    targets = [(f"dopplertof.{n}", getattr(dopplertof, n)) for n in dopplertof.__all__]
+    for module_name in public_modules():
+        targets += [(f"{module_name}.{n}", getattr(importlib.import_module(module_name), n)) for n in module_members(module_name)]
+    for name, obj in targets:
+        if inspect.isfunction(obj):
+            yield name, obj, "function"
+        elif inspect.isclass(obj):
+            if not issubclass(obj, enum.Enum) and not issubclass(obj, BaseException):
+                yield name, obj, "class"
+            for attribute, value in vars(obj).items():
+                function = getattr(value, "__func__", value)
+                if not attribute.startswith("_") and inspect.isfunction(function):
+                    yield f"{name}.{attribute}", function, "method" if not isinstance(value, staticmethod) else "function"
+
+
+def undocumented_parameters(modules_to_do=()) -> list[str]:
+    """Every public callable whose docstring does not document all its parameters, as
+    ``name: gap`` (:func:`parameter_gaps`), leaving out the names defined in
+    ``modules_to_do`` (dotted module names)."""
+    gaps = set()
+    for _name, obj, kind in _public_callables():
+        if getattr(obj, "__module__", "") in modules_to_do:
+            continue
+        # A name exported twice is reported once, where it is defined.
+        where = f"{obj.__module__}.{obj.__qualname__}"
+        gaps.update(f"{where}: {gap}" for gap in parameter_gaps(obj, kind))
+    return sorted(gaps)
