@@ -206,7 +206,6 @@ PARAMETERS_TO_DO = (
     "dopplertof.design.precision",
     "dopplertof.design.record",
     "dopplertof.design.search",
-    "dopplertof.experiments.common",
     "dopplertof.experiments.paper",
     "dopplertof.experiments.sweeps",
     "dopplertof.experiments.velocity",
