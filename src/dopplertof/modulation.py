@@ -230,7 +230,18 @@ class Camera:
 
     def window(self, default_start_s: float = 0.0) -> tuple[float, float]:
         """(start, length) of its exposure window (s); ``default_start_s`` where
-        ``exposure_start`` is None (a render's: its ``exposure_start``)."""
+        ``exposure_start`` is None (a render's: its ``exposure_start``).
+
+        Parameters
+        ----------
+        default_start_s : float, s, default 0
+            The start where ``exposure_start`` is None.
+
+        Returns
+        -------
+        tuple of (float, float)
+            Seconds.
+        """
         start = default_start_s if self.exposure_start is None else self.exposure_start
         return float(start), self.exposure
 
@@ -245,6 +256,22 @@ class Camera:
         given as text (as in a scene file), parsed strictly: a boolean is ``true``/``false``
         (``yes``/``no``, ``1``/``0``, ``on``/``off``), anything else is a ValueError naming
         the key.
+
+        Parameters
+        ----------
+        params : dict
+            The original parameter names and values.
+        where : str, default ``"integrator"``
+            Where the values come from, named in errors (a file's element).
+
+        Returns
+        -------
+        Camera
+
+        Raises
+        ------
+        ValueError
+            A value that does not parse or is out of range, naming the key.
         """
         from .validation import checked_or_text
 
