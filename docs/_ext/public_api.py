@@ -131,7 +131,8 @@ def _parameters(obj) -> list[str] | None:
 def parameter_gaps(obj, kind: str = "function") -> list[str]:
     """What the docstring of a callable lacks for its parameters: ``no parameter section``
     where it takes parameters and has none, else ``missing parameter NAME`` for each one
-    (compared with :func:`inspect.signature`).
+    (compared with :func:`inspect.signature`); and ``section NAME twice`` for a numpy
+    section written twice (sections added to a docstring that had them).
 
     Parameters
     ----------
@@ -147,19 +148,21 @@ def parameter_gaps(obj, kind: str = "function") -> list[str]:
     list of str
         Empty where every parameter is documented.
     """
+    doc = inspect.cleandoc(obj.__doc__ or "")
+    headers = [match.group("name").strip() for match in _SECTION.finditer(doc)]
+    twice = [f"section {name} twice" for name in sorted({h for h in headers if headers.count(h) > 1})]
     parameters = _parameters(obj)
     if kind == "method" and parameters and parameters[0] in ("self", "cls"):
         parameters = parameters[1:]
     if not parameters:
-        return []
-    doc = inspect.cleandoc(obj.__doc__ or "")
+        return twice
     sections = _sections(doc)
     wanted = _CLASS_PARAMETER_SECTIONS if inspect.isclass(obj) else _PARAMETER_SECTIONS
     documented = set().union(*(_section_names(body) for name, body in sections.items() if name in wanted))
     documented |= _table_names(doc)
     if not documented:
-        return ["no parameter section"]
-    return [f"missing parameter {name}" for name in parameters if name not in documented]
+        return [*twice, "no parameter section"]
+    return [*twice, *(f"missing parameter {name}" for name in parameters if name not in documented)]
 
 
 def _public_callables():
