@@ -46,7 +46,25 @@ MAX_RAW_ADC_BITS = 16  # raw taps are stored as uint16
 @dataclass(frozen=True)
 class Param:
     """One configuration key: dotted ``key`` (section.name), ``default``, ``unit``, ``doc``,
-    ``kind`` (see the module docstring), ``choices`` and ``minimum`` where they apply."""
+    ``kind`` (see the module docstring), ``choices`` and ``minimum`` where they apply.
+
+    Parameters
+    ----------
+    key : str
+        ``section.name``.
+    default : object
+        The default value.
+    unit : str
+        Its unit ("" where none).
+    doc : str
+        One line of meaning.
+    kind : str
+        How it is validated (module docstring).
+    choices : tuple, default ()
+        The allowed values, where there is a list.
+    minimum : float or None, default None
+        The smallest allowed value, where there is one.
+    """
 
     key: str
     default: object
@@ -329,6 +347,18 @@ def load_config(path: str | os.PathLike | None = None, overrides: dict | None = 
     """The validated configuration: the defaults, then the TOML file ``path``, then
     ``overrides`` (``{section: {name: value}}``, e.g. from command-line options).
 
+    Parameters
+    ----------
+    path : str, path or None, default None
+        A TOML file; None: the defaults only.
+    overrides : dict or None, default None
+        ``{section: {name: value}}``, applied last.
+
+    Returns
+    -------
+    dict
+        ``{section: {name: value}}``, every key present.
+
     Raises
     ------
     ValueError
@@ -357,7 +387,26 @@ def load_config(path: str | os.PathLike | None = None, overrides: dict | None = 
 
 
 def draw(rng: np.random.Generator, config: dict, key: str):
-    """One value of the range (or weights) ``key`` (``section.name``) drawn with ``rng``."""
+    """One value of the range (or weights) ``key`` (``section.name``) drawn with ``rng``.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    config : dict
+        A validated configuration (:func:`load_config`).
+    key : str
+        ``section.name`` of a range or weights.
+
+    Returns
+    -------
+    float or str
+        A value of the range, or a name drawn by the weights.
+
+    Raises
+    ------
+    ValueError
+        ``key`` is not a distribution.
+    """
     p = _BY_KEY[key]
     sec, name = key.split(".", 1)
     value = config[sec][name]
@@ -373,7 +422,18 @@ def draw(rng: np.random.Generator, config: dict, key: str):
 
 
 def choose(rng: np.random.Generator, weights: dict) -> str:
-    """A name drawn from ``{name: weight}`` (weights need not sum to 1)."""
+    """A name drawn from ``{name: weight}`` (weights need not sum to 1).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    weights : dict
+        Name → weight ≥ 0, not all 0.
+
+    Returns
+    -------
+    str
+    """
     names = list(weights)
     w = np.array([weights[n] for n in names], dtype=np.float64)
     return names[int(rng.choice(len(names), p=w / w.sum()))]

@@ -26,14 +26,37 @@ _SEED_MASK = 0x7FFFFFFF  # render seeds are 31-bit non-negative integers
 
 
 def streams(seed: int, index: int) -> dict:
-    """The four independent ``SeedSequence`` streams of sample ``index`` of dataset ``seed``."""
+    """The four independent ``SeedSequence`` streams of sample ``index`` of dataset ``seed``.
+
+    Parameters
+    ----------
+    seed : int
+        The dataset's seed.
+    index : int
+        The sample, from 0.
+
+    Returns
+    -------
+    dict
+        Name → ``numpy.random.SeedSequence``.
+    """
     root = np.random.SeedSequence(int(seed), spawn_key=(int(index),))
     return dict(zip(_STREAMS, root.spawn(len(_STREAMS))))
 
 
 def versions(variant: str) -> dict:
     """The versions a sample's bytes depend on: dopplertof, Mitsuba, Dr.Jit, numpy and the
-    Mitsuba ``variant`` (str) the sample is rendered with."""
+    Mitsuba ``variant`` (str) the sample is rendered with.
+
+    Parameters
+    ----------
+    variant : str
+        The Mitsuba variant.
+
+    Returns
+    -------
+    dict
+    """
     import drjit
     import mitsuba
 
@@ -44,7 +67,17 @@ def versions(variant: str) -> dict:
 
 
 def cameras_of(config: dict) -> list[dict]:
-    """The capture set of ``config`` as :class:`dopplertof.Camera` keyword dicts."""
+    """The capture set of ``config`` as :class:`dopplertof.Camera` keyword dicts.
+
+    Parameters
+    ----------
+    config : dict
+        The validated configuration.
+
+    Returns
+    -------
+    list of dict
+    """
     from ..modulation import Camera
 
     cam = config["camera"]
@@ -112,7 +145,19 @@ def make_record(config: dict, seed: int, index: int, variant: str) -> dict:
 
 def sensor_model(record: dict, intensity_luminance: np.ndarray):
     """The :class:`dopplertof.sensor.SensorModel` of a record, given the clean luminance:
-    both taps of the 99th-percentile pixel collect ``signal_electrons`` per exposure."""
+    both taps of the 99th-percentile pixel collect ``signal_electrons`` per exposure.
+
+    Parameters
+    ----------
+    record : dict
+        A sample's record (its ``sensor`` settings).
+    intensity_luminance : ndarray
+        (H, W) luminance of the noiseless intensity.
+
+    Returns
+    -------
+    SensorModel
+    """
     from ..sensor import SensorModel
 
     sen = record["sensor"]

@@ -19,7 +19,21 @@ FORMAT_VERSION = 1
 
 @dataclass(frozen=True)
 class Field:
-    """One array of a sample."""
+    """One array of a sample.
+
+    Parameters
+    ----------
+    name : str
+        The field (``<key>.<name>.npy``).
+    dtype : str
+        numpy dtype name.
+    shape : tuple
+        Shape template of ints and ``C``, ``H``, ``W`` (cameras, height, width).
+    unit : str
+    meaning : str
+    needs : str or None, default None
+        The :class:`~dopplertof.RenderResult` attribute it needs, if not always present.
+    """
 
     name: str
     dtype: str
@@ -74,7 +88,19 @@ RECORD = {
 
 
 def resolve(shape: tuple, cameras: int, height: int, width: int) -> list:
-    """A shape template with ``C``, ``H``, ``W`` replaced by numbers."""
+    """A shape template with ``C``, ``H``, ``W`` replaced by numbers.
+
+    Parameters
+    ----------
+    shape : tuple
+        A shape template.
+    cameras, height, width : int
+        C, H and W.
+
+    Returns
+    -------
+    list of int
+    """
     sizes = {"C": cameras, "H": height, "W": width}
     return [sizes.get(s, s) for s in shape]
 
@@ -82,7 +108,17 @@ def resolve(shape: tuple, cameras: int, height: int, width: int) -> list:
 def available_fields(n_cameras: int) -> tuple[list[str], list[str]]:
     """(fields written, fields missing): those whose ``needs`` the renderer does not output
     (:data:`dopplertof.outputs.OUTPUTS`, and the camera covariance for 2 to
-    ``MAX_COVARIANCE_CAMERAS`` cameras) are missing."""
+    ``MAX_COVARIANCE_CAMERAS`` cameras) are missing.
+
+    Parameters
+    ----------
+    n_cameras : int
+        Cameras of the capture set.
+
+    Returns
+    -------
+    tuple of (list of str, list of str)
+    """
     from ..outputs import OUTPUTS
     from ..passes import MAX_COVARIANCE_CAMERAS
 
@@ -94,7 +130,19 @@ def available_fields(n_cameras: int) -> tuple[list[str], list[str]]:
 
 
 def schema_table(fields, cameras: int, height: int, width: int) -> dict:
-    """``{field: {dtype, shape, unit, meaning}}`` of the written ``fields``."""
+    """``{field: {dtype, shape, unit, meaning}}`` of the written ``fields``.
+
+    Parameters
+    ----------
+    fields : iterable of str
+        Field names.
+    cameras, height, width : int
+        C, H and W.
+
+    Returns
+    -------
+    dict
+    """
     return {
         name: {"dtype": BY_NAME[name].dtype, "shape": resolve(BY_NAME[name].shape, cameras, height, width), "unit": BY_NAME[name].unit,
                "meaning": BY_NAME[name].meaning}
