@@ -23,6 +23,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 SITE = ROOT / "docs" / "_build" / "html"
 sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+import error_catalogue  # noqa: E402
 import public_api  # noqa: E402
 
 # A link with a scheme (https:, mailto:, javascript:) leaves the site.
@@ -221,6 +222,51 @@ def test_the_modules_still_to_do_are_not_done():
     """A module on the to-do list that already passes is taken off it (the list stays honest)."""
     done = [m for m in PARAMETERS_TO_DO if not public_api.undocumented_parameters([o for o in PARAMETERS_TO_DO if o != m])]
     assert done == []
+
+
+# ------------------------------------------------------------------------------ error messages
+
+PACKAGE = ROOT / "src" / "dopplertof"
+
+
+def test_every_error_message_is_in_the_troubleshooting_catalogue():
+    messages = error_catalogue.source_messages(PACKAGE, skip=error_catalogue.FILES_TO_DO)
+    assert len(messages) > 100
+    assert error_catalogue.uncatalogued(messages) == []
+
+
+def test_every_catalogue_entry_matches_a_message():
+    """An entry whose message was reworded or removed goes (or follows the new wording)."""
+    assert error_catalogue.unused_entries(error_catalogue.source_messages(PACKAGE)) == []
+
+
+def test_the_files_still_to_do_are_not_done():
+    messages = error_catalogue.source_messages(PACKAGE)
+    done = [f for f in error_catalogue.FILES_TO_DO if not error_catalogue.uncatalogued([m for m in messages if m[0] == f])]
+    assert done == []
+
+
+def test_an_uncatalogued_message_is_found(tmp_path):
+    (tmp_path / "module.py").write_text(
+        "def f(x, where):\n"
+        "    if x:\n"
+        "        raise ValueError(f'{where}: speed must be > 0 m/s, got {x!r}')\n"
+        "    if where:\n"
+        "        fail(f'brand new problem with {x}')\n"
+        "    raise ValueError(f'{where}: {x}')\n"  # passes another message on: not a message of its own
+    )
+    messages = error_catalogue.source_messages(tmp_path)
+    assert [m[2] for m in messages] == ["…: speed must be > 0 m/s, got …", "brand new problem with …"]
+    topics = [("topic", "", [("…: speed must be", "means", "do")])]
+    assert error_catalogue.uncatalogued(messages, topics) == ["module.py:5: brand new problem with …"]
+    assert error_catalogue.unused_entries(messages[:1], topics + [("more", "", [("gone", "", "")])]) == ["gone"]
+
+
+@pytest.mark.slow
+def test_the_troubleshooting_page_shows_the_catalogue(site):
+    text = " ".join(" ".join(_parse(site / "troubleshooting.html").text).split())
+    missing = [entry[0] for _, _, entries in error_catalogue.TOPICS for entry in entries if entry[0] not in text]
+    assert missing == []
 
 
 # ------------------------------------------------------------------------------ the checkers

@@ -1,0 +1,412 @@
+"""Every error message a user of the command line can meet, by topic, with what it means and
+what to do: ``conf.py`` writes the troubleshooting page's catalogue from :data:`TOPICS`, and
+``tests/test_docs.py`` fails when a message in the package's source has no entry
+(:func:`source_messages`, :func:`uncatalogued`).
+
+A message is known by its *template*: its text as the source writes it, with ``…`` for every
+value filled in at run time (``unknown scene …; built-in scenes: …``). An entry matches every
+message whose template starts with the entry's (a stable prefix), so an entry may stop before
+the part of a message that is likely to be reworded.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+# The calls whose first argument is a message the command line prints as `error: …`: the
+# exceptions its commands turn into that line, and the commands' own `fail` helpers.
+MESSAGE_CALLS = {"ValueError", "TypeError", "SceneError", "BackendError", "CheckpointWriteError", "fail", "_fail"}
+
+# (title, what the topic's errors have in common, [(message template prefix, what it means, what to do)])
+TOPICS = [
+    ("Command line", "How the command line itself reports what it cannot take.", [
+        ("… (see '… --help')", "click refused the command line: an unknown option (`No such option`), a value of the wrong type or not among the choices (`Invalid value`), a missing argument", "run the command with `--help`: it lists the options, their types and choices"),
+        ("--overwrite and --resume exclude each other", "`--overwrite` deletes the earlier render, `--resume` continues it", "give one of them"),
+        ("… needs --ray", "`--address` and `--workers` configure Ray", "add `--ray`, or drop the option"),
+        ("--address needs --ray", "`--address` names a Ray cluster", "add `--ray`, or drop `--address`"),
+        ("--until-noise compares the render's error with a sensor's noise: give --sensor", "`--until-noise` stops when the Monte Carlo error falls below a sensor's noise, which needs a sensor", "add `--sensor PRESET`, or drop `--until-noise`"),
+        ("--camera and --sensor exclude each other", "a sensor's raw frames define the cameras", "give `--camera` options or `--sensor`, not both"),
+        ("…; free space, then continue with the same command and --resume", "a checkpoint could not be written (a full disk); the earlier checkpoint is kept", "free space, then rerun the same command with `--resume`"),
+        ("cannot write …: …", "an output file could not be written (a full disk, no permission); the message names the file and the reason", "free space or fix the permission; where the message says the sums are kept, rerun with `--resume`"),
+        ("unknown experiment …; choose one of …", "`dopplertof experiment` has no experiment of that name", "use one of the names listed"),
+        ("unknown --waveform …; choose one of …", "`--waveform` names a waveform the experiments do not know", "use one of the names listed"),
+        ("reference cache: …", "the reference cache folder cannot be used (the message says why)", "give another `--cache` folder"),
+        ("say what to do: --print, --markdown or --check FILE", "`dopplertof dataset config` needs an action", "add `--print`, `--markdown` or `--check FILE`"),
+        ("give --sweep KEY=LO:HI:N and/or --optimize KEY", "`dopplertof design` has nothing to explore", "give a sweep or a key to optimise"),
+        ("--sweep: each key once", "a design key was swept twice", "give each key in one `--sweep`"),
+        ("… holds an earlier design run (…); choose another folder or --overwrite", "the output folder has another design run's files", "use another folder, or `--overwrite`"),
+        ("every point of the sweep was refused or has an infinite bound (see sweep.csv)", "no design point of the sweep gives a finite error bound", "widen the sweep; `sweep.csv` says why each point failed"),
+    ]),
+    ("Scenes", "Choosing a scene by name or file, and the options that change it.", [
+        ("…: no such scene file or built-in scene (see 'dopplertof scenes')", "SCENE is neither a file nor a built-in scene name", "check the path (relative to the working folder); `dopplertof scenes` lists the names"),
+        ("unknown scene …; built-in scenes: …", "no built-in scene has that name", "use one of the names listed"),
+        ("unknown scene recipe …", "a Ray worker was asked to rebuild a scene it cannot describe (a scene from a dict)", "load the scene from a file or a built-in name to render it with `--ray`"),
+        ("scene … has no parameter(s) …; it takes …", "a built-in scene was given a keyword it does not have", "use the keywords listed"),
+        ("--resolution …: expected N or WxH (positive integers)", "`--resolution` is not a film size", "give `64` or `128x96`"),
+        ("--resolution …: built-in scenes are square; give one number", "the built-in scenes take one size", "give `N`"),
+        ("-D …: expected name=value (name: letters, digits, _)", "a `-D` option is not `NAME=VALUE`", "write `-D speed=2.5`"),
+        ("-D applies to scene files; … is a built-in scene", "`-D` sets a scene file's `$NAME` values", "drop `-D`, or render a file"),
+        ("resolution must be a positive integer, got …", "a built-in scene's film size is not a positive integer", "give a positive integer"),
+        ("… must be a finite number > 0, got …", "a built-in scene's size, speed or time is zero, negative or not a number", "give a positive number in the unit the message names"),
+        ("light must be 'point' or 'area', got …", "the scene's light kind is unknown", "`point` or `area`"),
+        ("keyframes must be a positive integer (intervals of the fall), got …", "the falling box needs at least one keyframe interval", "give a positive integer"),
+        ("spin_deg must be a finite number of degrees, got …", "the falling box's spin is not a number", "give degrees"),
+        ("spin_deg=… is too much for … keyframe intervals (< 180° each)", "keyframed rotations take the short way, so one interval must turn less than 180°", "more `keyframes`, or less spin"),
+        ("count must be a positive integer, got …", "the domino chain needs at least one domino", "give a positive integer"),
+        ("spacing=… m must exceed the thickness … m (dominoes would overlap)", "the dominoes would intersect", "a larger spacing or thinner dominoes"),
+        ("spacing=… m leaves a gap of at least the height … m", "a falling domino would not reach the next", "a spacing below the height"),
+        ("push=… rad/s does not tip a domino over its edge; use a larger push", "the first domino would rock back", "a larger `push`"),
+    ]),
+    ("Render settings", "A setting of `dopplertof render` (or of the API's `RenderSettings`), from an option, a scene file's `<integrator>` or a dict. The message names the setting and the values it takes; the settings table of the [command line](cli.md) page lists them all.", [
+        ("unknown … …; choose one of …", "a choice setting (time sampling, correlation, …) has a value it does not know", "use one of the choices listed"),
+        ("… must be >= …, got …", "a setting is below its minimum", "give a value at or above the minimum"),
+        ("… must be …, got …", "a setting is out of its range or of the wrong type (a number where an integer is needed, …)", "give a value in the range the message names"),
+        ("… must be true or false, got …", "a boolean setting got another value", "`true` or `false` (also yes/no, 1/0, on/off in files)"),
+        ("'checkpoint_interval_s' must be >= 0 seconds, got …", "a negative checkpoint interval", "0 (every pass) or more seconds"),
+        ("'max_depth' must be >= 1 or -1 (unbounded), got …", "a path depth of 0 or below -1", "1 or more, or -1"),
+        ("'seed' must be < 2**32, got …", "seeds are 32-bit", "a seed in [0, 2³²)"),
+        ("… pairs exactly 2 times, got n_times=…", "antithetic mirror sampling pairs two times per group", "`n_times = 2`"),
+        ("antithetic needs n_times >= 2, got …", "antithetic sampling shifts at least two times per group", "`n_times` of 2 or more"),
+        ("'antithetic_shift' must be in [0, 1] (units of T), got …", "the antithetic shift is a fraction of the exposure", "a value in [0, 1]"),
+        ("'antithetic_shift' applies to antithetic sampling, not …", "the shift has no meaning for the chosen time sampling", "drop it, or choose `antithetic`"),
+        ("'correlation_depth' applies to replay; … does not use it", "a setting the correlation mode ignores", "drop it, or use `--correlation replay`"),
+        ("'reconnection_threshold' applies to adaptive correlation, not …", "a setting the correlation mode ignores", "drop it, or use `--correlation adaptive`"),
+        ("correlation=… pairs two times (n_times=2), got n_times=…", "reconnection and adaptive correlation pair a path with one partner", "`n_times = 2`"),
+        ("spp=… must be a multiple of the … correlated times per group", "a pixel's paths come in groups of `n_times`", "an spp that is a multiple of `n_times`"),
+        ("'cameras' must be a list of dopplertof.Camera, got …", "the API's `cameras` is not a list of cameras", "pass `[dt.Camera(...), ...]`"),
+        ("analytic time integration needs a fully correlated partner", "analytic integration over time needs a replayed or reconnected partner", "`--correlation replay`, `reconnection` or `adaptive`, or drop analytic integration"),
+        ("analytic time integration is implemented for the low-pass sinusoid only", "analytic integration supports only the low-pass sinusoid", "use `waveform=sinusoid` with `low_pass`, or drop analytic integration"),
+        ("exposure=… s differs from the cameras' exposure … s", "the exposure setting and the cameras' T disagree", "give one exposure (`--exposure` sets every camera's T)"),
+        ("…: <integrator type=…> is …; use type 'dopplertof'", "a scene file's integrator is not one dopplertof renders", "`<integrator type=\"dopplertof\">` or a stock `path` integrator"),
+        ("…: <integrator type=…> does not take …", "D-ToF parameters on a stock path integrator", "move them into `<integrator type=\"dopplertof\">`"),
+        ("…: give either 'correlation'/'correlation_depth' or 'path_correlation_depth', not both", "the original name and the SI names of one setting were both given", "keep one"),
+        ("…: 'path_correlation_depth' must be >= 0, got …", "the original code's correlation depth is negative", "0 or more"),
+        ("…: 'm_reconnection_threshold' must be >= 0, got …", "the original code's reconnection threshold is negative", "0 or more"),
+        ("…: give either … or …, not both", "a setting was given by its original name and by its SI name", "keep one"),
+        ("…: the sensor's shutter is open for … s but the <integrator> exposure … is … s", "the film's shutter interval and the integrator's exposure disagree", "make them agree or remove one"),
+        ("…: the sensor's shutter opens at … s but the <integrator> exposure_start is … s", "the shutter's opening and the integrator's `exposure_start` disagree", "make them agree or remove one"),
+        ("…unknown setting …", "a setting name that does not exist (in a dict, a file's `<integrator>` or `RenderSettings`)", "the message suggests the closest name; the settings table lists them all"),
+    ]),
+    ("Cameras", "A `--camera` value, a scene file's camera parameters or a `dt.Camera`.", [
+        ("camera …: empty; give key=value pairs such as 'h=1,psi=90deg'", "an empty `--camera`", "give `key=value` pairs"),
+        ("camera …: expected key=value, got …", "a `--camera` item is not `key=value`", "write `h=1,psi=90deg`"),
+        ("camera …: unknown key …; use …", "a `--camera` key does not exist", "use the keys listed"),
+        ("camera …: … given twice", "a `--camera` key appears twice", "give it once"),
+        ("camera …: …=… is not a number", "a `--camera` value does not parse", "numbers; angles in rad or with `deg`: `psi=90deg`"),
+        ("camera …: …", "a `--camera` value is out of range (the message says which)", "see the Camera parameters of the [API reference](reference.md)"),
+        ("… must be in (0, …] s, got …", "an exposure T or start time outside its range", "seconds: 1.5 ms is `1.5e-3`"),
+        ("unknown waveform …; choose one of …", "a waveform name that does not exist", "use one of the names listed"),
+        ("Camera: modulation_frequency must be in (0, …] Hz, got …", "f_g outside its range", "Hz: 30 MHz is `30e6`"),
+        ("Camera: |heterodyne| must be <= … beat cycles per exposure, got …", "h too large", "h counts beat cycles per exposure"),
+        ("Camera: 'g1' (light modulation amplitude) must be …, got …", "the light's modulation amplitude is out of range", "a value in the range named"),
+        ("Camera: 'g0' (light DC offset) must be >= 0, got …", "a negative DC offset", "0 or more"),
+        ("Camera: unknown waveform …; choose one of …", "a waveform name that does not exist", "use one of the names listed"),
+        ("Camera: give both light_code and sensor_code, or neither", "a code camera needs both codes", "give both"),
+        ("Camera: waveform=… and light_code/sensor_code exclude each other", "a camera has a waveform or codes", "drop one"),
+        ("Camera: light_bandwidth applies to cameras with light_code and sensor_code", "the light's bandwidth limits a code", "drop it, or give codes"),
+        ("Camera: light_bandwidth=… Hz is below the modulation frequency", "no harmonic of the modulation would reach the scene", "a bandwidth of at least f_g"),
+        ("Camera: light_bandwidth=… Hz passes more than … harmonics", "a bandwidth so high that it is no limit", "leave it None (unlimited)"),
+    ]),
+    ("Output folders and checkpoints", "Where results are written, and continuing an interrupted render.", [
+        ("output … exists and is not a folder", "`-o` names a file", "give a folder"),
+        ("output … lies under …, which is a file", "a parent of `-o` is a file", "give another path"),
+        ("output folder … has … MB free; this render writes about … MB", "not enough disk space for the render's files and checkpoint", "free space or use another folder"),
+        ("output folder … holds …; use --overwrite to replace them, or another folder", "another render's files are there", "`--overwrite` replaces them (only them), or use another folder; `--resume` continues an interrupted render"),
+        ("output folder … is not writable (…)", "the folder is read-only or not yours", "use another folder"),
+        ("cannot write to output folder …: …", "the dataset folder cannot be created or written", "use another folder"),
+        ("…: the checkpoint belongs to a render with other settings or another scene", "`--resume` found a checkpoint of a different render", "resume with the same settings, remove the checkpoint or use another folder"),
+        ("…: the checkpoint cannot be read (…); remove it to render from the start", "the checkpoint file is unreadable", "remove `checkpoint.npz`"),
+        ("…: the checkpoint is damaged (… missing or of another shape)", "the checkpoint file is incomplete", "remove `checkpoint.npz`"),
+    ]),
+    ("Rendering", "Limits of one render (and the API's `dt.render`).", [
+        ("the film must be at least 1x1 pixels, got …x…", "an empty film", "give a positive resolution"),
+        ("a …x… film with … camera(s) needs about … GiB of memory for its buffers; … GiB are available", "the film's per-pixel sums do not fit in memory", "a smaller film or fewer cameras"),
+        ("render() takes a scene from dopplertof.load_scene(...) or dopplertof.scenes.build(...), got …", "the API's `render` got something else", "load the scene with `dt.load_scene`"),
+        ("executor must be one of …, got …", "an unknown executor", "`local` or `ray`"),
+        ("address and workers apply to executor='ray'", "Ray options without Ray", "`executor=\"ray\"`, or drop them"),
+        ("stop must be a callable returning True to stop, got …", "the API's `stop` is not callable", "pass a function"),
+        ("sensor must be a dopplertof.Sensor, got …", "the API's `sensor` is of another type", "pass `dt.sensors.preset(...)` or a `dt.Sensor`"),
+        ("give cameras or sensor, not both", "a sensor's raw frames are its cameras", "drop `cameras`"),
+        ("settings must be a dopplertof.RenderSettings or a dict of setting names, got …", "the API's `settings` is of another type", "pass a `RenderSettings` or a dict"),
+        ("until_noise=…: needs a sensor (sensor=...) and a ratio > 0", "`until_noise` without a sensor, or not positive", "give `sensor=` and a ratio > 0"),
+        ("record: a response record is rendered locally and without checkpoints", "`record=` with Ray or a checkpoint", "render the record locally, without `checkpoint`"),
+        ("the dopplertof integrator renders the scene's first sensor only, got …", "`mi.render(scene, sensor=…)` with another sensor", "put the sensor first in the scene"),
+        ("mi.render cannot render a dopplertof scene (its bodies move at per-path times)", "stock Mitsuba cannot move bodies", "`dopplertof.render(scene)`"),
+        ("the dopplertof integrator only supports develop=True", "the plugin returns developed images", "`mi.render(..., develop=True)`"),
+        ("the film's reconstruction filter … has negative lobes", "Mitsuba's Lanczos or Mitchell filters are not supported", "box, tent or gaussian"),
+        ("BSDF … (…) transmits light, and the optical path length through it is not known here", "a transmissive BSDF inside another BSDF", "use dielectric, roughdielectric or thindielectric directly"),
+        ("mover must be 'plane' or 'camera', got …", "the moving-plane oracle moves the plane or the camera", "one of the two"),
+        ("workers must be a positive integer, got …", "`--workers` below 1", "1 or more"),
+        ("cannot reach the Ray cluster at … within … s (…)", "the Ray address does not answer", "check `--address`; without it a local Ray starts"),
+        ("cannot connect to Ray at …: …", "Ray refused the connection", "check `--address` and that the cluster runs"),
+    ]),
+    ("Velocity reconstruction and animations", "`dopplertof reconstruct` and `dopplertof animate`.", [
+        ("no cameras: velocity reconstruction needs D-ToF measurements", "the render has no measurement to reconstruct from", "render with homodyne and heterodyne cameras, e.g. h=0 and h=1 at ψ = 0 and 90°"),
+        ("…: … measurement file for camera … (measurement_…_h*.exr)", "a measurement image of the render folder is missing or duplicated", "render the folder again"),
+        ("…: no such folder", "the folder does not exist", "give the `-o` folder of `dopplertof render`"),
+        ("…: not a 'dopplertof render' output folder (no …)", "the folder holds no render", "give the `-o` folder of `dopplertof render`"),
+        ("…: the render has no D-ToF camera", "the render has no measurement", "render with `--camera` options (the message lists four)"),
+        ("…: measurement images must be single-channel and of one size, got shapes …", "the measurement images were changed", "render the folder again"),
+        ("…: shape … differs from the measurements' …", "a map of the folder has another size than the measurements", "render the folder again"),
+        ("--max-velocity-stderr must be a speed > 0 in m/s (e.g. 0.5 or 0.5m/s), got …", "the validity threshold is not a positive speed", "give m/s"),
+        ("…: cannot read its cameras (…)", "the folder's `metadata.json` is unreadable", "render the folder again"),
+        ("all cameras have the same heterodyne ratio h = …", "homodyne cameras only (or one h): the Doppler shift only scales them", "add h = 1 next to h = 0"),
+        ("the cameras … cannot determine velocity", "these cameras cannot tell a moving surface's brightness change from a Doppler shift", "add the cameras the message names (h = 0 and 1 at ψ = 0 and 90°)"),
+        ("frames must be a positive integer, got …", "`--frames` is not a positive integer", "give a positive integer"),
+        ("fps must be a finite number of frames per second > 0, got …", "`--fps` is not positive", "give frames per second"),
+        ("fps must be >= … frames per second", "a GIF cannot hold a frame that long", "a higher `--fps`"),
+        ("an animation opens every camera's exposure at its frame's time", "cameras with their own `exposure_start` (a capture schedule)", "drop `start=` from the cameras"),
+        ("… holds an animation with other settings (…); use another folder, or --overwrite to replace it", "the folder holds another clip", "use another folder, or `--overwrite`"),
+        ("… has frame folders but no …; use another folder, or --overwrite to replace them", "the folder holds frames of an unknown clip", "use another folder, or `--overwrite`"),
+        ("…: its motion has no end (or nothing moves); give --frames", "the clip's length cannot be taken from the scene", "give `--frames`"),
+        ("velocity() needs the cameras (or a RenderResult)", "the API's `velocity` was given bare measurements", "pass `cameras=` or the `RenderResult`"),
+        ("method must be 'auto', 'ratio' or 'fit', got …", "an unknown reconstruction method", "one of the three"),
+        ("max_doppler_hz must be a finite number > 0, got …", "the fit's Doppler bound is not positive", "a frequency in Hz"),
+        ("max_velocity_stderr=… m/s needs the measurements' errors", "the validity threshold needs standard errors", "pass the `RenderResult`, or `measurement_stderr`"),
+        ("max_velocity_stderr must be > 0 m/s, got …", "the validity threshold is not positive", "a speed in m/s"),
+        ("cameras at … modulation frequencies (… MHz): velocity() combines two", "more than two modulation frequencies", "reconstruct the others separately"),
+        ("the cameras at … MHz differ in exposure", "the cameras of one frequency have different T", "one exposure for all cameras"),
+        ("the cameras at … MHz open their first windows at different times", "two frequencies' depths refer to different instants", "the same first window for both frequencies"),
+        ("the cameras at modulation_frequency = … MHz (beside … MHz, reconstructed on their own): …", "the cameras of one of two frequencies cannot give velocity; the message says why", "see the rest of the message"),
+        ("depth needs at least two independent phase measurements", "one phase cannot give a distance", "homodyne cameras at ψ = 0 and π/2"),
+        ("cameras is empty; need at least one camera configuration", "no cameras", "pass the render's cameras"),
+        ("modulation_frequency must be > 0 Hz, got …", "a camera without modulation", "f_g in Hz"),
+        ("exposure must be > 0 s, got …", "a camera without exposure", "T in seconds"),
+        ("g1 must be > 0, got …", "a camera without light modulation", "g₁ > 0"),
+        ("all cameras must share one modulation_frequency (f_g)", "the model needs one f_g", "reconstruct each frequency separately"),
+        ("all cameras must share one exposure (T), got … s", "the model needs one T", "render the cameras with one exposure"),
+        ("some cameras give an exposure_start and others do not", "the cameras' windows are unknown", "pass the `RenderResult` or its `result.cameras`"),
+        ("camera exposure_start must be finite, got … s", "a camera's start time is not a number", "seconds, or None"),
+        ("…; got waveform(s) …; use waveform='sinusoidal'", "the reconstruction model is the low-pass sinusoid's", "render with `waveform=sinusoidal`"),
+        ("measurements must have shape (n_cameras, ...) with n_cameras = …, got shape …", "as many images as cameras are needed", "pass `result.measurements`"),
+        ("min_amplitude must be a finite number >= 0, got …", "a negative amplitude threshold", "0 or more"),
+        ("modulation_frequency_hz must be > 0, got …", "no modulation frequency", "Hz"),
+        ("each camera needs modulation_frequency, exposure, heterodyne and phase attributes", "the API's cameras are of another type", "pass `dt.Camera` objects"),
+        ("camera … must be finite, got …", "a camera parameter is NaN or infinite", "finite values"),
+        ("measurement_stderr must have the measurements' shape …, got …", "standard errors of another shape", "pass `result.measurement_stderr`"),
+        ("measurement_covariance must have shape …, got …", "a covariance of another shape", "pass `result.measurement_covariance`"),
+        ("method='ratio' needs every camera in a homodyne (h=0) / heterodyne (h=1) pair", "the ratio method pairs cameras", "pairs of h = 0 and h = 1 at equal phases, or `method='fit'`"),
+        ("method='ratio' with pairs at … would read the brightness change of a moving surface as velocity", "the pairs' phases do not balance", "ψ = 0 and 90°, or `method='fit'`"),
+    ]),
+    ("Experiments", "`dopplertof experiment`.", [
+        ("… must be a positive multiple of … (paths of an antithetic pair), got …", "the experiments render antithetic pairs", "an even spp"),
+        ("… must be an integer >= 2, got …", "a sweep needs at least two values", "2 or more"),
+        ("phases must be an integer >= 1, got …", "a sweep needs at least one phase", "1 or more"),
+        ("need at least one h and one phase, got h=…, psi=…", "an empty sweep grid", "give h values and phases"),
+        ("the shift experiment needs an antithetic time sampling", "only antithetic sampling has a shift", "`antithetic` or `antithetic_mirror`"),
+        ("signal electrons must be a finite number > 0, got …", "the sensor's signal level is not positive", "give electrons, e.g. `1e4`"),
+        ("the reference image is black: no light reaches the camera", "nothing to measure", "check the scene's light and camera"),
+    ]),
+    ("Datasets", "`dopplertof dataset` and `dt.dataset.generate`.", [
+        ("config must be a TOML file path, a dict or None, got …", "the API's `config` is of another type", "pass a path or a dict"),
+        ("… must be an integer ≥ …, got …", "a count (samples, shard size, workers) is too small", "give an integer at or above the minimum"),
+        ("shard range must be 'a:b' (shard indices, b excluded), got …", "`--shards` is not `a:b`", "write `0:4`"),
+        ("shard range … is outside the dataset's … shards", "`--shards` names shards the dataset does not have", "a range within the one named"),
+        ("datasets are rendered with an RGB variant (…), not …", "a mono variant is active", "`--variant llvm_ad_rgb` (or `cuda_ad_rgb`)"),
+        ("seed must be < 2**63, got …", "the dataset seed is too large", "a seed below 2⁶³"),
+        ("… holds another dataset (it differs in …); use another folder", "the folder holds a dataset of other settings", "use another folder, or the same settings to continue it"),
+        ("unknown config key …", "a configuration key that does not exist", "`dopplertof dataset config --print` prints every key"),
+        ("unknown config section […]; sections: …", "a configuration section that does not exist", "use the sections listed"),
+        ("cannot read config file …: …", "the configuration file cannot be read", "check the path"),
+        ("config file … is not valid TOML: …", "the configuration does not parse", "fix the TOML syntax at the place named"),
+        ("config key … is not a distribution", "a fixed value where a range or weights are drawn", "write a range or weights"),
+        ("config keys 'camera.heterodyne' and 'camera.phase_deg' must have the same length", "the capture set lists cameras pairwise", "as many phases as heterodyne ratios"),
+        ("camera.modulation_frequency_hz and camera.exposure_s must be > 0", "no modulation or no exposure", "positive Hz and s"),
+        ("config key 'camera.fov_deg' must lie in (0, 180) degrees, got …", "a field of view out of range", "degrees in (0, 180)"),
+        ("config key 'sensor.adc_bits' must be ≤ … (raw taps are uint16), got …", "more ADC bits than the raw taps hold", "16 or fewer"),
+        ("config key 'camera.g0' must be > 0", "the sensor model scales the signal by g₀", "g₀ > 0"),
+        ("config key 'sensor.black_level_dn' must be below the ADC's maximum … DN, got …", "a black level the ADC cannot hold", "a smaller black level"),
+        ("config key 'sensor.full_well_e' must be > 0, got …", "a sensor without full well", "electrons > 0"),
+        ("config key 'materials.albedo' must lie in [0, 1], got …", "an albedo out of range", "values in [0, 1]"),
+        ("config key … is a probability in [0, 1], got …", "a probability out of range", "a value in [0, 1]"),
+        ("config key … must be > 0, got …", "a value that must be positive", "a positive value"),
+        ("config key … must not be negative, got …", "a negative value", "0 or more"),
+        ("config key 'render.spp' must be a multiple of 2 with paired times", "paired time sampling renders pairs", "an even spp"),
+        ("… must be an integer, got …", "a configuration value that must be an integer", "an integer"),
+        ("… must be ≥ …, got …", "a configuration value below its minimum", "at least the minimum"),
+        ("… must be a finite number, got …", "a configuration value that is not a number", "a number"),
+        ("… must be one of …; got …", "a configuration choice that does not exist", "one of the choices listed"),
+        ("… must be a range [min, max], got …", "a range is written as two numbers", "`[min, max]`"),
+        ("… must be a range of integers [min, max], got …", "an integer range", "`[min, max]` of integers"),
+        ("… must be a range of finite numbers [min, max], got …", "a range of numbers", "`[min, max]` of numbers"),
+        ("… must not be negative, got …", "a negative value", "0 or more"),
+        ("…: range min … > max …", "a range's ends are swapped", "`[min, max]` with min ≤ max"),
+        ("…: a log-uniform range must be > 0, got …", "a log-uniform range must be positive", "positive ends"),
+        ("… must be a non-empty list of finite numbers, got …", "a list of values is empty or holds non-numbers", "a list of numbers"),
+        ("… must be a table {name = weight}, got …", "weights are a table", "`{name = weight}`"),
+        ("…: unknown name(s) …; choose from …", "a weight names a choice that does not exist", "the names listed"),
+        ("…: weights must be finite numbers ≥ 0, got …", "a negative or non-numeric weight", "weights ≥ 0"),
+        ("…: at least one weight must be > 0, got …", "every weight is 0", "one positive weight"),
+        ("no TOML form for …", "a value with no TOML form", "numbers, strings, lists and tables"),
+        ("unknown material …", "a sample description names a material that does not exist (a damaged record)", "generate the dataset again"),
+        ("unknown body shape …", "a sample description names a shape that does not exist (a damaged record)", "generate the dataset again"),
+        ("unknown material type …", "a sample description names a material type that does not exist (a damaged record)", "generate the dataset again"),
+        ("unknown primitive type …", "a sample description names a primitive that does not exist (a damaged record)", "generate the dataset again"),
+        ("scene has … bodies, its description …: two bodies share a motion", "two bodies of a sample move identically and were merged", "a new seed"),
+        ("unexpected member …", "a shard holds a file that is not a sample's", "`dopplertof dataset verify`; generate the bad shards again"),
+        ("…: no …; not a dopplertof dataset folder", "the folder holds no `dataset.json`", "give the dataset's folder"),
+        ("field … is not rendered for this capture set", "a camera covariance needs 2 to 8 cameras", "remove the field from the config's fields"),
+        ("… is not valid JSON (…)", "the manifest is damaged", "run the same `dataset generate` command: it rebuilds the manifest"),
+    ]),
+    ("Sensors", "`--sensor PRESET|FILE.toml` (see [sensors](sensors.md)).", [
+        ("--sensor …: neither a preset (…) nor a .toml file", "`--sensor` names no preset and no file", "a preset listed or a TOML file"),
+        ("…: not valid TOML (…)", "the sensor file does not parse", "fix the TOML syntax at the place named"),
+        ("[silicon] must be a table of Silicon parameters, got …", "`[silicon]` is not a table", "write `[silicon]` with `key = value` lines"),
+        ("frames must be [[frames]] tables", "`frames` is not an array of tables", "write one `[[frames]]` table per frame"),
+        ("a sensor without a preset needs [[frames]]", "the file defines no frames", "give `preset = …` or `[[frames]]`"),
+        ("'taps' must be one of …, got …", "a tap count the sensor model does not have", "one of the counts listed"),
+        ("'taps' is the preset's (…); remove it", "a preset fixes its taps", "remove `taps`"),
+        ("unknown sensor preset …; choose one of …", "no preset of that name", "one of the names listed"),
+        ("…: row … not in the … rows of …", "a code row index outside the code table", "a row that exists"),
+        ("sensor_toml: cannot write … as TOML", "a sensor setting has no TOML form", "use numbers, strings and lists"),
+        ("…unknown key …", "a key the sensor file does not take", "the message suggests the closest key"),
+    ]),
+    ("Backend", "Starting Mitsuba and Dr.Jit (see [installation](installation.md)).", [
+        ("unsupported Mitsuba variant …; choose one of …", "`--variant` names a variant dopplertof does not support", "`llvm_ad_rgb` runs on any CPU with libLLVM ≥ 16"),
+        ("…=… is not a file; point it at libLLVM >= …", "`DRJIT_LIBLLVM_PATH` names no file", "point it at the library or unset it"),
+        ("…=… is LLVM …, but Dr.Jit needs libLLVM >= …", "`DRJIT_LIBLLVM_PATH` names an LLVM older than 16", "point it at a newer one or unset it"),
+        ("Dr.Jit loaded libLLVM … (…), which aborts on dopplertof's kernels", "an LLVM 14 or 15 was loaded", "install libLLVM ≥ 16 as the message says"),
+        ("no Dr.Jit backend works; …", "neither LLVM nor CUDA starts", "install libLLVM ≥ 16 (`sudo apt-get install libllvm19`)"),
+        ("cannot start Mitsuba variant … (…); …", "the variant asked for does not start here", "another variant; the message says why"),
+    ]),
+    ("Image files", "Reading and writing images and records (`dt.io`, `dopplertof reconstruct`).", [
+        ("an image with … channels needs explicit channel names", "EXR channels are named", "pass `channels=[...]`"),
+        ("unsupported image suffix … in '…'; use '.exr' or '.npy'", "an image format dopplertof does not write", "`.exr` or `.npy` (PNG pictures: `dopplertof.viz`)"),
+        ("image must have shape (H, W) or (H, W, C), got shape …", "not an image", "a 2-D or 3-D array"),
+        ("image must not be empty, got shape …", "an empty array", "at least one pixel"),
+        ("image must be real-valued, got dtype …", "a complex or non-numeric array", "real values"),
+        ("got … channel names … for an image with … channel(s)", "as many names as channels are needed", "one name per channel"),
+        ("channel names must be unique, got …", "two channels share a name", "distinct names"),
+        ("channel names must be non-empty strings, got …", "an empty channel name", "non-empty strings"),
+        ("OpenEXR file '…' has no channels", "an empty EXR file", "write the image again"),
+        ("channels of '…' have different shapes …; use read_exr_channels", "an EXR whose channels differ in size", "`read_exr_channels`"),
+        ("cannot read '…' as an OpenEXR image: …", "the file is not an EXR image or is damaged", "write it again"),
+        ("cannot read '…' as a .npy array: …", "the file is not a `.npy` array or is damaged", "write it again"),
+        ("cannot read '…' as JSON: …", "the file is not JSON or is damaged", "write it again"),
+        ("cannot read '…' as a response record: …", "the file is not a response record", "give a file of `dt.io.write_record`"),
+    ]),
+    ("Scene files", "A Mitsuba XML scene that the loader refuses (see [scene format](scene-format.md)): the message names the file, the element and the property.", [
+        ("…: <… name=…> is not an integer, float, boolean or string property", "a property of another type where a number, boolean or string is needed", "write it as `<float>`, `<integer>`, `<boolean>` or `<string>`"),
+        ("…: <… name=… value=…>: expected …", "a property value that does not parse", "the type the message names"),
+    ]),
+]
+
+# Messages composed away from the call that raises them (the reasons of
+# dopplertof.reconstruct.identify, returned as text and raised by its callers): catalogued by
+# hand, so the source scan does not see them.
+COMPOSED_ELSEWHERE = ("all cameras have the same heterodyne ratio h = …", "the cameras … cannot determine velocity")
+
+# Source files whose messages are not catalogued yet (issue 21, item 2): the check leaves them
+# out until their messages have entries; take a file off once it passes.
+FILES_TO_DO = (
+    "codes.py", "design/gradient.py", "design/precision.py", "design/record.py", "design/search.py", "loader.py",
+    "mitsuba06.py", "motion.py", "scene.py", "sensor.py", "sensors/estimators.py", "sensors/frames.py",
+    "sensors/noise.py", "sensors/presets.py", "viz.py",
+)
+
+
+def _template(node) -> str:
+    """A message expression as its template: literal text kept, every value ``…``."""
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        text = node.value
+    elif isinstance(node, ast.JoinedStr):
+        text = "".join(part.value if isinstance(part, ast.Constant) else "…" for part in node.values)
+    elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
+        text = _template(node.left) + _template(node.right)
+    else:
+        text = "…"
+    # An optional prefix stuck to a value ("{where}{name!r} must be") reads as one value.
+    return re.sub("…+", "…", " ".join(text.split()))
+
+
+def _says_something(template: str) -> bool:
+    """Whether a template has words of its own (``…: …`` passes another message on)."""
+    return len(re.findall(r"[A-Za-z]{3,}", template)) >= 2
+
+
+def source_messages(package: Path, skip=()) -> list[tuple[str, int, str]]:
+    """(file, line, template) of every message of :data:`MESSAGE_CALLS` in the package's source.
+
+    Parameters
+    ----------
+    package : Path
+        The ``dopplertof`` package folder.
+    skip : iterable of str, default ()
+        Files (relative to ``package``, ``/``-separated) left out.
+
+    Returns
+    -------
+    list of tuple of (str, int, str)
+        Templates without words of their own (messages passed on) are left out.
+    """
+    found = []
+    for path in sorted(package.rglob("*.py")):
+        relative = path.relative_to(package).as_posix()
+        if relative in skip:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in MESSAGE_CALLS and node.args:
+                template = _template(node.args[0])
+                if _says_something(template):
+                    found.append((relative, node.lineno, template))
+    return found
+
+
+def unused_entries(messages, topics=TOPICS) -> list[str]:
+    """The entries of ``topics`` that match none of ``messages`` (a message reworded or gone),
+    but those of :data:`COMPOSED_ELSEWHERE`.
+
+    Parameters
+    ----------
+    messages : iterable of tuple of (str, int, str)
+        As :func:`source_messages` gives them.
+    topics : list, default :data:`TOPICS`
+
+    Returns
+    -------
+    list of str
+    """
+    templates = [template for _, _, template in messages]
+    prefixes = [entry[0] for _, _, entries in topics for entry in entries if entry[0] not in COMPOSED_ELSEWHERE]
+    return [p for p in prefixes if not any(t.startswith(p) for t in templates)]
+
+
+def uncatalogued(messages, topics=TOPICS) -> list[str]:
+    """The messages that no entry of ``topics`` matches (an entry matches the templates
+    that start with its own), as ``file:line: template``.
+
+    Parameters
+    ----------
+    messages : iterable of tuple of (str, int, str)
+        As :func:`source_messages` gives them.
+    topics : list, default :data:`TOPICS`
+
+    Returns
+    -------
+    list of str
+    """
+    prefixes = [entry[0] for _, _, entries in topics for entry in entries]
+    return [f"{file}:{line}: {template}" for file, line, template in messages if not any(template.startswith(p) for p in prefixes)]
+
+
+def markdown(topics=TOPICS) -> str:
+    """The catalogue as MyST Markdown: a section and a table per topic.
+
+    Parameters
+    ----------
+    topics : list, default :data:`TOPICS`
+
+    Returns
+    -------
+    str
+    """
+    lines = []
+    for title, intro, entries in topics:
+        lines += [f"### {title}", "", intro, "", "| message (… stands for a value) | what it means | what to do |", "|---|---|---|"]
+        for message, means, fix in entries:
+            cells = [f"`{message}`", means, fix]
+            lines.append("| " + " | ".join(cell.replace("|", r"\|") for cell in cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
