@@ -198,11 +198,6 @@ PARAMETERS_TO_DO = (
     "dopplertof.design.record",
     "dopplertof.design.search",
     "dopplertof.scene",
-    "dopplertof.sensor",
-    "dopplertof.sensors.files",
-    "dopplertof.sensors.frames",
-    "dopplertof.sensors.noise",
-    "dopplertof.sensors.presets",
     "dopplertof.tracing",
     "dopplertof.tracing.film",
     "dopplertof.tracing.lanes",
@@ -334,9 +329,12 @@ def test_a_missing_parameter_is_found():
     class Plugin:
         """A plugin with a table.
 
-        ============  =========
-        ``props``     its properties
-        ============  =========
+        ============  ==============
+        name          meaning
+        ============  ==============
+        ``props``     its properties,
+                      all of them
+        ============  ==============
         """
 
         def __init__(self, props):

@@ -108,9 +108,10 @@ def _table_names(doc: str) -> set[str]:
     for line in doc.splitlines():
         stripped = line.strip()
         if stripped and set(stripped) <= {"=", " "}:
-            inside = not inside if stripped.count("=") else inside
-            continue
-        if inside and stripped and not line.startswith(" "):
+            inside = True  # a border: the table's rows follow until a blank line
+        elif not stripped:
+            inside = False
+        elif inside and not line.startswith(" "):  # indented lines continue a row's last column
             names.add(stripped.split()[0].strip("`"))
     return names
 
@@ -138,7 +139,8 @@ def parameter_gaps(obj, kind: str = "function") -> list[str]:
     ----------
     obj : function or class
         A class's parameters are its constructor's; its Attributes section (a dataclass's
-        fields) and a ``=====`` table (a plugin's properties) count as parameter sections.
+        fields) and a ``=====`` table of its own or of its module's docstring (a plugin's
+        properties, a sensor's parameters) count as parameter sections.
     kind : str, default ``"function"``
         ``"method"`` for a function reached through its class (its ``self`` or ``cls``
         is left out).
@@ -160,6 +162,8 @@ def parameter_gaps(obj, kind: str = "function") -> list[str]:
     wanted = _CLASS_PARAMETER_SECTIONS if inspect.isclass(obj) else _PARAMETER_SECTIONS
     documented = set().union(*(_section_names(body) for name, body in sections.items() if name in wanted))
     documented |= _table_names(doc)
+    if inspect.isclass(obj):  # a class whose module's table documents its parameters (sensor, silicon)
+        documented |= _table_names(inspect.getdoc(inspect.getmodule(obj)) or "")
     if not documented:
         return [*twice, "no parameter section"]
     return [*twice, *(f"missing parameter {name}" for name in parameters if name not in documented)]

@@ -171,7 +171,18 @@ class SensorModel:
         return (1 << int(self.adc_bits)) - 1
 
     def electrons_per_unit_exposure(self, camera) -> float:
-        """κ T: photo-electrons per unit of rendered radiance over one exposure (e⁻)."""
+        """κ T: photo-electrons per unit of rendered radiance over one exposure (e⁻).
+
+        Parameters
+        ----------
+        camera : Camera
+            Its exposure T (s).
+
+        Returns
+        -------
+        float
+            e⁻ per unit of rendered radiance.
+        """
         return self.electrons_per_unit * self.quantum_efficiency * _exposure_s(camera)
 
     def expected_taps(self, intensity, measurement, camera) -> tuple[np.ndarray, np.ndarray]:
@@ -252,6 +263,15 @@ class SensorModel:
 
         Shot noise of both taps (their sum, κT g0 I + 2qT), read noise of both taps and the
         uniform quantisation noise (gain²/12 per tap); saturation and clipping ignored.
+
+        Parameters
+        ----------
+        intensity : array_like
+            The intensity (rendered radiance units) of the pixels.
+        measurement : array_like
+            Their D-ToF measurement (same units), broadcast with ``intensity``.
+        camera : Camera
+            Its exposure T and g₀.
 
         Returns
         -------
