@@ -190,21 +190,8 @@ def test_an_undocumented_name_is_found(monkeypatch):
     assert {"dopplertof.reconstruct.VelocityResult", "dopplertof.reconstruct.velocity"} <= set(public_api.undocumented())
 
 
-# Modules whose docstrings do not yet document every parameter (issue 21, item 4): the
-# check leaves them out until their docstrings are written; remove a module once it passes.
-PARAMETERS_TO_DO = (
-    "dopplertof.scene",
-)
-
-
 def test_every_public_callable_documents_its_parameters():
-    assert public_api.undocumented_parameters(PARAMETERS_TO_DO) == []
-
-
-def test_the_modules_still_to_do_are_not_done():
-    """A module on the to-do list that already passes is taken off it (the list stays honest)."""
-    done = [m for m in PARAMETERS_TO_DO if not public_api.undocumented_parameters([o for o in PARAMETERS_TO_DO if o != m])]
-    assert done == []
+    assert public_api.undocumented_parameters() == []
 
 
 # ------------------------------------------------------------------------------ error messages

@@ -188,14 +188,11 @@ def _public_callables():
                     yield f"{name}.{attribute}", function, "method" if not isinstance(value, staticmethod) else "function"
 
 
-def undocumented_parameters(modules_to_do=()) -> list[str]:
+def undocumented_parameters() -> list[str]:
     """Every public callable whose docstring does not document all its parameters, as
-    ``name: gap`` (:func:`parameter_gaps`), leaving out the names defined in
-    ``modules_to_do`` (dotted module names)."""
+    ``name: gap`` (:func:`parameter_gaps`)."""
     gaps = set()
     for _name, obj, kind in _public_callables():
-        if getattr(obj, "__module__", "") in modules_to_do:
-            continue
         # A name exported twice is reported once, where it is defined.
         where = f"{obj.__module__}.{obj.__qualname__}"
         gaps.update(f"{where}: {gap}" for gap in parameter_gaps(obj, kind))
