@@ -190,8 +190,8 @@ def test_an_undocumented_name_is_found(monkeypatch):
     assert {"dopplertof.reconstruct.VelocityResult", "dopplertof.reconstruct.velocity"} <= set(public_api.undocumented())
 
 
-def test_every_public_callable_documents_its_parameters():
-    assert public_api.undocumented_parameters() == []
+def test_every_public_callable_documents_its_parameters_and_returns():
+    assert public_api.incomplete_docstrings() == []
 
 
 # ------------------------------------------------------------------------------ error messages
@@ -265,7 +265,7 @@ def test_a_missing_cli_option_is_found():
     assert missing_from_cli_page(page, group) == ["dopplertof run --count"]
 
 
-def test_a_missing_parameter_is_found():
+def test_a_missing_parameter_or_returns_section_is_found():
     def documented(distance_m, speed_m_s=1.0, **extra):
         """A function.
 
@@ -315,9 +315,23 @@ def test_a_missing_parameter_is_found():
         def __init__(self, props):
             pass
 
-    assert public_api.parameter_gaps(documented) == []
-    assert public_api.parameter_gaps(one_missing) == ["missing parameter speed_m_s"]
-    assert public_api.parameter_gaps(no_section) == ["no parameter section"]
-    assert public_api.parameter_gaps(twice) == ["section Parameters twice"]
-    assert public_api.parameter_gaps(Plugin) == []
-    assert public_api.parameter_gaps(lambda: None) == []
+    assert public_api.docstring_gaps(documented) == []
+    assert public_api.docstring_gaps(one_missing) == ["missing parameter speed_m_s"]
+    assert public_api.docstring_gaps(no_section) == ["no parameter section"]
+    assert public_api.docstring_gaps(twice) == ["section Parameters twice"]
+    assert public_api.docstring_gaps(Plugin) == []
+    assert public_api.docstring_gaps(lambda: None) == []
+
+    def returns_a_value() -> float:
+        """A number, without saying so in a section."""
+
+    def says_what_it_returns() -> float:
+        """A number.
+
+        Returns
+        -------
+        float
+        """
+
+    assert public_api.docstring_gaps(returns_a_value) == ["no Returns section"]
+    assert public_api.docstring_gaps(says_what_it_returns) == []

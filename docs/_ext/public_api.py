@@ -129,11 +129,18 @@ def _parameters(obj) -> list[str] | None:
     return names
 
 
-def parameter_gaps(obj, kind: str = "function") -> list[str]:
-    """What the docstring of a callable lacks for its parameters: ``no parameter section``
-    where it takes parameters and has none, else ``missing parameter NAME`` for each one
-    (compared with :func:`inspect.signature`); and ``section NAME twice`` for a numpy
-    section written twice (sections added to a docstring that had them).
+def _returns_value(function) -> bool:
+    """Whether a function's return annotation names a value (not None, not absent)."""
+    annotation = inspect.signature(function).return_annotation
+    return annotation is not inspect.Signature.empty and annotation not in (None, "None")
+
+
+def docstring_gaps(obj, kind: str = "function") -> list[str]:
+    """What the numpy-style docstring of a callable lacks: ``no parameter section`` where
+    it takes parameters and has none, else ``missing parameter NAME`` for each one
+    (compared with :func:`inspect.signature`); ``no Returns section`` where a function is
+    annotated to return a value; and ``section NAME twice`` for a section written twice
+    (sections added to a docstring that had them).
 
     Parameters
     ----------
@@ -153,12 +160,14 @@ def parameter_gaps(obj, kind: str = "function") -> list[str]:
     doc = inspect.cleandoc(obj.__doc__ or "")
     headers = [match.group("name").strip() for match in _SECTION.finditer(doc)]
     twice = [f"section {name} twice" for name in sorted({h for h in headers if headers.count(h) > 1})]
+    sections = _sections(doc)
+    if not inspect.isclass(obj) and _returns_value(obj) and not {"Returns", "Yields"} & set(sections):
+        twice.append("no Returns section")
     parameters = _parameters(obj)
     if kind == "method" and parameters and parameters[0] in ("self", "cls"):
         parameters = parameters[1:]
     if not parameters:
         return twice
-    sections = _sections(doc)
     wanted = _CLASS_PARAMETER_SECTIONS if inspect.isclass(obj) else _PARAMETER_SECTIONS
     documented = set().union(*(_section_names(body) for name, body in sections.items() if name in wanted))
     documented |= _table_names(doc)
@@ -188,12 +197,12 @@ def _public_callables():
                     yield f"{name}.{attribute}", function, "method" if not isinstance(value, staticmethod) else "function"
 
 
-def undocumented_parameters() -> list[str]:
-    """Every public callable whose docstring does not document all its parameters, as
-    ``name: gap`` (:func:`parameter_gaps`)."""
+def incomplete_docstrings() -> list[str]:
+    """Every public callable whose docstring lacks a numpy section or a parameter, as
+    ``name: gap`` (:func:`docstring_gaps`)."""
     gaps = set()
     for _name, obj, kind in _public_callables():
         # A name exported twice is reported once, where it is defined.
         where = f"{obj.__module__}.{obj.__qualname__}"
-        gaps.update(f"{where}: {gap}" for gap in parameter_gaps(obj, kind))
+        gaps.update(f"{where}: {gap}" for gap in docstring_gaps(obj, kind))
     return sorted(gaps)

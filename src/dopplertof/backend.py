@@ -434,6 +434,11 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
 
     Returns the active variant name.
 
+    Returns
+    -------
+    str
+        The variant activated.
+
     Raises
     ------
     BackendError

@@ -87,7 +87,12 @@ class Code:
 
     def as_dict(self) -> dict:
         """JSON-friendly: ``{"samples": [...]}`` or ``{"fourier": [[re, im], ...]}``
-        (:func:`as_code` reads it back)."""
+        (:func:`as_code` reads it back).
+
+        Returns
+        -------
+        dict
+        """
         if self.samples is not None:
             return {"samples": list(self.samples)}
         return {"fourier": [[c.real, c.imag] for c in self.fourier]}
@@ -131,7 +136,12 @@ class Code:
         return out
 
     def periodic(self) -> "PeriodicFunction":
-        """x(θ) itself, for evaluation (chips: a step table; Fourier: its harmonics)."""
+        """x(θ) itself, for evaluation (chips: a step table; Fourier: its harmonics).
+
+        Returns
+        -------
+        PeriodicFunction
+        """
         if self.samples is not None:
             return PeriodicFunction(table=np.asarray(self.samples), linear=False)
         return PeriodicFunction(harmonics=np.asarray(self.fourier))
@@ -158,7 +168,12 @@ class Code:
         return (np.fft.ifft(c * np.exp(1j * np.pi * np.arange(n) / n)) * n).real
 
     def extremes(self) -> tuple[float, float]:
-        """(min, max) of x(θ): exact for chips, on a fine grid for a Fourier code."""
+        """(min, max) of x(θ): exact for chips, on a fine grid for a Fourier code.
+
+        Returns
+        -------
+        tuple of (float, float)
+        """
         if self.samples is not None:
             return min(self.samples), max(self.samples)
         values = self._grid(1)

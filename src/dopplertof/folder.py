@@ -259,7 +259,12 @@ def write_result(result, folder: str, metadata: dict | None = None) -> list[str]
 
 
 def versions() -> dict:
-    """Package, Mitsuba and Dr.Jit versions, the variant and the device."""
+    """Package, Mitsuba and Dr.Jit versions, the variant and the device.
+
+    Returns
+    -------
+    dict
+    """
     import drjit as dr
     import mitsuba as mi
 

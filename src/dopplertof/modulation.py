@@ -173,7 +173,12 @@ class Camera:
 
     def as_dict(self) -> dict:
         """The parameters of a :class:`Camera` (a :class:`~dopplertof.RawFrame`'s too),
-        JSON-friendly; ``Camera(**camera.as_dict())`` is the same camera."""
+        JSON-friendly; ``Camera(**camera.as_dict())`` is the same camera.
+
+        Returns
+        -------
+        dict
+        """
         from dataclasses import fields
 
         out = {f.name: getattr(self, f.name) for f in fields(Camera)}
@@ -224,7 +229,12 @@ class Camera:
 
     def label(self) -> str:
         """Short text naming this camera in file names and tables, e.g. ``h=1,psi=1.5708``
-        (with ``,start=…`` in s when it has an ``exposure_start``)."""
+        (with ``,start=…`` in s when it has an ``exposure_start``).
+
+        Returns
+        -------
+        str
+        """
         start = "" if self.exposure_start is None else f",start={self.exposure_start:g}"
         return f"h={self.heterodyne:g},psi={self.phase:g}{start}"
 

@@ -471,7 +471,12 @@ class DynamicScene:
         """Whether ray queries walk the tree of swept boxes (see ``traversal``). Never on
         CUDA: the tree traces inside ``dr.switch``, which OptiX compiles to direct
         callables, from which tracing is not sanctioned (gpu-notes §2.2); ``"tree"`` is
-        refused there and ``"auto"`` takes the per-body loop."""
+        refused there and ``"auto"`` takes the per-body loop.
+
+        Returns
+        -------
+        bool
+        """
         import mitsuba as mi
 
         if self.traversal not in TRAVERSALS:
@@ -505,7 +510,12 @@ class DynamicScene:
         return int(size[0]), int(size[1])
 
     def motions(self) -> list:
-        """Every motion of the scene: its bodies', its camera's and its moving lights'."""
+        """Every motion of the scene: its bodies', its camera's and its moving lights'.
+
+        Returns
+        -------
+        list of Motion
+        """
         camera = [] if self.camera_motion is None else [self.camera_motion]
         return [b.motion for b in self.bodies] + camera + [light.motion for light in self.lights]
 

@@ -150,7 +150,12 @@ class RenderSettings:
         return RenderSettings.build(given, changes)
 
     def as_dict(self) -> dict:
-        """JSON-friendly values (cameras as dicts)."""
+        """JSON-friendly values (cameras as dicts).
+
+        Returns
+        -------
+        dict
+        """
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         out["cameras"] = [c.as_dict() for c in self.cameras]
         return out
@@ -257,7 +262,12 @@ class RenderSettings:
 
     @staticmethod
     def table() -> list[tuple[str, str, str, str]]:
-        """(name, unit, default, meaning) of every setting, for help texts and the README."""
+        """(name, unit, default, meaning) of every setting, for help texts and the README.
+
+        Returns
+        -------
+        list of tuple of (str, str, str, str)
+        """
         return [(name, f.metadata["unit"], repr(f.default), f.metadata["doc"]) for name, f in FIELDS.items()]
 
 
@@ -344,6 +354,16 @@ def checked_checkpoint_interval(value) -> float:
         A checkpoint is written after the first pass that ends at least this long after
         the previous one (0: after every pass). Default
         :data:`DEFAULT_CHECKPOINT_INTERVAL_S` (60 s).
+
+    Returns
+    -------
+    float
+        Seconds.
+
+    Raises
+    ------
+    ValueError
+        Not a finite number >= 0.
     """
     seconds = checked("checkpoint_interval_s", value, "float")
     if seconds < 0:

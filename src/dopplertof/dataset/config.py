@@ -168,7 +168,12 @@ def _toml_value(value) -> str:
 
 
 def default_toml() -> str:
-    """The default configuration as a commented TOML document (``dataset config --print``)."""
+    """The default configuration as a commented TOML document (``dataset config --print``).
+
+    Returns
+    -------
+    str
+    """
     lines = [
         "# dopplertof dataset configuration: the defaults. A file passed with --config may set",
         "# any subset of these keys; an unknown key is an error. [min, max] ranges are drawn",
@@ -185,7 +190,12 @@ def default_toml() -> str:
 
 
 def markdown_table() -> str:
-    """The configuration keys as a Markdown table (key, default, unit, meaning)."""
+    """The configuration keys as a Markdown table (key, default, unit, meaning).
+
+    Returns
+    -------
+    str
+    """
     rows = ["| key | default | unit | meaning |", "|---|---|---|---|"]
     for p in PARAMETERS:
         rows.append(f"| `{p.key}` | `{_toml_value(p.default)}` | {p.unit} | {p.doc.replace('|', '/')} |")
@@ -193,7 +203,12 @@ def markdown_table() -> str:
 
 
 def defaults() -> dict:
-    """The default configuration as a nested dict ``{section: {name: value}}``."""
+    """The default configuration as a nested dict ``{section: {name: value}}``.
+
+    Returns
+    -------
+    dict
+    """
     out: dict = {}
     for p in PARAMETERS:
         sec, name = p.key.split(".", 1)

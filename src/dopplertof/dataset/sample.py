@@ -103,6 +103,11 @@ def make_record(config: dict, seed: int, index: int, variant: str) -> dict:
     variant : str
         Mitsuba variant the sample is rendered with (part of its identity: CPU and GPU
         backends round differently).
+
+    Returns
+    -------
+    dict
+        JSON-able.
     """
     s = streams(seed, index)
     scene = randomize.sample_scene(np.random.default_rng(s["scene"]), config)

@@ -151,7 +151,12 @@ def schema_table(fields, cameras: int, height: int, width: int) -> dict:
 
 
 def markdown_table() -> str:
-    """The fields as a Markdown table (docs/datasets.md's)."""
+    """The fields as a Markdown table (docs/datasets.md's).
+
+    Returns
+    -------
+    str
+    """
     rows = ["| field | dtype | shape | unit | meaning |", "|---|---|---|---|---|"]
     for f in FIELDS:
         shape = "(" + ", ".join(str(s) for s in f.shape) + ")"

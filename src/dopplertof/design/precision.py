@@ -63,7 +63,12 @@ class Precision:
     moving: np.ndarray
 
     def summary(self) -> dict:
-        """Mean and median bounds over the moving pixels where they are finite (m/s, m)."""
+        """Mean and median bounds over the moving pixels where they are finite (m/s, m).
+
+        Returns
+        -------
+        dict
+        """
         out = {}
         for name in ("velocity_crb", "depth_crb"):
             values = getattr(self, name)[self.moving]

@@ -158,7 +158,12 @@ class RecordSpec:
         return n_windows * (8 * arrays * self.frequencies_hz.size * len(self.beats) + 4)
 
     def as_dict(self) -> dict:
-        """The spec as a JSON-friendly dict (``RecordSpec(**spec.as_dict())`` is the same spec)."""
+        """The spec as a JSON-friendly dict (``RecordSpec(**spec.as_dict())`` is the same spec).
+
+        Returns
+        -------
+        dict
+        """
         return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler, "slopes": self.slopes}
 
 
@@ -226,7 +231,12 @@ class Record:
 
     def to_arrays(self) -> dict:
         """Every array of the record, and its metadata as a JSON string (``metadata``), for
-        :func:`dopplertof.io.write_record`."""
+        :func:`dopplertof.io.write_record`.
+
+        Returns
+        -------
+        dict
+        """
         import json
 
         settings = self.settings.as_dict()

@@ -218,7 +218,17 @@ class Estimator:
         return f"{self.time_sampling}/{self.correlation}" + ("" if self.stratified else "/no further stratification")
 
     def render_settings(self) -> dict:
-        """Render settings (:class:`~dopplertof.settings.RenderSettings` fields) of this estimator."""
+        """Render settings (:class:`~dopplertof.settings.RenderSettings` fields) of this estimator.
+
+        Returns
+        -------
+        dict
+
+        Raises
+        ------
+        ValueError
+            An unknown method or mode, or a shift outside [0, 1].
+        """
         settings = {"time_sampling": self.time_sampling, "n_times": N_TIMES, "correlation": self.correlation}
         if self.time_sampling in _DEFAULT_SHIFT:
             settings["antithetic_shift"] = self.antithetic_shift
@@ -388,7 +398,12 @@ def rendering_source_digest(package_dir: Path = PACKAGE_DIR) -> str:
 
 
 def default_cache_dir() -> Path:
-    """``$DOPPLERTOF_CACHE``, else ``$XDG_CACHE_HOME/dopplertof/references`` (``~/.cache``)."""
+    """``$DOPPLERTOF_CACHE``, else ``$XDG_CACHE_HOME/dopplertof/references`` (``~/.cache``).
+
+    Returns
+    -------
+    Path
+    """
     if os.environ.get(CACHE_ENV_VAR):
         return Path(os.environ[CACHE_ENV_VAR])
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")

@@ -95,7 +95,12 @@ class RawFrame(Camera):
 
     def label(self) -> str:
         """Short text naming this frame: its modulation frequency (Hz), then the
-        :meth:`Camera.label <dopplertof.Camera.label>`."""
+        :meth:`Camera.label <dopplertof.Camera.label>`.
+
+        Returns
+        -------
+        str
+        """
         return f"f={self.modulation_frequency:g},{super().label()}"
 
 
@@ -186,7 +191,12 @@ class Sensor:
     # ------------------------------------------------------------------ rendering
     def cameras(self) -> list[Camera]:
         """What a render traces: every frame (and its 4-tap phase shifts), then one
-        constant-weight camera per exposure window (the window's mean luminance)."""
+        constant-weight camera per exposure window (the window's mean luminance).
+
+        Returns
+        -------
+        list of Camera
+        """
         out = list(self.frames)
         if self.taps == 4:
             out += [dataclasses.replace(f, phase=f.phase + j * math.pi / 2) for j in (1, 2, 3) for f in self.frames]

@@ -329,6 +329,10 @@ def preset(name: str, frames=None, **silicon) -> Sensor:
         :class:`~dopplertof.sensors.noise.Silicon` parameters to change (optics, scale,
         ambient light, …).
 
+    Returns
+    -------
+    Sensor
+
     Raises
     ------
     ValueError
