@@ -438,6 +438,71 @@ TOPICS = [
         ("traversal must be one of …, got …", "an unknown traversal", "one of those named"),
         ("traversal='tree' traces inside dr.switch (OptiX direct callables) and is not supported on …", "the tree traversal does not run on the GPU", "`per-body` or `auto`"),
         ("time window must be finite with t0 <= t1, got […, …] s", "an empty or reversed window", "t0 ≤ t1"),
+        ("load_scene expects a file path or a dict, got …", "the API's `load_scene` got something else", "a path or a scene dict"),
+        ("film_resolution must be a positive int or a (width, height) pair of them, got …", "a film size of another form", "`64` or `(128, 96)`"),
+        ("<dict>: $name substitutions … apply to scene files only", "parameters given for a scene dict", "put the values in the dict"),
+        ("<dict>: a scene dict needs 'type': 'scene'", "the dict is not a scene", "`{\"type\": \"scene\", ...}`"),
+        ("<dict>: the scene has no sensor", "nothing to render from", "add a sensor"),
+        ("…: scene file not found", "the path names no file", "check the path"),
+        ("…: malformed XML (…)", "the file does not parse as XML", "fix the XML at the place named"),
+        ("…: include cycle (…)", "files include each other", "break the cycle"),
+        ("…: version … mixes the Mitsuba 0.6 and 3 formats", "a file with constructs of both formats", "convert it to one format"),
+        ("…: unknown parameter… …; the scene's parameters: …", "`-D` or a keyword names no `$name` of the file", "the parameters listed"),
+        ("…: unresolved parameter … in <…", "a `$name` without a value or `<default>`", "`-D name=value` or a `<default>`"),
+        ("…: the root element must be <scene>, got <…>", "not a scene file", "a file whose root is `<scene>`"),
+        ("…: <film> has …; a film_resolution override would not fit it", "`--resolution` cannot change this film (a crop window)", "edit the film in the file"),
+        ("…: the scene has no <sensor>", "nothing to render from", "add a `<sensor>`"),
+        ("…: the scene has … sensors; dopplertof renders one", "several sensors", "remove the others"),
+        ("…: the sensor's shutter_open=… and shutter_close=… s must be finite", "a shutter time that is not a number", "seconds"),
+        ("…: the sensor's shutter_open and shutter_close are both … s, a shutter that never opens", "an empty shutter interval", "`shutter_close > shutter_open`, or neither"),
+        ("…: the film must be at least 1x1 pixels, got …x…", "an empty film", "a positive size"),
+        ("…: a scene with moving bodies cannot use shape type … on …", "a shape the GPU pipeline of moving bodies does not cover", "a mesh, or the llvm variant"),
+        ("…: expected numbers, got …", "a value that is not numbers", "numbers"),
+        ("…: expected 1 or 3 numbers in value=…", "a vector of another length", "1 or 3 numbers"),
+        ("…: expected a 4x4 transform, got shape …", "a transform of another shape", "a 4 × 4 matrix"),
+        ("…: rotate needs angle=\"degrees\"", "a rotation without angle", "`angle=\"90\"`"),
+        ("…: rotate needs a non-zero axis (x, y, z)", "a rotation about no axis", "a non-zero axis"),
+        ("…: matrix needs 9 or 16 numbers, got …", "a matrix of another size", "9 or 16 numbers"),
+        ("…: unknown transform operation", "an element inside `<transform>` that is not a transform", "translate, rotate, scale, matrix, lookat"),
+        ("…: only <animation name=\"to_world\"> is supported, got name=…", "an animation of another property", "`name=\"to_world\"`"),
+        ("…: <animation> may only contain <transform time=\"...\">, found <…>", "other elements in an animation", "keyframes only"),
+        ("…: <transform> needs a time=\"seconds\" attribute", "a keyframe without time", "`time=\"0.001\"`"),
+        ("…: keyframe time … is not a number", "a keyframe time that does not parse", "seconds"),
+        ("…: <animation> has no keyframes", "an empty animation", "give keyframes"),
+        ("…: more than one <animation>", "two animations on one element", "merge them"),
+        ("…: has both <transform name=\"to_world\"> and <animation>; keep one", "a static and a keyed placement", "keep one"),
+        ("…: keyframed motion replaces 'to_world'; remove one of them", "a dict with both", "keep one"),
+        ("…: has both a position and an <animation>", "a light placed twice", "remove the position"),
+        ("…: a … emitter cannot move", "environment and directional emitters stay put", "point or spot emitters, or area emitters on a moving shape"),
+        ("…: a light attached to a camera whose motion is a … on top of a to_world is not supported", "this camera motion cannot carry a light", "keyframes that include the placement"),
+        ("…: …carries a sensor; a camera moves by its own <animation> (XML) or 'motion' (dict)", "a sensor inside a moving shape", "animate the sensor itself"),
+        ("…: … has a motion that scales; cameras and point or spot lights may only move rigidly", "a scaling camera or light motion", "translate and rotate only"),
+        ("…: moving body … carries an emitter and its motion scales the axes differently", "an emitter on a non-uniformly scaled body", "scale it equally on every axis"),
+        ("…: the sensor is inside a participating medium; media are not supported", "media", "remove the medium"),
+        ("…: …shape … has a participating medium; media are not supported", "media", "remove the `<medium>` or render with stock Mitsuba's volpath"),
+        ("…: 'motion' must be a Motion or a dict with type 'keyframes' or 'parametric', got …", "a dict motion of another form", "one of the two types"),
+        ("…: unknown motion parameter(s) … for type …", "a motion key that does not exist", "the keys of that motion type"),
+        ("…: … must be a …, got …", "a Mitsuba 0.6 property of the wrong type", "the type named"),
+        ("…: 'antithetic_shifts' is empty", "no shifts", "give shifts or remove the property"),
+        ("…: 'antithetic_shifts' must be whitespace-separated numbers, got …", "shifts that do not parse", "`0.25 0.5 0.75`"),
+        ("…: 'antithetic_shifts_number' must be >= 0, got …", "a negative count", "0 or more"),
+        ("…: antithetic with … shifts needs the evenly spaced set", "shifts the renderer does not take", "i/N, i = 1..N−1"),
+        ("…: antithetic_mirror pairs 2 times", "a mirror with more shifts", "remove `antithetic_shifts_number`"),
+        ("…: antithetic_mirror takes one shift", "a mirror with several shifts", "one shift"),
+        ("…: 'antithetic_shifts'=… contradicts 'antithetic_shifts_number'=…", "two ways to give the shifts disagree", "give one"),
+        ("…: 'low_frequency_component_only'=false was ignored by the original", "the original's misspelt key decided", "set `low_srequency_component_only` to choose"),
+        ("…: unknown Mitsuba 0.6 dopplertofpath parameter …", "a 0.6 integrator key that does not exist", "the keys of the original (scene format page)"),
+        ("…: …=… is not supported: …", "a 0.6 value this renderer does not reproduce (the message says why)", "another value"),
+        ("…: unknown time_sampling_mode …; choose one of …", "a 0.6 time sampling that does not exist", "one of those named"),
+        ("…: spatial_correlation_mode 'mis' (the original's experimental five-path mode) has no equivalent here", "an experimental mode", "ray_position, ray_sampler or ray_adaptive"),
+        ("…: unknown spatial_correlation_mode …; choose one of …", "a 0.6 correlation that does not exist", "one of those named"),
+        ("…: … pairs 2 times (the original used only the first two), got …", "more times than the mode pairs", "2"),
+        ("…: analytic time sampling needs a paired spatial_correlation_mode", "analytic sampling without a partner", "ray_position, ray_sampler or ray_adaptive"),
+        ("…: the D-ToF integrator needs shutterOpen=0 and shutterClose=time=…", "a 0.6 shutter that disagrees with the exposure", "shutterOpen=0, shutterClose = time"),
+        ("…: <srgb name=…>: expected #rrggbb or 1 or 3 numbers, got …", "a colour that does not parse", "`#rrggbb` or numbers"),
+        ("…: strictNormals=true differs from Mitsuba 3", "Mitsuba 3 shades otherwise", "the change the message names"),
+        ("…: roughdiffuse (Oren-Nayar) has no Mitsuba 3 equivalent unless alpha is 0", "a BSDF Mitsuba 3 lacks", "alpha 0 (diffuse) or another BSDF"),
+        ("…: film pixelFormat … has no Mitsuba 3 equivalent", "a 0.6 pixel format", "one of those named"),
     ]),
 ]
 
@@ -445,13 +510,6 @@ TOPICS = [
 # dopplertof.reconstruct.identify, returned as text and raised by its callers): catalogued by
 # hand, so the source scan does not see them.
 COMPOSED_ELSEWHERE = ("all cameras have the same heterodyne ratio h = …", "the cameras … cannot determine velocity")
-
-# Source files whose messages are not catalogued yet (issue 21, item 2): the check leaves them
-# out until their messages have entries; take a file off once it passes.
-FILES_TO_DO = (
-    "loader.py", "mitsuba06.py",
-)
-
 
 def _template(node) -> str:
     """A message expression as its template: literal text kept, every value ``…``."""
@@ -472,15 +530,13 @@ def _says_something(template: str) -> bool:
     return len(re.findall(r"[A-Za-z]{3,}", template)) >= 2
 
 
-def source_messages(package: Path, skip=()) -> list[tuple[str, int, str]]:
+def source_messages(package: Path) -> list[tuple[str, int, str]]:
     """(file, line, template) of every message of :data:`MESSAGE_CALLS` in the package's source.
 
     Parameters
     ----------
     package : Path
         The ``dopplertof`` package folder.
-    skip : iterable of str, default ()
-        Files (relative to ``package``, ``/``-separated) left out.
 
     Returns
     -------
@@ -490,8 +546,6 @@ def source_messages(package: Path, skip=()) -> list[tuple[str, int, str]]:
     found = []
     for path in sorted(package.rglob("*.py")):
         relative = path.relative_to(package).as_posix()
-        if relative in skip:
-            continue
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in MESSAGE_CALLS and node.args:
                 template = _template(node.args[0])
