@@ -217,12 +217,14 @@ def test_an_uncatalogued_message_is_found(tmp_path):
         "        raise ValueError(f'{where}: speed must be > 0 m/s, got {x!r}')\n"
         "    if where:\n"
         "        fail(f'brand new problem with {x}')\n"
+        "    click.echo('error: stopped early', err=True)\n"
+        "    click.echo('stopped early', err=True)\n"  # not an error line
         "    raise ValueError(f'{where}: {x}')\n"  # passes another message on: not a message of its own
     )
     messages = error_catalogue.source_messages(tmp_path)
-    assert [m[2] for m in messages] == ["…: speed must be > 0 m/s, got …", "brand new problem with …"]
+    assert [m[2] for m in messages] == ["…: speed must be > 0 m/s, got …", "brand new problem with …", "stopped early"]
     topics = [("topic", "", [("…: speed must be", "means", "do")])]
-    assert error_catalogue.uncatalogued(messages, topics) == ["module.py:5: brand new problem with …"]
+    assert error_catalogue.uncatalogued(messages, topics) == ["module.py:5: brand new problem with …", "module.py:6: stopped early"]
     assert error_catalogue.unused_entries(messages[:1], topics + [("more", "", [("gone", "", "")])]) == ["gone"]
 
 

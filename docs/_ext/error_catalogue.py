@@ -19,6 +19,9 @@ from pathlib import Path
 # exceptions its commands turn into that line, and the commands' own `fail` helpers.
 MESSAGE_CALLS = {"ValueError", "TypeError", "SceneError", "BackendError", "CheckpointWriteError", "fail", "_fail"}
 
+# What a command prints before a message; the lines it echoes itself carry it in the source.
+_PRINTED = "error: "
+
 # (title, what the topic's errors have in common, [(message template prefix, what it means, what to do)])
 TOPICS = [
     ("Command line", "How the command line itself reports what it cannot take.", [
@@ -28,6 +31,9 @@ TOPICS = [
         ("--address needs --ray", "`--address` names a Ray cluster", "add `--ray`, or drop `--address`"),
         ("--until-noise compares the render's error with a sensor's noise: give --sensor", "`--until-noise` stops when the Monte Carlo error falls below a sensor's noise, which needs a sensor", "add `--sensor PRESET`, or drop `--until-noise`"),
         ("--camera and --sensor exclude each other", "a sensor's raw frames define the cameras", "give `--camera` options or `--sensor`, not both"),
+        ("aborted", "the command was interrupted at a prompt or before it started work", "run it again"),
+        ("interrupted before the first pass finished; nothing written", "Ctrl-C (or SIGTERM, SIGHUP) before any pass was done", "run the command again; a later interruption keeps the finished passes"),
+        ("interrupted before the record was finished; nothing written", "`dopplertof design` was stopped while it rendered its record", "run it again"),
         ("…; free space, then continue with the same command and --resume", "a checkpoint could not be written (a full disk); the earlier checkpoint is kept", "free space, then rerun the same command with `--resume`"),
         ("cannot write …: …", "an output file could not be written (a full disk, no permission); the message names the file and the reason", "free space or fix the permission; where the message says the sums are kept, rerun with `--resume`"),
         ("unknown experiment …; choose one of …", "`dopplertof experiment` has no experiment of that name", "use one of the names listed"),
@@ -526,12 +532,14 @@ def _template(node) -> str:
 
 
 def _says_something(template: str) -> bool:
-    """Whether a template has words of its own (``…: …`` passes another message on)."""
-    return len(re.findall(r"[A-Za-z]{3,}", template)) >= 2
+    """Whether a template has words of its own: all literal, or two words or more
+    (``…: …`` and ``panel …: …`` pass another message on)."""
+    return "…" not in template or len(re.findall(r"[A-Za-z]{3,}", template)) >= 2
 
 
 def source_messages(package: Path) -> list[tuple[str, int, str]]:
-    """(file, line, template) of every message of :data:`MESSAGE_CALLS` in the package's source.
+    """(file, line, template) of every message of :data:`MESSAGE_CALLS` in the package's
+    source, and of every ``click.echo("error: …")`` line.
 
     Parameters
     ----------
@@ -547,11 +555,18 @@ def source_messages(package: Path) -> list[tuple[str, int, str]]:
     for path in sorted(package.rglob("*.py")):
         relative = path.relative_to(package).as_posix()
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in MESSAGE_CALLS and node.args:
-                template = _template(node.args[0])
-                if _says_something(template):
-                    found.append((relative, node.lineno, template))
-    return found
+            if not (isinstance(node, ast.Call) and node.args):
+                continue
+            template = _template(node.args[0])
+            if isinstance(node.func, ast.Name) and node.func.id in MESSAGE_CALLS:
+                pass
+            elif ast.unparse(node.func) == "click.echo" and template.startswith(_PRINTED):
+                template = template[len(_PRINTED) :]  # a line a command prints itself
+            else:
+                continue
+            if _says_something(template):
+                found.append((relative, node.lineno, template))
+    return sorted(found)
 
 
 def unused_entries(messages, topics=TOPICS) -> list[str]:
