@@ -1,5 +1,7 @@
 """The public API of :mod:`dopplertof`, listed once for the API reference (``conf.py``
-writes its pages from it) and for ``tests/test_docs.py`` (every name listed has a docstring).
+writes its pages from it) and for ``tests/test_docs.py`` (every name listed has a docstring;
+every function, class and method documents each parameter and what it returns in numpy
+sections: :func:`incomplete_docstrings`).
 
 Public are the names of ``dopplertof.__all__`` and the lazy modules of ``dopplertof._MODULES``
 with, inside each module (and each non-private submodule of a lazy package), the names of
@@ -47,17 +49,23 @@ def _documented(obj) -> bool:
     return bool(doc)
 
 
-def undocumented() -> list[str]:
-    """Every public name (module, function, class, method, property) without a docstring."""
+def _public_names() -> list[tuple[str, object]]:
+    """(dotted name, object) of every public name: the top level's, then each documented
+    module and its members (a name exported twice appears twice)."""
     import dopplertof
 
-    missing = []
     targets = [(f"dopplertof.{n}", getattr(dopplertof, n)) for n in dopplertof.__all__]
     for module_name in public_modules():
         module = importlib.import_module(module_name)
         targets.append((module_name, module))
         targets += [(f"{module_name}.{n}", getattr(module, n)) for n in module_members(module_name)]
-    for name, obj in targets:
+    return targets
+
+
+def undocumented() -> list[str]:
+    """Every public name (module, function, class, method, property) without a docstring."""
+    missing = []
+    for name, obj in _public_names():
         if not (inspect.ismodule(obj) or inspect.isfunction(obj) or inspect.isclass(obj)):
             continue  # constants and tables: documented in their module's docstring
         if not _documented(obj):
@@ -78,13 +86,11 @@ _PARAMETER_SECTIONS = {"Parameters", "Other Parameters", "Keyword Arguments"}
 _CLASS_PARAMETER_SECTIONS = _PARAMETER_SECTIONS | {"Attributes"}
 
 
-def _sections(doc: str) -> dict[str, str]:
-    """The numpy sections of a cleaned docstring, by name (the text under the dashes)."""
-    found = {}
+def _sections(doc: str) -> list[tuple[str, str]]:
+    """The numpy sections of a cleaned docstring, in order: (name, the text under the dashes)."""
     matches = list(_SECTION.finditer(doc))
-    for match, following in zip(matches, [*matches[1:], None]):
-        found[match.group("name").strip()] = doc[match.end() : following.start() if following else len(doc)]
-    return found
+    ends = [following.start() for following in matches[1:]] + [len(doc)]
+    return [(match.group("name").strip(), doc[match.end() : end]) for match, end in zip(matches, ends)]
 
 
 def _section_names(body: str) -> set[str]:
@@ -135,7 +141,7 @@ def _returns_value(function) -> bool:
     return annotation is not inspect.Signature.empty and annotation not in (None, "None")
 
 
-def docstring_gaps(obj, kind: str = "function") -> list[str]:
+def docstring_gaps(obj) -> list[str]:
     """What the numpy-style docstring of a callable lacks: ``no parameter section`` where
     it takes parameters and has none, else ``missing parameter NAME`` for each one
     (compared with :func:`inspect.signature`); ``no Returns section`` where a function is
@@ -145,12 +151,10 @@ def docstring_gaps(obj, kind: str = "function") -> list[str]:
     Parameters
     ----------
     obj : function or class
-        A class's parameters are its constructor's; its Attributes section (a dataclass's
-        fields) and a ``=====`` table of its own or of its module's docstring (a plugin's
-        properties, a sensor's parameters) count as parameter sections.
-    kind : str, default ``"function"``
-        ``"method"`` for a function reached through its class (its ``self`` or ``cls``
-        is left out).
+        A method's ``self`` or ``cls`` is left out. A class's parameters are its
+        constructor's; its Attributes section (a dataclass's fields) and a ``=====`` table
+        of its own or of its module's docstring (a plugin's properties, a sensor's
+        parameters) count as parameter sections.
 
     Returns
     -------
@@ -158,51 +162,44 @@ def docstring_gaps(obj, kind: str = "function") -> list[str]:
         Empty where every parameter is documented.
     """
     doc = inspect.cleandoc(obj.__doc__ or "")
-    headers = [match.group("name").strip() for match in _SECTION.finditer(doc)]
-    twice = [f"section {name} twice" for name in sorted({h for h in headers if headers.count(h) > 1})]
     sections = _sections(doc)
-    if not inspect.isclass(obj) and _returns_value(obj) and not {"Returns", "Yields"} & set(sections):
-        twice.append("no Returns section")
+    headers = [name for name, _ in sections]
+    gaps = [f"section {name} twice" for name in sorted({h for h in headers if headers.count(h) > 1})]
+    if not inspect.isclass(obj) and _returns_value(obj) and not {"Returns", "Yields"} & set(headers):
+        gaps.append("no Returns section")
     parameters = _parameters(obj)
-    if kind == "method" and parameters and parameters[0] in ("self", "cls"):
-        parameters = parameters[1:]
     if not parameters:
-        return twice
+        return gaps
     wanted = _CLASS_PARAMETER_SECTIONS if inspect.isclass(obj) else _PARAMETER_SECTIONS
-    documented = set().union(*(_section_names(body) for name, body in sections.items() if name in wanted))
+    documented = set().union(*(_section_names(body) for name, body in sections if name in wanted))
     documented |= _table_names(doc)
     if inspect.isclass(obj):  # a class whose module's table documents its parameters (sensor, silicon)
         documented |= _table_names(inspect.getdoc(inspect.getmodule(obj)) or "")
     if not documented:
-        return [*twice, "no parameter section"]
-    return [*twice, *(f"missing parameter {name}" for name in parameters if name not in documented)]
+        return [*gaps, "no parameter section"]
+    return [*gaps, *(f"missing parameter {name}" for name in parameters if name not in documented)]
 
 
 def _public_callables():
-    """(dotted name, object, kind) of every public function, class and method."""
-    import dopplertof
-
-    targets = [(f"dopplertof.{n}", getattr(dopplertof, n)) for n in dopplertof.__all__]
-    for module_name in public_modules():
-        targets += [(f"{module_name}.{n}", getattr(importlib.import_module(module_name), n)) for n in module_members(module_name)]
-    for name, obj in targets:
+    """Every public function, class and method (a name exported twice, once each time)."""
+    for _, obj in _public_names():
         if inspect.isfunction(obj):
-            yield name, obj, "function"
+            yield obj
         elif inspect.isclass(obj):
             if not issubclass(obj, enum.Enum) and not issubclass(obj, BaseException):
-                yield name, obj, "class"
+                yield obj
             for attribute, value in vars(obj).items():
                 function = getattr(value, "__func__", value)
                 if not attribute.startswith("_") and inspect.isfunction(function):
-                    yield f"{name}.{attribute}", function, "method" if not isinstance(value, staticmethod) else "function"
+                    yield function
 
 
 def incomplete_docstrings() -> list[str]:
     """Every public callable whose docstring lacks a numpy section or a parameter, as
     ``name: gap`` (:func:`docstring_gaps`)."""
     gaps = set()
-    for _name, obj, kind in _public_callables():
+    for obj in _public_callables():
         # A name exported twice is reported once, where it is defined.
         where = f"{obj.__module__}.{obj.__qualname__}"
-        gaps.update(f"{where}: {gap}" for gap in docstring_gaps(obj, kind))
+        gaps.update(f"{where}: {gap}" for gap in docstring_gaps(obj))
     return sorted(gaps)
