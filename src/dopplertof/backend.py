@@ -432,8 +432,6 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
     mono : bool
         With ``variant=None``, choose the monochrome variant.
 
-    Returns the active variant name.
-
     Returns
     -------
     str
