@@ -8,6 +8,7 @@ lists. Nothing is fetched from the network.
 """
 
 import importlib
+import os
 import re
 import shutil
 import sys
@@ -17,6 +18,8 @@ import click
 
 DOCS = Path(__file__).resolve().parent
 sys.path.insert(0, str(DOCS / "_ext"))
+# The executed pages' kernels import from _ext too (the troubleshooting page's error catalogue).
+os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(DOCS / "_ext"), os.environ.get("PYTHONPATH")]))
 
 import dopplertof  # noqa: E402
 import error_catalogue  # noqa: E402

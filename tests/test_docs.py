@@ -230,6 +230,16 @@ def test_an_uncatalogued_message_is_found(tmp_path):
     assert error_catalogue.unused_entries(messages[:1], topics + [("more", "", [("gone", "", "")])]) == ["gone"]
 
 
+def test_a_printed_message_finds_its_entry():
+    """Values filled in, a ``where:`` prefix added by a caller, the most specific entry wins."""
+    general = ("… must be …, got …", "out of range", "")
+    specific = ("'seed' must be < 2**32, got …", "seeds are 32-bit", "")
+    topics = [("topic", "", [general, specific])]
+    assert error_catalogue.entry_for("scene.xml: 'seed' must be < 2**32, got 5000000000", topics) == specific
+    assert error_catalogue.entry_for("'spp' must be >= 1,\n got 0", topics) == general
+    assert error_catalogue.entry_for("no such scene", topics) is None
+
+
 @pytest.mark.slow
 def test_the_troubleshooting_page_shows_the_catalogue(site):
     text = " ".join(" ".join(_parse(site / "troubleshooting.html").text).split())

@@ -67,7 +67,7 @@ TOPICS = [
     ]),
     ("Render settings", "A setting of `dopplertof render` (or of the API's `RenderSettings`), from an option, a scene file's `<integrator>` or a dict. The message names the setting and the values it takes; the settings table of the [command line](cli.md) page lists them all.", [
         ("unknown … …; choose one of …", "a choice setting (time sampling, correlation, …) has a value it does not know", "use one of the choices listed"),
-        ("… must be >= …, got …", "a setting is below its minimum", "give a value at or above the minimum"),
+        ("… must be >= …, got …", "a setting is below its minimum", "give a value at or above the minimum (the settings table of the [command line](cli.md) page)"),
         ("… must be …, got …", "a setting is out of its range or of the wrong type (a number where an integer is needed, …)", "give a value in the range the message names"),
         ("… must be true or false, got …", "a boolean setting got another value", "`true` or `false` (also yes/no, 1/0, on/off in files)"),
         ("'checkpoint_interval_s' must be >= 0 seconds, got …", "a negative checkpoint interval", "0 (every pass) or more seconds"),
@@ -604,6 +604,32 @@ def uncatalogued(messages, topics=TOPICS) -> list[str]:
     """
     prefixes = [entry[0] for _, _, entries in topics for entry in entries]
     return [f"{file}:{line}: {template}" for file, line, template in messages if not any(template.startswith(p) for p in prefixes)]
+
+
+def entry_for(message: str, topics=TOPICS):
+    """The entry of a message as a command prints it (values filled in, ``error:`` left
+    out): the most specific entry whose template the message, or the message after a
+    ``where: `` prefix that a caller added (a scene's name, a file), starts with.
+
+    Parameters
+    ----------
+    message : str
+    topics : list, default :data:`TOPICS`
+
+    Returns
+    -------
+    tuple of (str, str, str) or None
+        (template, what it means, what to do); None where no entry matches.
+    """
+    message = " ".join(message.split())
+    tails = [message] + [message[match.end() :] for match in re.finditer(": ", message)]
+    matches = []
+    for _, _, entries in topics:
+        for entry in entries:
+            pattern = ".*?".join(re.escape(part) for part in entry[0].split("…"))
+            if any(re.match(pattern, tail) for tail in tails):
+                matches.append(entry)
+    return max(matches, key=lambda entry: len(entry[0].replace("…", "")), default=None)
 
 
 def markdown(topics=TOPICS) -> str:
