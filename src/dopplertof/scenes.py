@@ -834,7 +834,9 @@ def build(name: str, **kwargs):
     Raises
     ------
     ValueError
-        An unknown ``name`` or a bad keyword argument.
+        An unknown ``name`` or a value out of range.
+    TypeError
+        A keyword argument the builder does not take.
     """
     _check_name(name)
     scene = SCENES[name][0](**kwargs)

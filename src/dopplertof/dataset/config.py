@@ -414,8 +414,8 @@ def draw(rng: np.random.Generator, config: dict, key: str):
 
     Returns
     -------
-    float or str
-        A value of the range, or a name drawn by the weights.
+    float, int or str
+        A value of the range (an int for an integer range), or a name drawn by the weights.
 
     Raises
     ------
