@@ -110,9 +110,8 @@ class RenderSettings:
         Raises
         ------
         ValueError
-            An unknown name, a value out of range or settings that contradict each other.
-        TypeError
-            A value of the wrong type.
+            An unknown name, a value of the wrong type or out of range, or settings that
+            contradict each other (naming the setting, after ``where``).
         """
         merged: dict = {}
         for layer in layers:
@@ -143,7 +142,7 @@ class RenderSettings:
 
         Raises
         ------
-        ValueError, TypeError
+        ValueError
             As for :meth:`build`.
         """
         given = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if getattr(self, f.name) != f.default}
