@@ -214,6 +214,7 @@ def test_every_catalogue_entry_matches_a_message():
 
 def test_an_uncatalogued_message_is_found(tmp_path):
     (tmp_path / "module.py").write_text(
+        "NEEDS_RAY = 'this needs the ray package'\n"
         "def f(x, where):\n"
         "    if x:\n"
         "        raise ValueError(f'{where}: speed must be > 0 m/s, got {x!r}')\n"
@@ -222,11 +223,14 @@ def test_an_uncatalogued_message_is_found(tmp_path):
         "    click.echo('error: stopped early', err=True)\n"
         "    click.echo('stopped early', err=True)\n"  # not an error line
         "    raise ValueError(f'{where}: {x}')\n"  # passes another message on: not a message of its own
+        "    raise ValueError(NEEDS_RAY)\n"
     )
     messages = error_catalogue.source_messages(tmp_path)
-    assert [m[2] for m in messages] == ["…: speed must be > 0 m/s, got …", "brand new problem with …", "stopped early"]
+    assert [m[2] for m in messages] == ["…: speed must be > 0 m/s, got …", "brand new problem with …", "stopped early", "this needs the ray package"]
     topics = [("topic", "", [("…: speed must be", "means", "do")])]
-    assert error_catalogue.uncatalogued(messages, topics) == ["module.py:5: brand new problem with …", "module.py:6: stopped early"]
+    assert error_catalogue.uncatalogued(messages, topics) == [
+        "module.py:6: brand new problem with …", "module.py:7: stopped early", "module.py:10: this needs the ray package",
+    ]
     assert error_catalogue.unused_entries(messages[:1], topics + [("more", "", [("gone", "", "")])]) == ["gone"]
 
 

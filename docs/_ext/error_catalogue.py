@@ -145,6 +145,8 @@ TOPICS = [
         ("BSDF … (…) transmits light, and the optical path length through it is not known here", "a transmissive BSDF inside another BSDF", "use dielectric, roughdielectric or thindielectric directly"),
         ("mover must be 'plane' or 'camera', got …", "the moving-plane oracle moves the plane or the camera", "one of the two"),
         ("workers must be a positive integer, got …", "`--workers` below 1", "1 or more"),
+        ("--ray needs the 'ray' package: pip install 'dopplertof[ray]'", "Ray is not installed", "`pip install 'dopplertof[ray]'`"),
+        ("the Ray executor builds the scene again on every worker, from its file or built-in name", "a scene loaded from a dict cannot be sent to Ray workers", "save it as a Mitsuba XML file, or render it locally"),
         ("cannot reach the Ray cluster at … within … s (…)", "the Ray address does not answer", "check `--address`; without it a local Ray starts"),
         ("cannot connect to Ray at …: …", "Ray refused the connection", "check `--address` and that the cluster runs"),
     ]),
@@ -517,14 +519,18 @@ TOPICS = [
 # hand, so the source scan does not see them.
 COMPOSED_ELSEWHERE = ("all cameras have the same heterodyne ratio h = …", "the cameras … cannot determine velocity")
 
-def _template(node) -> str:
-    """A message expression as its template: literal text kept, every value ``…``."""
+def _template(node, constants=None) -> str:
+    """A message expression as its template: literal text kept (and the module's string
+    constants, ``constants``: name → text), every value ``…``."""
+    constants = constants or {}
     if isinstance(node, ast.Constant) and isinstance(node.value, str):
         text = node.value
     elif isinstance(node, ast.JoinedStr):
         text = "".join(part.value if isinstance(part, ast.Constant) else "…" for part in node.values)
     elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
-        text = _template(node.left) + _template(node.right)
+        text = _template(node.left, constants) + _template(node.right, constants)
+    elif isinstance(node, ast.Name) and node.id in constants:
+        text = constants[node.id]
     else:
         text = "…"
     # An optional prefix stuck to a value ("{where}{name!r} must be") reads as one value.
@@ -539,7 +545,9 @@ def _says_something(template: str) -> bool:
 
 def source_messages(package: Path) -> list[tuple[str, int, str]]:
     """(file, line, template) of every message of :data:`MESSAGE_CALLS` in the package's
-    source, and of every ``click.echo("error: …")`` line.
+    source, and of every ``click.echo("error: …")`` line. A message kept in a module-level
+    constant is read from it; one built elsewhere and passed in a variable is not seen
+    (:data:`COMPOSED_ELSEWHERE`).
 
     Parameters
     ----------
@@ -554,10 +562,18 @@ def source_messages(package: Path) -> list[tuple[str, int, str]]:
     found = []
     for path in sorted(package.rglob("*.py")):
         relative = path.relative_to(package).as_posix()
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        constants = {
+            target.id: statement.value.value
+            for statement in tree.body
+            if isinstance(statement, ast.Assign) and isinstance(statement.value, ast.Constant) and isinstance(statement.value.value, str)
+            for target in statement.targets
+            if isinstance(target, ast.Name)
+        }
+        for node in ast.walk(tree):
             if not (isinstance(node, ast.Call) and node.args):
                 continue
-            template = _template(node.args[0])
+            template = _template(node.args[0], constants)
             if isinstance(node.func, ast.Name) and node.func.id in MESSAGE_CALLS:
                 pass
             elif ast.unparse(node.func) == "click.echo" and template.startswith(_PRINTED):
