@@ -260,7 +260,7 @@ TOPICS = [
     ]),
     ("Sensors", "`--sensor PRESET|FILE.toml` (see [sensors](sensors.md)).", [
         ("--sensor …: neither a preset (…) nor a .toml file", "`--sensor` names no preset and no file", "a preset listed or a TOML file"),
-        ("…: not valid TOML (…)", "the sensor file does not parse", "fix the TOML syntax at the place named"),
+        ("…: not valid TOML", "the sensor file does not parse (or is not UTF-8 text)", "fix the TOML syntax at the place named"),
         ("[silicon] must be a table of Silicon parameters, got …", "`[silicon]` is not a table", "write `[silicon]` with `key = value` lines"),
         ("frames must be [[frames]] tables", "`frames` is not an array of tables", "write one `[[frames]]` table per frame"),
         ("a sensor without a preset needs [[frames]]", "the file defines no frames", "give `preset = …` or `[[frames]]`"),
