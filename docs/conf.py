@@ -8,6 +8,7 @@ lists. Nothing is fetched from the network.
 """
 
 import importlib
+import os
 import re
 import shutil
 import sys
@@ -17,8 +18,11 @@ import click
 
 DOCS = Path(__file__).resolve().parent
 sys.path.insert(0, str(DOCS / "_ext"))
+# The executed pages' kernels import from _ext too (the troubleshooting page's error catalogue).
+os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(DOCS / "_ext"), os.environ.get("PYTHONPATH")]))
 
 import dopplertof  # noqa: E402
+import error_catalogue  # noqa: E402
 import public_api  # noqa: E402
 from dopplertof.cli import main as cli_main  # noqa: E402
 
@@ -28,7 +32,8 @@ copyright = "2026, the dopplertof developers"
 release = version = dopplertof.__version__
 
 extensions = ["myst_nb", "sphinx.ext.autodoc", "sphinx.ext.napoleon", "sphinx_click"]
-exclude_patterns = ["_build", "_ext", "README.md", "**.ipynb_checkpoints"]
+# The error catalogue is read only where troubleshooting.md includes it (its headings and links are that page's).
+exclude_patterns = ["_build", "_ext", "README.md", "**.ipynb_checkpoints", "_generated/errors.md"]
 html_theme = "furo"
 html_title = f"dopplertof {release}"
 
@@ -122,4 +127,5 @@ def setup(app):
 
 
 (GENERATED / "settings_table.md").write_text(_settings_table())
+(GENERATED / "errors.md").write_text(error_catalogue.markdown())
 _api_pages()

@@ -552,3 +552,14 @@ def test_a_sensor_file_edited_between_runs_is_not_mixed_in(tmp_path):
     sensor_file.write_text(CUSTOM_SENSOR.replace("read_noise_e = 5.0", "read_noise_e = 6.0"))
     with pytest.raises(ValueError, match="holds another dataset \\(it differs in sensor_models\\)"):
         dt.dataset.generate(tmp_path / "ds", **small)
+
+
+def test_dataset_info_stays_a_function_after_its_module_is_imported():
+    """``dt.dataset.info`` is a function; its implementation's module must not replace it
+    as an attribute of the package when first imported (a second call would fail)."""
+    import importlib
+
+    import dopplertof.dataset as dataset
+
+    importlib.import_module("dopplertof.dataset.summary")
+    assert callable(dataset.info) and dataset.info.__module__ == "dopplertof.dataset"

@@ -1,7 +1,9 @@
 """The documentation site (issue 21): it builds with warnings as errors and its tutorials
 run (``scripts/docs.sh``), its internal links resolve, every CLI option is on the CLI page,
-every public name of :mod:`dopplertof` has a docstring, the top-level names' examples run,
-and the README's links name files of the repository.
+every public name of :mod:`dopplertof` has a docstring that documents each parameter (and
+what it returns) in numpy sections, the top-level names' examples run, every error message
+of the source has its entry on the troubleshooting page, and the README's links name files
+of the repository.
 
 The build runs once for this module (``site``, 1 to 1.5 min on 2 shared cores: the six
 tutorials and the executed pages render at 16² to 32²). The checkers are tested on small
@@ -23,6 +25,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 SITE = ROOT / "docs" / "_build" / "html"
 sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+import error_catalogue  # noqa: E402
 import public_api  # noqa: E402
 
 # A link with a scheme (https:, mailto:, javascript:) leaves the site.
@@ -189,6 +192,65 @@ def test_an_undocumented_name_is_found(monkeypatch):
     assert {"dopplertof.reconstruct.VelocityResult", "dopplertof.reconstruct.velocity"} <= set(public_api.undocumented())
 
 
+def test_every_public_callable_documents_its_parameters_and_returns():
+    assert public_api.incomplete_docstrings() == []
+
+
+# ------------------------------------------------------------------------------ error messages
+
+PACKAGE = ROOT / "src" / "dopplertof"
+
+
+def test_every_error_message_is_in_the_troubleshooting_catalogue():
+    messages = error_catalogue.source_messages(PACKAGE)
+    assert len(messages) > 300
+    assert error_catalogue.uncatalogued(messages) == []
+
+
+def test_every_catalogue_entry_matches_a_message():
+    """An entry whose message was reworded or removed goes (or follows the new wording)."""
+    assert error_catalogue.unused_entries(error_catalogue.source_messages(PACKAGE)) == []
+
+
+def test_an_uncatalogued_message_is_found(tmp_path):
+    (tmp_path / "module.py").write_text(
+        "NEEDS_RAY = 'this needs the ray package'\n"
+        "def f(x, where):\n"
+        "    if x:\n"
+        "        raise ValueError(f'{where}: speed must be > 0 m/s, got {x!r}')\n"
+        "    if where:\n"
+        "        fail(f'brand new problem with {x}')\n"
+        "    click.echo('error: stopped early', err=True)\n"
+        "    click.echo('stopped early', err=True)\n"  # not an error line
+        "    raise ValueError(f'{where}: {x}')\n"  # passes another message on: not a message of its own
+        "    raise ValueError(NEEDS_RAY)\n"
+    )
+    messages = error_catalogue.source_messages(tmp_path)
+    assert [m[2] for m in messages] == ["…: speed must be > 0 m/s, got …", "brand new problem with …", "stopped early", "this needs the ray package"]
+    topics = [("topic", "", [("…: speed must be", "means", "do")])]
+    assert error_catalogue.uncatalogued(messages, topics) == [
+        "module.py:6: brand new problem with …", "module.py:7: stopped early", "module.py:10: this needs the ray package",
+    ]
+    assert error_catalogue.unused_entries(messages[:1], topics + [("more", "", [("gone", "", "")])]) == ["gone"]
+
+
+def test_a_printed_message_finds_its_entry():
+    """Values filled in, a ``where:`` prefix added by a caller, the most specific entry wins."""
+    general = ("… must be …, got …", "out of range", "")
+    specific = ("'seed' must be < 2**32, got …", "seeds are 32-bit", "")
+    topics = [("topic", "", [general, specific])]
+    assert error_catalogue.entry_for("scene.xml: 'seed' must be < 2**32, got 5000000000", topics) == specific
+    assert error_catalogue.entry_for("'spp' must be >= 1,\n got 0", topics) == general
+    assert error_catalogue.entry_for("no such scene", topics) is None
+
+
+@pytest.mark.slow
+def test_the_troubleshooting_page_shows_the_catalogue(site):
+    text = " ".join(" ".join(_parse(site / "troubleshooting.html").text).split())
+    missing = [entry[0] for _, _, entries in error_catalogue.TOPICS for entry in entries if entry[0] not in text]
+    assert missing == []
+
+
 # ------------------------------------------------------------------------------ the checkers
 
 
@@ -213,3 +275,84 @@ def test_a_missing_cli_option_is_found():
 
     page = "dopplertof run --fast --no-fast -n"
     assert missing_from_cli_page(page, group) == ["dopplertof run --count"]
+
+
+def test_a_missing_parameter_or_returns_section_is_found():
+    def documented(distance_m, speed_m_s=1.0, **extra):
+        """A function.
+
+        Parameters
+        ----------
+        distance_m : float, metres
+            How far.
+        speed_m_s : float, m/s, default 1
+        **extra
+            More.
+        """
+
+    def one_missing(distance_m, speed_m_s=1.0):
+        """A function.
+
+        Parameters
+        ----------
+        distance_m, other : float. How far.
+        """
+
+    def no_section(distance_m):
+        """A function without sections."""
+
+    def twice(distance_m):
+        """A function.
+
+        Parameters
+        ----------
+        distance_m : float, m
+
+        Parameters
+        ----------
+        distance_m : float, m
+        """
+
+    class Plugin:
+        """A plugin with a table.
+
+        ============  ==============
+        name          meaning
+        ============  ==============
+        ``props``     its properties,
+                      all of them
+        ============  ==============
+        """
+
+        def __init__(self, props):
+            pass
+
+        def move(self, speed_m_s):
+            """Move (``self`` needs no entry).
+
+            Parameters
+            ----------
+            speed_m_s : float, m/s
+            """
+
+    assert public_api.docstring_gaps(documented) == []
+    assert public_api.docstring_gaps(Plugin.move) == []
+    assert public_api.docstring_gaps(one_missing) == ["missing parameter speed_m_s"]
+    assert public_api.docstring_gaps(no_section) == ["no parameter section"]
+    assert public_api.docstring_gaps(twice) == ["section Parameters twice"]
+    assert public_api.docstring_gaps(Plugin) == []
+    assert public_api.docstring_gaps(lambda: None) == []
+
+    def returns_a_value() -> float:
+        """A number, without saying so in a section."""
+
+    def says_what_it_returns() -> float:
+        """A number.
+
+        Returns
+        -------
+        float
+        """
+
+    assert public_api.docstring_gaps(returns_a_value) == ["no Returns section"]
+    assert public_api.docstring_gaps(says_what_it_returns) == []

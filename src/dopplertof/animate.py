@@ -64,14 +64,41 @@ _SUMMARY_COLUMNS = ("frame", "time_s", "valid_fraction", "median_abs_error_m_s",
 
 
 def default_cameras(base: Camera | None = None) -> list[Camera]:
-    """Homodyne and heterodyne cameras at ψ = 0 and 90°, with the other parameters of ``base``."""
+    """Homodyne and heterodyne cameras at ψ = 0 and 90°, with the other parameters of ``base``.
+
+    Parameters
+    ----------
+    base : Camera or None, default None
+        None: :class:`Camera`'s defaults.
+
+    Returns
+    -------
+    list of Camera
+    """
     base = base or Camera()
     return [dataclasses.replace(base, heterodyne=h, phase=psi) for h, psi in DEFAULT_CAMERAS]
 
 
 def check_frames_and_fps(frames, fps) -> tuple[int, float]:
     """``frames`` as a positive int and ``fps`` as a finite float the clip's GIF can play
-    (>= 1 / :data:`dopplertof.viz.GIF_MAX_FRAME_S`, a frame every 655.35 s), else ValueError."""
+    (>= 1 / :data:`dopplertof.viz.GIF_MAX_FRAME_S`, a frame every 655.35 s), else ValueError.
+
+    Parameters
+    ----------
+    frames : int
+        Frames of the clip, > 0.
+    fps : float, frames per second
+        Finite, at least 1 / :data:`dopplertof.viz.GIF_MAX_FRAME_S`.
+
+    Returns
+    -------
+    tuple of (int, float)
+
+    Raises
+    ------
+    ValueError
+        ``frames`` or ``fps`` out of range or of the wrong type, naming it.
+    """
     if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames <= 0:
         raise ValueError(f"frames must be a positive integer, got {frames!r}")
     if isinstance(fps, bool) or not isinstance(fps, (int, float, np.number)) or not (math.isfinite(fps) and fps > 0):
@@ -82,27 +109,78 @@ def check_frames_and_fps(frames, fps) -> tuple[int, float]:
 
 
 def frame_count(duration_s: float, fps: float) -> int:
-    """Frames whose exposure opens during a clip of ``duration_s`` seconds (at least 1)."""
+    """Frames whose exposure opens during a clip of ``duration_s`` seconds (at least 1).
+
+    Parameters
+    ----------
+    duration_s : float, s
+        Length of the clip.
+    fps : float, frames per second
+        As for :func:`check_frames_and_fps`.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        A bad ``fps``.
+    """
     _, fps = check_frames_and_fps(1, fps)
     return max(1, math.ceil(duration_s * fps - 1e-9))
 
 
 def motion_duration(scene) -> float | None:
     """End (s) of the last keyframe of a scene's motions (bodies, camera, lights); None if
-    none is bounded."""
+    none is bounded.
+
+    Parameters
+    ----------
+    scene : DynamicScene
+
+    Returns
+    -------
+    float or None
+        Seconds.
+    """
     ends = [motion.time_range()[1] for motion in scene.motions()]
     ends = [t for t in ends if math.isfinite(t)]
     return max(ends) if ends else None
 
 
 def frame_folder(output: str, index: int) -> str:
-    """The folder of frame ``index`` (from 0) of the clip in ``output``: ``output/frame_0000``, …"""
+    """The folder of frame ``index`` (from 0) of the clip in ``output``: ``output/frame_0000``, …
+
+    Parameters
+    ----------
+    output : str
+        The clip's folder.
+    index : int
+        The frame, from 0.
+
+    Returns
+    -------
+    str
+    """
     return os.path.join(output, f"frame_{index:04d}")
 
 
 def is_done(output: str, index: int) -> bool:
     """True when frame ``index`` of the clip in ``output`` is finished: its ``done.json``,
-    written last, exists."""
+    written last, exists.
+
+    Parameters
+    ----------
+    output : str
+        The clip's folder.
+    index : int
+        The frame, from 0.
+
+    Returns
+    -------
+    bool
+    """
     return os.path.isfile(os.path.join(frame_folder(output, index), DONE_FILE))
 
 
@@ -187,7 +265,22 @@ def _gif_frame(truth, reconstructed, vmax):
 
 
 def write_clip_files(output: str, frames: int, fps: float) -> list[str]:
-    """``summary.csv`` and ``velocity.gif`` from the finished frames 0 … frames−1."""
+    """``summary.csv`` and ``velocity.gif`` from the finished frames 0 … frames−1.
+
+    Parameters
+    ----------
+    output : str
+        The clip's folder.
+    frames : int
+        Frames of the clip.
+    fps : float, frames per second
+        Playback rate of the GIF.
+
+    Returns
+    -------
+    list of str
+        The paths written.
+    """
     done = [i for i in range(frames) if is_done(output, i)]
     summaries = [io.read_json(os.path.join(frame_folder(output, i), DONE_FILE)) for i in done]
     summary_path = os.path.join(output, SUMMARY_FILE)

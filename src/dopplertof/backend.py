@@ -432,7 +432,10 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
     mono : bool
         With ``variant=None``, choose the monochrome variant.
 
-    Returns the active variant name.
+    Returns
+    -------
+    str
+        The variant activated.
 
     Raises
     ------

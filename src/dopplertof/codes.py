@@ -87,7 +87,12 @@ class Code:
 
     def as_dict(self) -> dict:
         """JSON-friendly: ``{"samples": [...]}`` or ``{"fourier": [[re, im], ...]}``
-        (:func:`as_code` reads it back)."""
+        (:func:`as_code` reads it back).
+
+        Returns
+        -------
+        dict
+        """
         if self.samples is not None:
             return {"samples": list(self.samples)}
         return {"fourier": [[c.real, c.imag] for c in self.fourier]}
@@ -99,7 +104,18 @@ class Code:
 
     def coefficients(self, order: int) -> np.ndarray:
         """Exact complex Fourier coefficients x_m, m = 0 … ``order``, of
-        x(θ) = Σ_{m=−∞}^{∞} x_m e^{imθ} (x_{−m} = conj x_m)."""
+        x(θ) = Σ_{m=−∞}^{∞} x_m e^{imθ} (x_{−m} = conj x_m).
+
+        Parameters
+        ----------
+        order : int
+            The highest harmonic m returned, ≥ 0.
+
+        Returns
+        -------
+        ndarray
+            (order + 1,) complex128.
+        """
         m = np.arange(order + 1)
         if self.fourier is not None:
             c = np.zeros(order + 1, np.complex128)
@@ -120,7 +136,12 @@ class Code:
         return out
 
     def periodic(self) -> "PeriodicFunction":
-        """x(θ) itself, for evaluation (chips: a step table; Fourier: its harmonics)."""
+        """x(θ) itself, for evaluation (chips: a step table; Fourier: its harmonics).
+
+        Returns
+        -------
+        PeriodicFunction
+        """
         if self.samples is not None:
             return PeriodicFunction(table=np.asarray(self.samples), linear=False)
         return PeriodicFunction(harmonics=np.asarray(self.fourier))
@@ -147,7 +168,12 @@ class Code:
         return (np.fft.ifft(c * np.exp(1j * np.pi * np.arange(n) / n)) * n).real
 
     def extremes(self) -> tuple[float, float]:
-        """(min, max) of x(θ): exact for chips, on a fine grid for a Fourier code."""
+        """(min, max) of x(θ): exact for chips, on a fine grid for a Fourier code.
+
+        Returns
+        -------
+        tuple of (float, float)
+        """
         if self.samples is not None:
             return min(self.samples), max(self.samples)
         values = self._grid(1)
@@ -155,25 +181,75 @@ class Code:
 
     def shifted_sum(self, parts: int) -> float:
         """max_θ |Σ_j x(θ + 2πj/parts)|: zero where the code has no harmonic (nor mean)
-        at multiples of ``parts`` (a tap layout that splits the charge ``parts`` ways)."""
+        at multiples of ``parts`` (a tap layout that splits the charge ``parts`` ways).
+
+        Parameters
+        ----------
+        parts : int
+            Taps that split the charge, ≥ 1.
+
+        Returns
+        -------
+        float
+        """
         values = self._grid(parts)
         step = values.size // parts
         return float(np.abs(sum(np.roll(values, -j * step) for j in range(parts))).max())
 
 
 def sampled(samples) -> Code:
-    """A sampled code: one period of N ≥ 8 chips (see :class:`Code`)."""
+    """A sampled code: one period of N ≥ 8 chips (see :class:`Code`).
+
+    Parameters
+    ----------
+    samples : array_like
+        One period of real chips, 1-D, N ≥ 8, finite.
+
+    Returns
+    -------
+    Code
+
+    Raises
+    ------
+    ValueError
+        Fewer than 8 samples, not 1-D, or not finite.
+    """
     return Code(samples=samples)
 
 
 def fourier(coefficients) -> Code:
-    """A band-limited code x(θ) = Re Σ_m c_m e^{imθ} from c_0 … c_M (see :class:`Code`)."""
+    """A band-limited code x(θ) = Re Σ_m c_m e^{imθ} from c_0 … c_M (see :class:`Code`).
+
+    Parameters
+    ----------
+    coefficients : array_like of complex
+        c_0 … c_M.
+
+    Returns
+    -------
+    Code
+
+    Raises
+    ------
+    ValueError
+        Coefficients that are not a finite 1-D array.
+    """
     return Code(fourier=coefficients)
 
 
 def as_code(value, name: str) -> Code:
-    """``value`` as a :class:`Code`: a Code, a 1-D array of real samples (one period), or
-    :meth:`Code.as_dict`'s dict.
+    """``value`` as a :class:`Code`.
+
+    Parameters
+    ----------
+    value : Code, array_like or dict
+        A Code, a 1-D array of real samples (one period), or :meth:`Code.as_dict`'s dict.
+    name : str
+        The parameter named in errors.
+
+    Returns
+    -------
+    Code
 
     Raises
     ------
@@ -215,6 +291,16 @@ def load_codes(path) -> np.ndarray:
     """A code table (K rows × N samples, float64) from a ``.npy`` file, or a ``.npz`` file
     holding exactly one array (or one named ``codes``).
 
+    Parameters
+    ----------
+    path : str or path
+        A ``.npy`` or ``.npz`` file.
+
+    Returns
+    -------
+    ndarray
+        (K, N) float64.
+
     Raises
     ------
     ValueError
@@ -247,7 +333,24 @@ def load_codes(path) -> np.ndarray:
 
 def band_limited(code: Code, order: int) -> Code:
     """``code`` with every harmonic above ``order`` removed (an ideal low-pass source:
-    its modulation bandwidth is ``order`` × the modulation frequency)."""
+    its modulation bandwidth is ``order`` × the modulation frequency).
+
+    Parameters
+    ----------
+    code : Code
+    order : int
+        The highest harmonic kept, ≥ 1.
+
+    Returns
+    -------
+    Code
+        A Fourier code.
+
+    Raises
+    ------
+    ValueError
+        ``order`` passes no harmonic of the modulation.
+    """
     if order < 1:
         raise ValueError(f"band_limited: the bandwidth passes no harmonic of the modulation (order {order})")
     x = code.coefficients(order)
@@ -258,6 +361,15 @@ def band_limited(code: Code, order: int) -> Code:
 
 def correlation(sensor: Code, light: Code) -> "PeriodicFunction":
     """C(Δ) = (1/2π)∫ s(φ + Δ) g(φ) dφ of a sensor and a light code, exactly (module docstring).
+
+    Parameters
+    ----------
+    sensor, light : Code
+        The sensor's demodulation code and the light's modulation code.
+
+    Returns
+    -------
+    PeriodicFunction
 
     Raises
     ------
@@ -286,7 +398,17 @@ def correlation(sensor: Code, light: Code) -> "PeriodicFunction":
 class PeriodicFunction:
     """A 2π-periodic function: a table over one period (``linear``: knots at 2πj/N,
     interpolated linearly; else steps held over [2πj/N, 2π(j+1)/N)) or harmonics K_m,
-    f(θ) = Re Σ_m K_m e^{imθ}."""
+    f(θ) = Re Σ_m K_m e^{imθ}.
+
+    Parameters
+    ----------
+    table : ndarray or None, default None
+        (N,) values over one period.
+    harmonics : ndarray or None, default None
+        (M + 1,) complex K_0 … K_M.
+    linear : bool, default True
+        With ``table``: interpolate linearly, else hold steps.
+    """
 
     table: np.ndarray | None = None
     harmonics: np.ndarray | None = None
@@ -334,6 +456,19 @@ class PeriodicFunction:
         """f(θ) for Dr.Jit Float64 ``theta`` with :meth:`opaque`'s ``constants``.
 
         ``z`` = (cos θ, sin θ) where the caller has them already (harmonics only).
+
+        Parameters
+        ----------
+        theta : mi.Float64
+            Phase, rad.
+        constants : tuple
+            :meth:`opaque`'s.
+        z : tuple of mi.Float64 or None, default None
+            (cos θ, sin θ), used by harmonics only.
+
+        Returns
+        -------
+        mi.Float64
         """
         import drjit as dr
         import mitsuba as mi

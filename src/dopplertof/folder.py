@@ -49,7 +49,19 @@ _PREVIEWS = {"intensity": "save_intensity_png", "signed": "save_signed_png", "ve
 
 def measurement_stem(index: int, camera) -> str:
     """The file stem of camera ``index``'s measurement in a render folder, e.g.
-    ``measurement_2_h1_psi90deg`` (ψ in degrees)."""
+    ``measurement_2_h1_psi90deg`` (ψ in degrees).
+
+    Parameters
+    ----------
+    index : int
+        The camera's position in the render's cameras, from 0.
+    camera : Camera
+        Its ``heterodyne`` and ``phase`` (rad) name the file.
+
+    Returns
+    -------
+    str
+    """
     return f"measurement_{index}_h{camera.heterodyne:g}_psi{math.degrees(camera.phase):g}deg"
 
 
@@ -74,6 +86,23 @@ def check_writable(folder: str, bytes_needed: int = 0) -> str:
 
     ValueError for a path that is a file or lies under one, a folder that cannot be
     written (read-only, no permission) and one without ``bytes_needed`` free bytes.
+
+    Parameters
+    ----------
+    folder : str
+        The folder (created with its parents).
+    bytes_needed : int, bytes, default 0
+        Free space the folder's file system must have.
+
+    Returns
+    -------
+    str
+        The absolute path.
+
+    Raises
+    ------
+    ValueError
+        As above, naming the folder.
     """
     parts = os.path.abspath(folder)
     probe = parts
@@ -99,7 +128,25 @@ def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes
     """Check (and create) a render's output folder before any rendering; ValueError if
     unusable (:func:`check_writable`) or holding another render (its ``metadata.json``
     or checkpoint), unless ``overwrite`` (which removes that render's files) or
-    ``resume`` (which continues its checkpoint)."""
+    ``resume`` (which continues its checkpoint).
+
+    Parameters
+    ----------
+    folder : str
+        The output folder.
+    overwrite : bool, default False
+        Remove another render's files (only those) found there.
+    resume : bool, default False
+        Continue the checkpoint found there.
+    bytes_needed : int, bytes, default 0
+        Free space the render's files need.
+
+    Raises
+    ------
+    ValueError
+        An unusable folder, or one holding another render (without ``overwrite`` or
+        ``resume``).
+    """
     from .io import remove_stale_partials
 
     parts = check_writable(folder, bytes_needed)
@@ -119,7 +166,20 @@ def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes
 
 
 def estimated_bytes(width: int, height: int, n_cameras: int) -> int:
-    """About what :func:`write_result` writes (EXR float32 before compression, PNGs)."""
+    """About what :func:`write_result` writes (EXR float32 before compression, PNGs).
+
+    Parameters
+    ----------
+    width, height : int
+        Film size in pixels.
+    n_cameras : int
+        Cameras rendered.
+
+    Returns
+    -------
+    int
+        Bytes.
+    """
     channels = 3 + 3 + 2 * n_cameras + 1 + 1 + 1 + 3 + 2 + 1 + 1
     return width * height * (channels * 4 + (3 + n_cameras + 1) * 3) + (1 << 16)
 
@@ -129,6 +189,24 @@ def write_result(result, folder: str, metadata: dict | None = None) -> list[str]
 
     ``metadata`` (scene, command line, …) is merged into ``metadata.json``, which is
     written last and lists the files.
+
+    Parameters
+    ----------
+    result : RenderResult
+    folder : str
+        The output folder (prepared by :func:`prepare`).
+    metadata : dict or None, default None
+        Extra JSON-able entries of ``metadata.json``.
+
+    Returns
+    -------
+    list of str
+        The paths written.
+
+    Raises
+    ------
+    OSError
+        A file could not be written (a full disk, …); the files written before stay.
     """
     from . import io, viz
 
@@ -181,7 +259,12 @@ def write_result(result, folder: str, metadata: dict | None = None) -> list[str]
 
 
 def versions() -> dict:
-    """Package, Mitsuba and Dr.Jit versions, the variant and the device."""
+    """Package, Mitsuba and Dr.Jit versions, the variant and the device.
+
+    Returns
+    -------
+    dict
+    """
     import drjit as dr
     import mitsuba as mi
 

@@ -61,7 +61,18 @@ def _prepare_output(path: PathLike) -> Path:
 def atomic_path(path: PathLike):
     """A temporary path beside ``path`` (same suffix) to write to; renamed over ``path``
     when the block succeeds, removed when it fails, so that ``path`` is never a partial
-    file (an interrupted, full or failing write leaves the previous file, or none)."""
+    file (an interrupted, full or failing write leaves the previous file, or none).
+
+    Parameters
+    ----------
+    path : str or path
+        The file to write.
+
+    Yields
+    ------
+    Path
+        The temporary path to write to.
+    """
     path = _prepare_output(path)
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
     try:
@@ -91,7 +102,17 @@ def _process_exists(pid: int) -> bool:
 def remove_stale_partials(folder: PathLike) -> list[Path]:
     """Remove the temporary files of :func:`atomic_path` in ``folder`` whose writer is gone
     (a process killed mid-write, by SIGKILL or the OOM killer, leaves one); the paths removed.
-    Those of a running process (its id is in the name) are kept."""
+    Those of a running process (its id is in the name) are kept.
+
+    Parameters
+    ----------
+    folder : str or path
+
+    Returns
+    -------
+    list of Path
+        The files removed.
+    """
     removed = []
     for entry in os.scandir(folder):
         match = _PARTIAL_NAME.match(entry.name)
@@ -472,6 +493,15 @@ def read_record(path: PathLike):
         If ``path`` does not exist.
     ValueError
         If the file is not a response record.
+
+    Parameters
+    ----------
+    path : str or path
+        The ``.npz`` file.
+
+    Returns
+    -------
+    dopplertof.design.Record
     """
     from .design.record import Record
 

@@ -82,6 +82,10 @@ def load_scene(source, *, film_resolution=None, **params) -> DynamicScene:
         A name the file (with its includes) neither declares nor uses is a SceneError
         listing the names it has.
 
+    Returns
+    -------
+    DynamicScene
+
     Raises
     ------
     SceneError (a ValueError)

@@ -173,7 +173,12 @@ class Camera:
 
     def as_dict(self) -> dict:
         """The parameters of a :class:`Camera` (a :class:`~dopplertof.RawFrame`'s too),
-        JSON-friendly; ``Camera(**camera.as_dict())`` is the same camera."""
+        JSON-friendly; ``Camera(**camera.as_dict())`` is the same camera.
+
+        Returns
+        -------
+        dict
+        """
         from dataclasses import fields
 
         out = {f.name: getattr(self, f.name) for f in fields(Camera)}
@@ -224,13 +229,29 @@ class Camera:
 
     def label(self) -> str:
         """Short text naming this camera in file names and tables, e.g. ``h=1,psi=1.5708``
-        (with ``,start=…`` in s when it has an ``exposure_start``)."""
+        (with ``,start=…`` in s when it has an ``exposure_start``).
+
+        Returns
+        -------
+        str
+        """
         start = "" if self.exposure_start is None else f",start={self.exposure_start:g}"
         return f"h={self.heterodyne:g},psi={self.phase:g}{start}"
 
     def window(self, default_start_s: float = 0.0) -> tuple[float, float]:
         """(start, length) of its exposure window (s); ``default_start_s`` where
-        ``exposure_start`` is None (a render's: its ``exposure_start``)."""
+        ``exposure_start`` is None (a render's: its ``exposure_start``).
+
+        Parameters
+        ----------
+        default_start_s : float, s, default 0
+            The start where ``exposure_start`` is None.
+
+        Returns
+        -------
+        tuple of (float, float)
+            Seconds.
+        """
         start = default_start_s if self.exposure_start is None else self.exposure_start
         return float(start), self.exposure
 
@@ -245,6 +266,22 @@ class Camera:
         given as text (as in a scene file), parsed strictly: a boolean is ``true``/``false``
         (``yes``/``no``, ``1``/``0``, ``on``/``off``), anything else is a ValueError naming
         the key.
+
+        Parameters
+        ----------
+        params : dict
+            The original parameter names and values.
+        where : str, default ``"integrator"``
+            Where the values come from, named in errors (a file's element).
+
+        Returns
+        -------
+        Camera
+
+        Raises
+        ------
+        ValueError
+            A value that does not parse or is out of range, naming the key.
         """
         from .validation import checked_or_text
 

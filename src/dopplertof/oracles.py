@@ -114,7 +114,26 @@ def moving_plane_measurement_mean(camera, speed_m_s, nodes_xy=48, time_panels=64
 def moving_plane_measurement_pixels(camera, speed_m_s, resolution, nodes_per_pixel=6, time_panels=64, time_order=8):
     """Exact per-pixel values (resolution × resolution) of the moving plane's direct-light
     measurement with a box filter: Gauss-Legendre over each pixel and the exposure (see
-    :func:`moving_plane_measurement_mean` for the parameters)."""
+    :func:`moving_plane_measurement_mean` for the parameters).
+
+    Parameters
+    ----------
+    camera : dopplertof.Camera
+        As for :func:`moving_plane_measurement_mean`.
+    speed_m_s : float, m/s
+        Receding speed of the plane.
+    resolution : int
+        Film size in pixels (square).
+    nodes_per_pixel : int, default 6
+        Gauss-Legendre nodes per pixel along each film axis.
+    time_panels, time_order : int, default 64 and 8
+        Composite Gauss-Legendre over the exposure (:func:`moving_plane_measurement_mean`).
+
+    Returns
+    -------
+    ndarray
+        (resolution, resolution) float64, in the units of ``RenderResult.measurements``.
+    """
     from .modulation import lowpass_weight
 
     tau = math.tan(math.radians(PLANE_FOV_DEG) / 2)

@@ -24,7 +24,27 @@ from dataclasses import dataclass
 class Output:
     """One output of a render: its name, its kind (estimate, truth, coverage or label), its
     channels, unit and meaning, the name of its standard error and of its preview kind.
-    :data:`OUTPUTS` lists them, once for the kernel, the writers, the plugin and the caches."""
+    :data:`OUTPUTS` lists them, once for the kernel, the writers, the plugin and the caches.
+
+    Parameters
+    ----------
+    name : str
+        The file and attribute name (``intensity``, ``velocity``, …).
+    kind : str
+        ``estimate``, ``truth``, ``coverage`` or ``label``.
+    channels : int or str
+        An int, ``"color"`` (3 in RGB variants, 1 in mono) or ``"cameras"`` (one image each).
+    unit : str
+        The unit of its values.
+    meaning : str
+        One line for tables and file headers.
+    stderr_name : str or None, default None
+        The name of its standard error (estimates only).
+    components : tuple of str, default ()
+        Names of the channels of a multi-channel truth map.
+    preview : str or None, default None
+        ``intensity``, ``signed``, ``velocity`` or ``labels``: how its PNG is drawn.
+    """
     name: str
     kind: str  # estimate | truth | coverage | label
     channels: object  # int, "color" (3 in RGB variants, 1 in mono) or "cameras" (one image each)
@@ -36,7 +56,19 @@ class Output:
 
     def n_channels(self, color_channels: int, n_cameras: int) -> int:
         """How many channels this output has in a render with ``color_channels`` colour
-        channels (3 in RGB variants, 1 in mono) and ``n_cameras`` cameras."""
+        channels (3 in RGB variants, 1 in mono) and ``n_cameras`` cameras.
+
+        Parameters
+        ----------
+        color_channels : int
+            3 in RGB variants, 1 in mono.
+        n_cameras : int
+            Cameras of the render.
+
+        Returns
+        -------
+        int
+        """
         return {"color": color_channels, "cameras": n_cameras}.get(self.channels, self.channels)
 
 

@@ -76,6 +76,24 @@ class RenderResult:
     *reference* window, the first camera's (``settings.windows[0]``). ``cameras`` are the
     rendered cameras with their window's ``exposure_start`` filled in.
 
+    Parameters
+    ----------
+    maps : dict
+        Name → array, as above.
+    settings : RenderSettings
+        The settings rendered.
+    spp : int
+        Paths per pixel done (less than asked where interrupted).
+    interrupted : bool, default False
+        The render stopped early (``stop``, a signal).
+    info : dict, default {}
+        Render time (s), passes, executor, exposure windows ``[[start, T], …]`` (s).
+    sensor : Sensor or None, default None
+        The sensor rendered (``render(..., sensor=)``); its frames' electrons are
+        ``maps["raw"]``.
+    record : dopplertof.design.Record or None, default None
+        The scene's response record (``render(..., record=True)``).
+
     Examples
     --------
     >>> import dopplertof as dt

@@ -365,16 +365,28 @@ def _opaque(array):
 class DynamicScene:
     """Static scene + moving bodies. Build with :func:`dopplertof.load_scene`.
 
-    =============  ========  ============================================================
-    static         mi.Scene  sensor, static emitters and static shapes
-    bodies         list      :class:`Body` per rigid motion
-    camera_motion  Motion    the sensor's motion (None: static), applied on top of its
-                             ``to_world``
-    lights         list      :class:`~dopplertof.lights.MovingLight` per moving point or
-                             spot emitter
-    traversal      str       how a ray finds the bodies it hits (module docstring):
-                             ``"auto"`` (default), ``"per-body"`` or ``"tree"``
-    =============  ========  ============================================================
+    =================  ========  ============================================================
+    static             mi.Scene  sensor, static emitters and static shapes
+    bodies             list      :class:`Body` per rigid motion
+    integrator_params  dict      the file's ``<integrator>`` parameters (default none)
+    spp_hint           int       the file's sampler ``sample_count`` (None: none given)
+    source             str       where it was loaded from (a path; ``"<dict>"`` by default)
+    traversal          str       how a ray finds the bodies it hits (module docstring):
+                                 ``"auto"`` (default), ``"per-body"`` or ``"tree"``
+    camera_motion      Motion    the sensor's motion (None: static), applied on top of its
+                                 ``to_world``
+    lights             list      :class:`~dopplertof.lights.MovingLight` per moving point or
+                                 spot emitter
+    recipe             tuple     how to build it again elsewhere
+                                 (:func:`dopplertof.scenes.from_recipe`); None: from a dict
+    pipeline_host      object    the never-traced scene whose OptiX pipeline and SBT the
+                                 others share (:mod:`dopplertof.loader`); None without bodies
+    =================  ========  ============================================================
+
+    Raises
+    ------
+    ValueError
+        An unknown ``traversal``.
 
     Examples
     --------
@@ -444,7 +456,13 @@ class DynamicScene:
 
     def set_time_window(self, t0: float, t1: float):
         """Fit every body's swept bounds to the times [t0, t1] s (the exposure): rays
-        whose times lie outside the window may then miss bodies that are there."""
+        whose times lie outside the window may then miss bodies that are there.
+
+        Parameters
+        ----------
+        t0, t1 : float, s
+            The window.
+        """
         if not (np.isfinite(t0) and np.isfinite(t1) and t0 <= t1):
             raise ValueError(f"time window must be finite with t0 <= t1, got [{t0!r}, {t1!r}] s")
         self._fit_bounds(t0, t1)
@@ -453,7 +471,12 @@ class DynamicScene:
         """Whether ray queries walk the tree of swept boxes (see ``traversal``). Never on
         CUDA: the tree traces inside ``dr.switch``, which OptiX compiles to direct
         callables, from which tracing is not sanctioned (gpu-notes §2.2); ``"tree"`` is
-        refused there and ``"auto"`` takes the per-body loop."""
+        refused there and ``"auto"`` takes the per-body loop.
+
+        Returns
+        -------
+        bool
+        """
         import mitsuba as mi
 
         if self.traversal not in TRAVERSALS:
@@ -487,7 +510,12 @@ class DynamicScene:
         return int(size[0]), int(size[1])
 
     def motions(self) -> list:
-        """Every motion of the scene: its bodies', its camera's and its moving lights'."""
+        """Every motion of the scene: its bodies', its camera's and its moving lights'.
+
+        Returns
+        -------
+        list of Motion
+        """
         camera = [] if self.camera_motion is None else [self.camera_motion]
         return [b.motion for b in self.bodies] + camera + [light.motion for light in self.lights]
 
@@ -505,14 +533,38 @@ class DynamicScene:
 
     def camera_pose(self, time_s, precise: bool = False):
         """The camera's motion at per-lane times ``time_s`` (a :class:`~dopplertof.motion.Pose`
-        mapping the sensor's rest frame to the world), None for a static camera."""
+        mapping the sensor's rest frame to the world), None for a static camera.
+
+        Parameters
+        ----------
+        time_s : mi.Float64
+            Per-lane times, s.
+        precise : bool, default False
+            Evaluate in Float64 (for optical lengths).
+
+        Returns
+        -------
+        Pose or None
+        """
         return None if self.camera_motion is None else self.camera_motion.pose(time_s, precise)
 
     def poses(self, time_s, precise: bool = False):
         """Pose of every body at per-lane times ``time_s`` (mi.Float64, s): a list up to
         :data:`LISTED_POSES_MAX_BODIES` bodies (each lane selects among them), above that a
         :class:`LanePoses`, evaluated per lane for the body asked for (a lane's K-way select
-        grows with K, a table lookup does not)."""
+        grows with K, a table lookup does not).
+
+        Parameters
+        ----------
+        time_s : mi.Float64
+            Per-lane times, s.
+        precise : bool, default False
+            Evaluate in Float64 (for optical lengths).
+
+        Returns
+        -------
+        list of Pose or LanePoses
+        """
         import mitsuba as mi
 
         if len(self.bodies) > LISTED_POSES_MAX_BODIES:
@@ -540,7 +592,24 @@ class DynamicScene:
         return mi.Ray3f(pose.point_to_local(ray.o), pose.vector_to_local(ray.d), maxt, ray.time, ray.wavelengths)
 
     def intersect(self, ray, time_s, active=True, poses=None, coherent=False):
-        """Closest hit of world-space ``ray`` at per-lane times; returns a :class:`Hit`."""
+        """Closest hit of world-space ``ray`` at per-lane times; returns a :class:`Hit`.
+
+        Parameters
+        ----------
+        ray : mi.Ray3f
+            World space.
+        time_s : mi.Float64
+            Per-lane times, s.
+        active : bool or mi.Bool, default True
+        poses : list of Pose, LanePoses or None, default None
+            :meth:`poses` at ``time_s``, where the caller has them.
+        coherent : bool, default False
+            A hint for Embree (camera rays).
+
+        Returns
+        -------
+        Hit
+        """
         import drjit as dr
         import mitsuba as mi
 
@@ -575,7 +644,22 @@ class DynamicScene:
         return Hit(si=si, body=body_index, p_local=p_local, n_local=n_local, plane_local=plane_local)
 
     def occluded(self, ray, time_s, active=True, poses=None):
-        """True where world-space ``ray`` (up to ``ray.maxt``) is blocked at its lane's time."""
+        """True where world-space ``ray`` (up to ``ray.maxt``) is blocked at its lane's time.
+
+        Parameters
+        ----------
+        ray : mi.Ray3f
+            World space.
+        time_s : mi.Float64
+            Per-lane times, s.
+        active : bool or mi.Bool, default True
+        poses : list of Pose, LanePoses or None, default None
+            :meth:`poses` at ``time_s``, where the caller has them.
+
+        Returns
+        -------
+        mi.Bool
+        """
         import mitsuba as mi
 
         active = mi.Bool(active)
@@ -726,7 +810,19 @@ class DynamicScene:
 
     # ------------------------------------------------------------------------------------
     def select_pose(self, poses, body_index):
-        """Per-lane pose of the body ``body_index`` (identity for 0 = static)."""
+        """Per-lane pose of the body ``body_index`` (identity for 0 = static).
+
+        Parameters
+        ----------
+        poses : list of Pose or LanePoses
+            :meth:`poses`.
+        body_index : mi.UInt32
+            Per-lane body (0: static).
+
+        Returns
+        -------
+        Pose
+        """
         import drjit as dr
         import mitsuba as mi
 
@@ -753,6 +849,22 @@ class DynamicScene:
         """Move surface points of ``body_index`` from ``time_from_s`` to ``time_to_s``.
 
         The body-local point is kept: ``x' = M(t') M(t)⁻¹ x`` (static points do not move).
+
+        Parameters
+        ----------
+        p_world : mi.Point3f or mi.Point3d
+            World-space points at ``time_from_s``.
+        body_index : mi.UInt32
+            Per-lane body (0: static).
+        time_from_s, time_to_s : mi.Float64
+            Per-lane times, s.
+        poses_from, poses_to : list of Pose, LanePoses or None, default None
+            :meth:`poses` at those times, where the caller has them.
+
+        Returns
+        -------
+        mi.Point3f or mi.Point3d
+            The points at ``time_to_s``.
         """
         if not self.bodies:
             return p_world
@@ -762,7 +874,23 @@ class DynamicScene:
         return self.select_pose(poses_to, body_index).point_to_world(p_local)
 
     def surface_velocity(self, p_world, body_index, time_s, poses=None):
-        """World-space velocity (m/s) of the surface point ``p_world`` of ``body_index``."""
+        """World-space velocity (m/s) of the surface point ``p_world`` of ``body_index``.
+
+        Parameters
+        ----------
+        p_world : mi.Point3f
+        body_index : mi.UInt32
+            Per-lane body (0: static).
+        time_s : mi.Float64
+            Per-lane times, s.
+        poses : list of Pose, LanePoses or None, default None
+            :meth:`poses` at ``time_s``, where the caller has them.
+
+        Returns
+        -------
+        mi.Vector3f
+            m/s.
+        """
         import mitsuba as mi
 
         if not self.bodies:

@@ -281,7 +281,18 @@ def _rotating_clip(radius, rim_speed, **_):
 
 
 def fall_time(drop_height, gravity=STANDARD_GRAVITY_M_S2):
-    """Time (s) to fall ``drop_height`` m from rest under ``gravity`` m/s²."""
+    """Time (s) to fall ``drop_height`` m from rest under ``gravity`` m/s².
+
+    Parameters
+    ----------
+    drop_height : float, m
+    gravity : float, m/s², default 9.81
+
+    Returns
+    -------
+    float
+        Seconds.
+    """
     return math.sqrt(2.0 * _positive("drop_height", drop_height) / _positive("gravity", gravity))
 
 
@@ -429,8 +440,31 @@ def domino_chain(count=10, height=0.5, thickness=0.08, spacing=0.3, push=3.0, gr
     (:func:`_free_fall`), but never into the next one: it stops where it leans on it
     (``_contact_angle`` of the next one's angle at the same time); the last one falls flat.
 
-    Returns ``(times, angles)``: times (N,) s from 0 to when the chain is at rest, and
-    angles (count, N) rad, each row non-decreasing.
+    Parameters
+    ----------
+    count : int, default 10
+        Dominoes, > 0.
+    height, thickness : float, m, default 0.5 and 0.08
+        Size of a domino.
+    spacing : float, m, default 0.3
+        Distance between neighbours: more than ``thickness``, less than ``height``.
+    push : float, rad/s, default 3
+        Angular velocity given to domino 0 at t = 0.
+    gravity : float, m/s², default 9.81
+    dt : float, s, default 0.002
+        Time step of the grid.
+
+    Returns
+    -------
+    tuple of (ndarray, ndarray)
+        ``(times, angles)``: times (N,) s from 0 to when the chain is at rest, and angles
+        (count, N) rad, each row non-decreasing.
+
+    Raises
+    ------
+    ValueError
+        A ``count`` that is not a positive integer, or a ``spacing`` with which the
+        dominoes overlap or cannot knock each other over.
     """
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise ValueError(f"count must be a positive integer, got {count!r}")
@@ -784,7 +818,26 @@ def _check_name(name):
 
 
 def build(name: str, **kwargs):
-    """Build the built-in scene ``name`` (see ``SCENES``)."""
+    """Build the built-in scene ``name`` (see ``SCENES``).
+
+    Parameters
+    ----------
+    name : str
+        A key of ``SCENES``.
+    **kwargs
+        The builder's keyword arguments (``resolution`` and the scene's own).
+
+    Returns
+    -------
+    DynamicScene
+
+    Raises
+    ------
+    ValueError
+        An unknown ``name`` or a value out of range.
+    TypeError
+        A keyword argument the builder does not take.
+    """
     _check_name(name)
     scene = SCENES[name][0](**kwargs)
     scene.recipe = ("builtin", name, kwargs)
@@ -794,7 +847,22 @@ def build(name: str, **kwargs):
 def from_recipe(recipe: tuple):
     """The scene a :attr:`DynamicScene.recipe <dopplertof.scene.DynamicScene>` describes,
     built again (a Ray worker's copy): ``("builtin", name, kwargs)`` by :func:`build`,
-    ``("file", path, params, film_resolution)`` by :func:`dopplertof.load_scene`."""
+    ``("file", path, params, film_resolution)`` by :func:`dopplertof.load_scene`.
+
+    Parameters
+    ----------
+    recipe : tuple
+        As above.
+
+    Returns
+    -------
+    DynamicScene
+
+    Raises
+    ------
+    ValueError
+        An unknown recipe.
+    """
     from .loader import load_scene
 
     kind, *args = recipe
@@ -814,6 +882,23 @@ def clip_duration(name: str, **kwargs) -> float:
     accepted and ignored); the cornell boxes move only during their exposure (1.5 ms), the
     merry-go-round's clip is one revolution, the falling box's its fall, the dominoes' the
     time until the chain is at rest, the glossy scene's 2 m of rolling.
+
+    Parameters
+    ----------
+    name : str
+        A key of ``SCENES``.
+    **kwargs
+        As above.
+
+    Returns
+    -------
+    float
+        Seconds.
+
+    Raises
+    ------
+    ValueError
+        An unknown ``name`` or a parameter the scene does not take.
     """
     _check_name(name)
     params = inspect.signature(SCENES[name][0]).parameters
@@ -831,7 +916,21 @@ def clip_duration(name: str, **kwargs) -> float:
 
 
 def parse_resolution(text):
-    """``"N"`` (or an int) → N, square; ``"WxH"`` → (W, H); None stays None."""
+    """``"N"`` (or an int) → N, square; ``"WxH"`` → (W, H); None stays None.
+
+    Parameters
+    ----------
+    text : str, int or None
+
+    Returns
+    -------
+    int, tuple of (int, int) or None
+
+    Raises
+    ------
+    ValueError
+        Anything but N or WxH of positive integers.
+    """
     if text is None:
         return None
     try:
@@ -844,7 +943,22 @@ def parse_resolution(text):
 
 
 def parse_defines(items) -> dict:
-    """``-D name=value`` options as ``{name: value}``."""
+    """``-D name=value`` options as ``{name: value}``.
+
+    Parameters
+    ----------
+    items : iterable of str
+        ``"name=value"`` strings.
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    ValueError
+        An item that is not ``name=value`` with a name of letters, digits and ``_``.
+    """
     out = {}
     for item in items:
         name, sep, value = item.partition("=")
@@ -855,9 +969,28 @@ def parse_defines(items) -> dict:
 
 
 def open_scene(scene_arg: str, resolution=None, defines=()):
-    """A scene by built-in name or XML file path, as the commands take it: ``resolution``
-    (N or "WxH") replaces the film size, ``defines`` (``"name=value"`` strings) set a
-    file's ``$name`` values. ValueError (or SceneError) for anything unusable."""
+    """A scene by built-in name or XML file path, as the commands take it.
+
+    Parameters
+    ----------
+    scene_arg : str
+        A built-in scene name or an XML file path.
+    resolution : int, str or None, default None
+        N or ``"WxH"``: replaces the film size (built-in scenes: N only).
+    defines : iterable of str, default ()
+        ``"name=value"`` strings that set a file's ``$name`` values (files only).
+
+    Returns
+    -------
+    DynamicScene
+
+    Raises
+    ------
+    ValueError
+        No such file or scene, a bad ``resolution`` or ``defines``.
+    SceneError
+        A file that does not load.
+    """
     from .loader import load_scene
 
     size, params = parse_resolution(resolution), parse_defines(defines)

@@ -277,6 +277,15 @@ class SensorModel:
         Shot noise of both taps (their sum, κT g0 I + 2qT), read noise of both taps and the
         uniform quantisation noise (gain²/12 per tap); saturation and clipping ignored.
 
+        Parameters
+        ----------
+        intensity : array_like
+            The intensity (rendered radiance units) of the pixels.
+        measurement : array_like
+            Their D-ToF measurement (same units), broadcast with ``intensity``.
+        camera : Camera
+            Its exposure T and g₀.
+
         Returns
         -------
         ndarray, broadcast shape

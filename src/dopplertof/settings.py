@@ -95,6 +95,23 @@ class RenderSettings:
 
         A layer that gives a setting drops the earlier layers' values of the settings that
         follow it (module docstring). Unknown names are a ValueError naming them.
+
+        Parameters
+        ----------
+        *layers : dict
+            Setting name → value, later layers winning.
+        where : str, default ""
+            Where the values come from (a file), named in errors.
+
+        Returns
+        -------
+        RenderSettings
+
+        Raises
+        ------
+        ValueError
+            An unknown name, a value of the wrong type or out of range, or settings that
+            contradict each other (naming the setting, after ``where``).
         """
         merged: dict = {}
         for layer in layers:
@@ -112,12 +129,32 @@ class RenderSettings:
             raise ValueError(f"{where}: {exc}" if where else str(exc)) from None
 
     def replace(self, **changes) -> "RenderSettings":
-        """A copy with ``changes`` applied as a new layer (dependent settings follow)."""
+        """A copy with ``changes`` applied as a new layer (dependent settings follow).
+
+        Parameters
+        ----------
+        **changes
+            Setting name → value.
+
+        Returns
+        -------
+        RenderSettings
+
+        Raises
+        ------
+        ValueError
+            As for :meth:`build`.
+        """
         given = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if getattr(self, f.name) != f.default}
         return RenderSettings.build(given, changes)
 
     def as_dict(self) -> dict:
-        """JSON-friendly values (cameras as dicts)."""
+        """JSON-friendly values (cameras as dicts).
+
+        Returns
+        -------
+        dict
+        """
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         out["cameras"] = [c.as_dict() for c in self.cameras]
         return out
@@ -224,7 +261,12 @@ class RenderSettings:
 
     @staticmethod
     def table() -> list[tuple[str, str, str, str]]:
-        """(name, unit, default, meaning) of every setting, for help texts and the README."""
+        """(name, unit, default, meaning) of every setting, for help texts and the README.
+
+        Returns
+        -------
+        list of tuple of (str, str, str, str)
+        """
         return [(name, f.metadata["unit"], repr(f.default), f.metadata["doc"]) for name, f in FIELDS.items()]
 
 
@@ -262,7 +304,19 @@ RenderSettings.__doc__ = f"""{RenderSettings.__doc__}
 @dataclass(frozen=True)
 class Window:
     """One exposure window of a capture schedule (:attr:`RenderSettings.windows`): its
-    cameras share paths, traced at times in [start_s, start_s + exposure_s]."""
+    cameras share paths, traced at times in [start_s, start_s + exposure_s].
+
+    Parameters
+    ----------
+    start_s : float, s
+        When the window opens.
+    exposure_s : float, s
+        Its length T.
+    cameras : tuple of Camera
+        Its cameras.
+    indices : tuple of int
+        Their positions in the render's ``cameras``.
+    """
 
     start_s: float
     exposure_s: float
@@ -299,6 +353,16 @@ def checked_checkpoint_interval(value) -> float:
         A checkpoint is written after the first pass that ends at least this long after
         the previous one (0: after every pass). Default
         :data:`DEFAULT_CHECKPOINT_INTERVAL_S` (60 s).
+
+    Returns
+    -------
+    float
+        Seconds.
+
+    Raises
+    ------
+    ValueError
+        Not a finite number >= 0.
     """
     seconds = checked("checkpoint_interval_s", value, "float")
     if seconds < 0:
@@ -358,6 +422,24 @@ def integrator_layer(params: dict, where: str = "integrator") -> dict:
     (:data:`STOCK_PATH_INTEGRATORS`) gives ``max_depth``, ``rr_depth``,
     ``hide_emitters`` and nothing else: D-ToF keys on it are an error naming them. Any
     other integrator type is an error.
+
+    Parameters
+    ----------
+    params : dict
+        The ``<integrator>``'s parameters, with ``"type"``; values may be text.
+    where : str, default ``"integrator"``
+        Where they come from, named in errors.
+
+    Returns
+    -------
+    dict
+        A settings layer.
+
+    Raises
+    ------
+    ValueError
+        An unknown or contradictory key, a value that does not parse, or an integrator
+        type other than D-ToF or stock path tracing.
     """
     params = dict(params)
     kind = params.pop("type", PLUGIN_NAMES[0])
@@ -423,6 +505,14 @@ def float32_decimal(value) -> float:
 
     Mitsuba keeps shutter times in float32; read back as they are, a file's 0.0015 s
     would be 0.001500000013 s.
+
+    Parameters
+    ----------
+    value : float
+
+    Returns
+    -------
+    float
     """
     return float(str(np.float32(value)))
 
@@ -432,7 +522,17 @@ def scene_camera(layer: dict) -> Camera:
     camera, else the default camera with the layer's exposure (the sensor's shutter).
 
     The base of the camera sets that ``animate`` and the experiments make when the caller
-    gives none."""
+    gives none.
+
+    Parameters
+    ----------
+    layer : dict
+        A settings layer (:func:`scene_layer`).
+
+    Returns
+    -------
+    Camera
+    """
     if layer.get("cameras"):
         return layer["cameras"][0]
     return Camera() if layer.get("exposure") is None else Camera(exposure=layer["exposure"])
@@ -445,6 +545,23 @@ def scene_layer(scene, where: str | None = None) -> dict:
     A shutter interval (``shutter_open``, ``shutter_close``) is the exposure window: it
     sets ``exposure_start`` and T; an ``<integrator>`` exposure that contradicts it is an
     error.
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    where : str or None, default None
+        Where the scene comes from (its file), named in errors.
+
+    Returns
+    -------
+    dict
+        A settings layer.
+
+    Raises
+    ------
+    ValueError
+        An ``<integrator>`` that contradicts the shutter, or bad ``<integrator>``
+        parameters (:func:`integrator_layer`).
     """
     where = where or f"{scene.source}"
     layer = integrator_layer(scene.integrator_params, f"{where}: <integrator>") if scene.integrator_params else {}

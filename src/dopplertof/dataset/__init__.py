@@ -17,8 +17,27 @@ open = open_dataset  # noqa: A001 - dopplertof.dataset.open(DIR), as the issue n
 
 
 def info(folder, **kwargs):
-    """Summary statistics and a contact sheet (see :func:`dopplertof.dataset.info.summarize`)."""
-    from .info import summarize
+    """Summary statistics and a contact sheet (see :func:`dopplertof.dataset.summary.summarize`).
+
+    Parameters
+    ----------
+    folder : str or path
+        Dataset folder.
+    **kwargs
+        ``sheet`` (PNG path, default none), ``sheet_samples`` (int, default 4) and
+        ``max_samples`` (int, default all) of :func:`~dopplertof.dataset.summary.summarize`.
+
+    Returns
+    -------
+    dict
+        ``lines`` (the printable report) and ``stats`` (the numbers).
+
+    Raises
+    ------
+    ValueError
+        ``folder`` holds no dataset.
+    """
+    from .summary import summarize
 
     return summarize(folder, **kwargs)
 

@@ -113,7 +113,7 @@ def verify_command(folder):
 @click.option("--max-samples", type=int, default=None, help="Summarise only the first N samples.")
 def info_command(folder, sheet, sheet_samples, max_samples):
     """Counts, ranges and histograms of the ground truth, and a contact sheet."""
-    from .info import summarize
+    from .summary import summarize
 
     if sheet is None:
         sheet = os.path.join(folder, "contact_sheet.png")

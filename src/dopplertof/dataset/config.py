@@ -50,7 +50,25 @@ MAX_RAW_ADC_BITS = 16  # raw taps are stored as uint16
 @dataclass(frozen=True)
 class Param:
     """One configuration key: dotted ``key`` (section.name), ``default``, ``unit``, ``doc``,
-    ``kind`` (see the module docstring), ``choices`` and ``minimum`` where they apply."""
+    ``kind`` (see the module docstring), ``choices`` and ``minimum`` where they apply.
+
+    Parameters
+    ----------
+    key : str
+        ``section.name``.
+    default : object
+        The default value.
+    unit : str
+        Its unit ("" where none).
+    doc : str
+        One line of meaning.
+    kind : str
+        How it is validated (module docstring).
+    choices : tuple, default ()
+        The allowed values, where there is a list.
+    minimum : float or None, default None
+        The smallest allowed value, where there is one.
+    """
 
     key: str
     default: object
@@ -160,7 +178,12 @@ def _toml_value(value) -> str:
 
 
 def default_toml() -> str:
-    """The default configuration as a commented TOML document (``dataset config --print``)."""
+    """The default configuration as a commented TOML document (``dataset config --print``).
+
+    Returns
+    -------
+    str
+    """
     lines = [
         "# dopplertof dataset configuration: the defaults. A file passed with --config may set",
         "# any subset of these keys; an unknown key is an error. [min, max] ranges are drawn",
@@ -177,7 +200,12 @@ def default_toml() -> str:
 
 
 def markdown_table() -> str:
-    """The configuration keys as a Markdown table (key, default, unit, meaning)."""
+    """The configuration keys as a Markdown table (key, default, unit, meaning).
+
+    Returns
+    -------
+    str
+    """
     rows = ["| key | default | unit | meaning |", "|---|---|---|---|"]
     for p in PARAMETERS:
         rows.append(f"| `{p.key}` | `{_toml_value(p.default)}` | {p.unit} | {p.doc.replace('|', '/')} |")
@@ -185,7 +213,12 @@ def markdown_table() -> str:
 
 
 def defaults() -> dict:
-    """The default configuration as a nested dict ``{section: {name: value}}``."""
+    """The default configuration as a nested dict ``{section: {name: value}}``.
+
+    Returns
+    -------
+    dict
+    """
     out: dict = {}
     for p in PARAMETERS:
         sec, name = p.key.split(".", 1)
@@ -380,6 +413,18 @@ def load_config(path: str | os.PathLike | None = None, overrides: dict | None = 
     """The validated configuration: the defaults, then the TOML file ``path``, then
     ``overrides`` (``{section: {name: value}}``, e.g. from command-line options).
 
+    Parameters
+    ----------
+    path : str, path or None, default None
+        A TOML file; None: the defaults only.
+    overrides : dict or None, default None
+        ``{section: {name: value}}``, applied last.
+
+    Returns
+    -------
+    dict
+        ``{section: {name: value}}``, every key present.
+
     Raises
     ------
     ValueError
@@ -408,7 +453,26 @@ def load_config(path: str | os.PathLike | None = None, overrides: dict | None = 
 
 
 def draw(rng: np.random.Generator, config: dict, key: str):
-    """One value of the range (or weights) ``key`` (``section.name``) drawn with ``rng``."""
+    """One value of the range (or weights) ``key`` (``section.name``) drawn with ``rng``.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    config : dict
+        A validated configuration (:func:`load_config`).
+    key : str
+        ``section.name`` of a range or weights.
+
+    Returns
+    -------
+    float, int or str
+        A value of the range (an int for an integer range), or a name drawn by the weights.
+
+    Raises
+    ------
+    ValueError
+        ``key`` is not a distribution.
+    """
     p = _BY_KEY[key]
     sec, name = key.split(".", 1)
     value = config[sec][name]
@@ -424,7 +488,18 @@ def draw(rng: np.random.Generator, config: dict, key: str):
 
 
 def choose(rng: np.random.Generator, weights: dict) -> str:
-    """A name drawn from ``{name: weight}`` (weights need not sum to 1)."""
+    """A name drawn from ``{name: weight}`` (weights need not sum to 1).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    weights : dict
+        Name → weight ≥ 0, not all 0.
+
+    Returns
+    -------
+    str
+    """
     names = list(weights)
     w = np.array([weights[n] for n in names], dtype=np.float64)
     return names[int(rng.choice(len(names), p=w / w.sum()))]

@@ -47,12 +47,19 @@ def _fault(job: dict) -> None:
 def render_shard(job: dict) -> dict:
     """Render and write one shard (runs in a worker).
 
-    ``job``: ``folder``, ``index``, ``first``, ``count``, ``config``, ``seed``, ``variant``,
-    ``fields``, and optionally ``threads`` (Dr.Jit threads), ``fault`` (test hook).
-    Returns ``{"record": shard record, "seconds": {...}, "pid": …}``: wall seconds of
-    ``startup`` (imports and backend start: in a fresh worker, once), then per phase summed
-    over the shard's samples (``record``, ``scene``, ``render``, ``sensor``, ``write``) and
-    their ``total`` (start-up excluded).
+    Parameters
+    ----------
+    job : dict
+        ``folder``, ``index``, ``first``, ``count``, ``config``, ``seed``, ``variant``,
+        ``fields``, and optionally ``threads`` (Dr.Jit threads), ``fault`` (test hook).
+
+    Returns
+    -------
+    dict
+        ``{"record": shard record, "seconds": {...}, "pid": …}``: wall seconds of
+        ``startup`` (imports and backend start: in a fresh worker, once), then per phase
+        summed over the shard's samples (``record``, ``scene``, ``render``, ``sensor``,
+        ``write``) and their ``total`` (start-up excluded).
     """
     _fault(job)
     t_start = time.perf_counter()
@@ -95,7 +102,24 @@ def _ignore_sigint():
 
 
 def run_local(jobs: list[dict], workers: int, on_done, max_retries: int = 3) -> None:
-    """Render ``jobs`` in this process (``workers == 1``) or in ``workers`` spawned processes."""
+    """Render ``jobs`` in this process (``workers == 1``) or in ``workers`` spawned processes.
+
+    Parameters
+    ----------
+    jobs : list of dict
+        One :func:`render_shard` job per shard.
+    workers : int
+        Processes; 1 renders in this process.
+    on_done : callable
+        Called in this process with each finished shard's :func:`render_shard` result.
+    max_retries : int, default 3
+        How often the shards of a worker that died are given to a new one.
+
+    Raises
+    ------
+    RuntimeError
+        A worker died more than ``max_retries`` times; the finished shards stay written.
+    """
     if workers == 1:
         for job in jobs:
             on_done(render_shard(job))
@@ -164,6 +188,19 @@ def run_ray(jobs: list[dict], on_done, address: str | None = None, max_retries: 
     Tasks (CPU): ``num_cpus=cpus_per_task``, each using that many Dr.Jit threads. With a
     ``cuda_*`` variant and GPUs in the cluster: one actor per GPU (``num_gpus=1``,
     restarted up to ``max_retries`` times), each kept busy with up to two shards.
+
+    Parameters
+    ----------
+    jobs : list of dict
+        One :func:`render_shard` job per shard.
+    on_done : callable
+        Called in the driver with each finished shard's :func:`render_shard` result.
+    address : str or None, default None
+        The Ray cluster.
+    max_retries : int, default 3
+        Retries of a task (or restarts of an actor) whose worker died.
+    cpus_per_task : int, default 1
+        CPUs (and Dr.Jit threads) of a CPU task.
     """
     ray = start_ray(address)
     variant = jobs[0]["variant"] if jobs else ""

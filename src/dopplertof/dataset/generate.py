@@ -28,7 +28,24 @@ def _positive_int(name, value, minimum=1):
 
 
 def parse_shard_range(text: str, total: int) -> range:
-    """Shard indices of ``"a:b"`` (b excluded; either end may be empty), within ``total``."""
+    """Shard indices of ``"a:b"`` (b excluded; either end may be empty), within ``total``.
+
+    Parameters
+    ----------
+    text : str
+        ``"a:b"``.
+    total : int
+        Shards of the dataset.
+
+    Returns
+    -------
+    range
+
+    Raises
+    ------
+    ValueError
+        Not ``a:b``, or outside ``0:total``.
+    """
     a, sep, b = str(text).partition(":")
     try:
         if not sep:
@@ -96,7 +113,25 @@ def _sigterm_as_interrupt():
 
 
 def header_for(cfg: dict, samples: int, seed: int, shard_size: int, variant: str) -> dict:
-    """The manifest's fixed part: identity, schema, record documentation."""
+    """The manifest's fixed part: identity, schema, record documentation.
+
+    Parameters
+    ----------
+    cfg : dict
+        The validated configuration.
+    samples : int
+        Samples of the dataset.
+    seed : int
+        The dataset's seed.
+    shard_size : int
+        Samples per shard.
+    variant : str
+        The Mitsuba variant rendered with.
+
+    Returns
+    -------
+    dict
+    """
     from .sample import versions
 
     from ..sensors.files import load_sensor, sensor_toml

@@ -390,7 +390,18 @@ def _shape(prim: dict) -> dict:
 
 def camera_rotation(camera: dict) -> np.ndarray:
     """The (3, 3) rotation from the camera frame (x left, y up, z forward) to the world at
-    t = 0 of a description's ``camera``: that of the sensor's ``look_at``, in float64."""
+    t = 0 of a description's ``camera``: that of the sensor's ``look_at``, in float64.
+
+    Parameters
+    ----------
+    camera : dict
+        A description's ``camera``.
+
+    Returns
+    -------
+    ndarray
+        (3, 3) float64.
+    """
     import mitsuba as mi
 
     look = mi.ScalarTransform4d().look_at(origin=camera["origin"], target=camera["target"], up=camera["up"])
@@ -399,7 +410,17 @@ def camera_rotation(camera: dict) -> np.ndarray:
 
 def camera_motion(camera: dict) -> dict | None:
     """The sensor's ``"motion"`` (a parametric dict) of a description's ``camera``; None for
-    a static camera (and for descriptions written before cameras moved)."""
+    a static camera (and for descriptions written before cameras moved).
+
+    Parameters
+    ----------
+    camera : dict
+        A description's ``camera``.
+
+    Returns
+    -------
+    dict or None
+    """
     linear = camera.get("linear_velocity_m_s", [0.0] * 3)
     angular = camera.get("angular_velocity_rad_s", [0.0] * 3)
     if not (any(linear) or any(angular)):
@@ -414,6 +435,17 @@ def scene_dict(description: dict, resolution: int) -> dict:
     (its position in the camera frame) and moves with it; a static camera's light is the
     same light placed in the world, which takes the renderer's static-emitter path (the
     renders of static cameras are those of the releases before ego-motion, bit for bit).
+
+    Parameters
+    ----------
+    description : dict
+        A scene description (a sample's record).
+    resolution : int
+        Film size in pixels (square).
+
+    Returns
+    -------
+    dict
     """
     import mitsuba as mi
 
@@ -448,6 +480,22 @@ def build_scene(description: dict, resolution: int):
     Body ``k`` of the description is ``scene.bodies[k]`` (its instance id); a ValueError
     says so if the loader grouped them otherwise. A moving camera is ``scene.camera_motion``
     and its light ``scene.lights[0]`` (see :func:`scene_dict`).
+
+    Parameters
+    ----------
+    description : dict
+        A scene description (a sample's record).
+    resolution : int
+        Film size in pixels (square).
+
+    Returns
+    -------
+    DynamicScene
+
+    Raises
+    ------
+    ValueError
+        The loader grouped the bodies otherwise than the description.
     """
     from ..loader import load_scene
 

@@ -22,7 +22,24 @@ from . import shards
 
 
 def decode_member(name: str, data: bytes):
-    """The value of a tar member: a numpy array (``.npy``) or the JSON record."""
+    """The value of a tar member: a numpy array (``.npy``) or the JSON record.
+
+    Parameters
+    ----------
+    name : str
+        The member's name (``<key>.<field>.npy`` or ``<key>.json``).
+    data : bytes
+        Its bytes.
+
+    Returns
+    -------
+    ndarray or dict
+
+    Raises
+    ------
+    ValueError
+        Neither ``.npy`` nor ``.json``.
+    """
     if name.endswith(".npy"):
         return np.load(io.BytesIO(data), allow_pickle=False)
     if name.endswith(".json"):
@@ -134,12 +151,40 @@ class Dataset:
 
 
 def open_dataset(folder) -> Dataset:
-    """Open the dataset in ``folder`` (see :class:`Dataset`); ``dopplertof.dataset.open``."""
+    """Open the dataset in ``folder`` (see :class:`Dataset`); ``dopplertof.dataset.open``.
+
+    Parameters
+    ----------
+    folder : str or path
+
+    Returns
+    -------
+    Dataset
+
+    Raises
+    ------
+    ValueError
+        ``folder`` holds no manifest.
+    """
     return Dataset(folder)
 
 
 def TorchDataset(dataset: Dataset):  # noqa: N802 - a class factory: torch is imported lazily
-    """A map-style ``torch.utils.data.Dataset`` of ``dataset`` (see :meth:`Dataset.torch`)."""
+    """A map-style ``torch.utils.data.Dataset`` of ``dataset`` (see :meth:`Dataset.torch`).
+
+    Parameters
+    ----------
+    dataset : Dataset
+
+    Returns
+    -------
+    torch.utils.data.Dataset
+
+    Raises
+    ------
+    ImportError
+        torch is not installed.
+    """
     try:
         import torch
         from torch.utils.data import Dataset as _TorchBase

@@ -29,14 +29,37 @@ _SEED_MASK = 0x7FFFFFFF  # render seeds are 31-bit non-negative integers
 
 def streams(seed: int, index: int) -> dict:
     """The independent ``SeedSequence`` streams of sample ``index`` of dataset ``seed``
-    (module docstring), by name."""
+    (module docstring), by name.
+
+    Parameters
+    ----------
+    seed : int
+        The dataset's seed.
+    index : int
+        The sample, from 0.
+
+    Returns
+    -------
+    dict
+        Name → ``numpy.random.SeedSequence``.
+    """
     root = np.random.SeedSequence(int(seed), spawn_key=(int(index),))
     return dict(zip(_STREAMS, root.spawn(len(_STREAMS))))
 
 
 def versions(variant: str) -> dict:
     """The versions a sample's bytes depend on: dopplertof, Mitsuba, Dr.Jit, numpy and the
-    Mitsuba ``variant`` (str) the sample is rendered with."""
+    Mitsuba ``variant`` (str) the sample is rendered with.
+
+    Parameters
+    ----------
+    variant : str
+        The Mitsuba variant.
+
+    Returns
+    -------
+    dict
+    """
     import drjit
     import mitsuba
 
@@ -47,7 +70,17 @@ def versions(variant: str) -> dict:
 
 
 def cameras_of(config: dict) -> list[dict]:
-    """The capture set of ``config`` as :class:`dopplertof.Camera` keyword dicts."""
+    """The capture set of ``config`` as :class:`dopplertof.Camera` keyword dicts.
+
+    Parameters
+    ----------
+    config : dict
+        The validated configuration.
+
+    Returns
+    -------
+    list of dict
+    """
     from ..modulation import Camera
 
     cam = config["camera"]
@@ -73,6 +106,11 @@ def make_record(config: dict, seed: int, index: int, variant: str) -> dict:
     variant : str
         Mitsuba variant the sample is rendered with (part of its identity: CPU and GPU
         backends round differently).
+
+    Returns
+    -------
+    dict
+        JSON-able.
     """
     s = streams(seed, index)
     scene = randomize.sample_scene(np.random.default_rng(s["scene"]), config)
@@ -184,7 +222,19 @@ def render_sensor_model(scene, record: dict) -> tuple[np.ndarray, np.ndarray, di
 
 def sensor_model(record: dict, intensity_luminance: np.ndarray):
     """The :class:`dopplertof.sensor.SensorModel` of a record, given the clean luminance:
-    both taps of the 99th-percentile pixel collect ``signal_electrons`` per exposure."""
+    both taps of the 99th-percentile pixel collect ``signal_electrons`` per exposure.
+
+    Parameters
+    ----------
+    record : dict
+        A sample's record (its ``sensor`` settings).
+    intensity_luminance : ndarray
+        (H, W) luminance of the noiseless intensity.
+
+    Returns
+    -------
+    SensorModel
+    """
     from ..sensor import SensorModel
 
     sen = record["sensor"]

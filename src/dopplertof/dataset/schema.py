@@ -21,7 +21,21 @@ FORMAT_VERSION = 1
 
 @dataclass(frozen=True)
 class Field:
-    """One array of a sample."""
+    """One array of a sample.
+
+    Parameters
+    ----------
+    name : str
+        The field (``<key>.<name>.npy``).
+    dtype : str
+        numpy dtype name.
+    shape : tuple
+        Shape template of ints and ``C``, ``H``, ``W`` (cameras, height, width).
+    unit : str
+    meaning : str
+    needs : str or None, default None
+        The :class:`~dopplertof.RenderResult` attribute it needs, if not always present.
+    """
 
     name: str
     dtype: str
@@ -131,7 +145,21 @@ def available_fields(n_cameras: int, sensor_model: bool = False) -> tuple[list[s
 
 def schema_table(fields, cameras: int, height: int, width: int, frames: int | None = None, taps: int | None = None) -> dict:
     """``{field: {dtype, shape, unit, meaning}}`` of the written ``fields`` (shapes as
-    :func:`resolve` fills them)."""
+    :func:`resolve` fills them).
+
+    Parameters
+    ----------
+    fields : iterable of str
+        Field names.
+    cameras, height, width : int
+        C, H and W.
+    frames, taps : int or None
+        F and K; None leaves the letter (samples whose sensors differ). Default None.
+
+    Returns
+    -------
+    dict
+    """
     return {
         name: {"dtype": BY_NAME[name].dtype, "shape": resolve(BY_NAME[name].shape, cameras, height, width, frames, taps),
                "unit": BY_NAME[name].unit, "meaning": BY_NAME[name].meaning}
@@ -140,7 +168,12 @@ def schema_table(fields, cameras: int, height: int, width: int, frames: int | No
 
 
 def markdown_table() -> str:
-    """The fields as a Markdown table (docs/datasets.md's)."""
+    """The fields as a Markdown table (docs/datasets.md's).
+
+    Returns
+    -------
+    str
+    """
     rows = ["| field | dtype | shape | unit | meaning |", "|---|---|---|---|---|"]
     for f in FIELDS:
         shape = "(" + ", ".join(str(s) for s in f.shape) + ")"

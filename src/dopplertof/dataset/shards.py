@@ -37,27 +37,78 @@ SHARD_PATTERN = "shard-{:06d}.tar"
 
 
 def shard_name(index: int) -> str:
-    """The file name of shard ``index``: ``shard-000003.tar``."""
+    """The file name of shard ``index``: ``shard-000003.tar``.
+
+    Parameters
+    ----------
+    index : int
+        The shard, from 0.
+
+    Returns
+    -------
+    str
+    """
     return SHARD_PATTERN.format(index)
 
 
 def sample_key(index: int) -> str:
-    """The WebDataset key of sample ``index``: ``sample-00000042``."""
+    """The WebDataset key of sample ``index``: ``sample-00000042``.
+
+    Parameters
+    ----------
+    index : int
+        The sample, from 0.
+
+    Returns
+    -------
+    str
+    """
     return f"sample-{index:08d}"
 
 
 def plan(samples: int, shard_size: int) -> list[tuple[int, int, int]]:
-    """Shards ``(shard index, first sample, number of samples)`` covering ``samples``."""
+    """Shards ``(shard index, first sample, number of samples)`` covering ``samples``.
+
+    Parameters
+    ----------
+    samples : int
+        Samples of the dataset.
+    shard_size : int
+        Samples per shard (the last shard may hold fewer).
+
+    Returns
+    -------
+    list of tuple of (int, int, int)
+    """
     return [(k, first, min(shard_size, samples - first)) for k, first in enumerate(range(0, samples, shard_size))]
 
 
 def dumps_json(obj) -> bytes:
-    """Canonical JSON (sorted keys, exact float repr, UTF-8, trailing newline)."""
+    """Canonical JSON (sorted keys, exact float repr, UTF-8, trailing newline).
+
+    Parameters
+    ----------
+    obj : JSON-able object
+
+    Returns
+    -------
+    bytes
+    """
     return (json.dumps(obj, sort_keys=True, indent=1, ensure_ascii=False, allow_nan=True) + "\n").encode("utf-8")
 
 
 def npy_bytes(array: np.ndarray) -> bytes:
-    """The ``.npy`` file of ``array`` (C order, no pickles), as bytes: a shard member."""
+    """The ``.npy`` file of ``array`` (C order, no pickles), as bytes: a shard member.
+
+    Parameters
+    ----------
+    array : ndarray
+        Not of object dtype.
+
+    Returns
+    -------
+    bytes
+    """
     buf = io.BytesIO()
     np.save(buf, np.ascontiguousarray(array), allow_pickle=False)
     return buf.getvalue()
@@ -76,7 +127,13 @@ def _member(name: str, size: int) -> tarfile.TarInfo:
 
 def fsync_dir(path: str) -> None:
     """Flush the folder ``path`` to disk, so that a rename into it survives a crash; a file
-    system that cannot fsync a folder is left as it is."""
+    system that cannot fsync a folder is left as it is.
+
+    Parameters
+    ----------
+    path : str
+        A folder.
+    """
     with contextlib.suppress(OSError):  # not every file system lets a folder be fsynced
         fd = os.open(path, os.O_RDONLY)
         try:
@@ -87,7 +144,19 @@ def fsync_dir(path: str) -> None:
 
 def atomic_write(path: str, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically (:func:`dopplertof.io.atomic_path`: temporary
-    file, fsync, rename), then fsync the folder so the rename survives a crash."""
+    file, fsync, rename), then fsync the folder so the rename survives a crash.
+
+    Parameters
+    ----------
+    path : str
+        The file written.
+    data : bytes
+
+    Raises
+    ------
+    OSError
+        The write failed; ``path`` is then left as it was.
+    """
     from ..io import atomic_path
 
     with atomic_path(path) as tmp:
@@ -96,7 +165,17 @@ def atomic_write(path: str, data: bytes) -> None:
 
 
 def shard_bytes(samples) -> bytes:
-    """The tar of ``samples``: an iterable of ``(key, {field: array}, record)`` in order."""
+    """The tar of ``samples``: an iterable of ``(key, {field: array}, record)`` in order.
+
+    Parameters
+    ----------
+    samples : iterable of tuple
+        ``(key, {field: array}, record)``.
+
+    Returns
+    -------
+    bytes
+    """
     buf = io.BytesIO()
     with tarfile.open(fileobj=buf, mode="w", format=tarfile.USTAR_FORMAT) as tar:
         for key, fields, record in samples:
@@ -109,7 +188,17 @@ def shard_bytes(samples) -> bytes:
 
 
 def sha256_file(path: str) -> str:
-    """The SHA-256 of the file at ``path``, as hex digits (read in 1 MiB blocks)."""
+    """The SHA-256 of the file at ``path``, as hex digits (read in 1 MiB blocks).
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    str
+        64 hex digits.
+    """
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):
@@ -118,7 +207,24 @@ def sha256_file(path: str) -> str:
 
 
 def write_shard(folder: str, index: int, first: int, samples) -> dict:
-    """Write shard ``index`` atomically, then its record; returns the record."""
+    """Write shard ``index`` atomically, then its record; returns the record.
+
+    Parameters
+    ----------
+    folder : str
+        The dataset folder.
+    index : int
+        The shard, from 0.
+    first : int
+        Its first sample.
+    samples : iterable of tuple
+        As for :func:`shard_bytes`.
+
+    Returns
+    -------
+    dict
+        The shard's record (name, index, first sample, count, size in bytes, checksum).
+    """
     samples = list(samples)
     data = shard_bytes(samples)
     name = shard_name(index)
@@ -132,7 +238,19 @@ def write_shard(folder: str, index: int, first: int, samples) -> dict:
 
 def read_record(folder: str, index: int) -> dict | None:
     """The manifest record of shard ``index`` (``folder/.manifest/shard-NNNNNN.json``), or None
-    if it is missing or unreadable (the shard is then not complete)."""
+    if it is missing or unreadable (the shard is then not complete).
+
+    Parameters
+    ----------
+    folder : str
+        The dataset folder.
+    index : int
+        The shard, from 0.
+
+    Returns
+    -------
+    dict or None
+    """
     path = os.path.join(folder, RECORDS, shard_name(index).replace(".tar", ".json"))
     try:
         with open(path, "rb") as f:
@@ -143,7 +261,21 @@ def read_record(folder: str, index: int) -> dict | None:
 
 def shard_status(folder: str, index: int, expected_count: int | None = None) -> str:
     """``ok``, ``missing`` (no file), ``unrecorded`` (file without record) or ``corrupt``
-    (checksum or size differs from the record, or the wrong number of samples)."""
+    (checksum or size differs from the record, or the wrong number of samples).
+
+    Parameters
+    ----------
+    folder : str
+        The dataset folder.
+    index : int
+        The shard, from 0.
+    expected_count : int or None, default None
+        Samples it must hold; None: not checked.
+
+    Returns
+    -------
+    str
+    """
     path = os.path.join(folder, shard_name(index))
     if not os.path.exists(path):
         return "missing"
@@ -159,7 +291,18 @@ def shard_status(folder: str, index: int, expected_count: int | None = None) -> 
 
 @contextlib.contextmanager
 def manifest_lock(folder: str):
-    """Exclusive lock on ``DIR/.manifest/lock`` (no-op where flock is unavailable)."""
+    """Exclusive lock on ``DIR/.manifest/lock`` (no-op where flock is unavailable).
+
+    Parameters
+    ----------
+    folder : str
+        The dataset folder.
+
+    Yields
+    ------
+    None
+        While the lock is held.
+    """
     os.makedirs(os.path.join(folder, RECORDS), exist_ok=True)
     with open(os.path.join(folder, RECORDS, "lock"), "a+b") as f:
         try:
@@ -173,6 +316,15 @@ def manifest_lock(folder: str):
 
 def read_manifest(folder: str) -> dict | None:
     """The content of ``folder/dataset.json``, or None if there is none.
+
+    Parameters
+    ----------
+    folder : str
+        The dataset folder.
+
+    Returns
+    -------
+    dict or None
 
     Raises
     ------
@@ -193,6 +345,20 @@ def rebuild_manifest(folder: str, header: dict, layout: list[tuple[int, int, int
 
     Must be called under :func:`manifest_lock`. Shards are listed from their records
     (trusted here; :func:`shard_status` checks them against the files).
+
+    Parameters
+    ----------
+    folder : str
+        The dataset folder.
+    header : dict
+        The manifest's fixed part (:func:`dopplertof.dataset.generate.header_for`).
+    layout : list of tuple of (int, int, int)
+        The shards, as :func:`plan` gives them.
+
+    Returns
+    -------
+    dict
+        The manifest written.
     """
     shards = []
     for index, first, count in layout:
@@ -208,7 +374,15 @@ def rebuild_manifest(folder: str, header: dict, layout: list[tuple[int, int, int
 
 
 def remove_stale_temporaries(folder: str, indices) -> None:
-    """Remove temporary files of the shards ``indices`` left by a killed writer."""
+    """Remove temporary files of the shards ``indices`` left by a killed writer.
+
+    Parameters
+    ----------
+    folder : str
+        The dataset folder.
+    indices : iterable of int
+        Shards.
+    """
     wanted = {shard_name(i) for i in indices}
     with contextlib.suppress(FileNotFoundError):
         for name in os.listdir(folder):
@@ -219,6 +393,11 @@ def remove_stale_temporaries(folder: str, indices) -> None:
 
 def verify(folder: str) -> dict:
     """Check every shard of the dataset in ``folder`` against its manifest.
+
+    Parameters
+    ----------
+    folder : str
+        The dataset folder.
 
     Returns
     -------

@@ -25,7 +25,23 @@ UNTIL_NOISE_QUANTILE = 0.95
 def noise_ratio(sensor, measurements, measurement_stderr, frames=None) -> np.ndarray:
     """Worst tap's (Monte Carlo standard error bound) / (sensor noise), (H, W), over
     ``frames`` (indices; default all) of ``sensor``, from a render's measurements and their
-    standard errors (cameras, H, W). NaN where a standard error is unknown."""
+    standard errors (cameras, H, W). NaN where a standard error is unknown.
+
+    Parameters
+    ----------
+    sensor : Sensor
+    measurements : ndarray
+        (cameras, H, W), the render's measurements of ``sensor.cameras()``.
+    measurement_stderr : ndarray
+        (cameras, H, W), their standard errors.
+    frames : sequence of int or None, default None
+        Frame indices; None: all.
+
+    Returns
+    -------
+    ndarray
+        (H, W) float64.
+    """
     m = np.asarray(measurements, dtype=np.float64)
     sigma = np.asarray(measurement_stderr, dtype=np.float64)
     n = m.shape[0]
@@ -43,7 +59,17 @@ def noise_ratio(sensor, measurements, measurement_stderr, frames=None) -> np.nda
 
 def quantile(ratio: np.ndarray) -> float:
     """The :data:`UNTIL_NOISE_QUANTILE` quantile of a :func:`noise_ratio` map; inf where any
-    pixel's ratio is still unknown."""
+    pixel's ratio is still unknown.
+
+    Parameters
+    ----------
+    ratio : ndarray
+        A :func:`noise_ratio` map.
+
+    Returns
+    -------
+    float
+    """
     if not np.all(np.isfinite(ratio)):
         return float("inf")
     return float(np.quantile(ratio, UNTIL_NOISE_QUANTILE))

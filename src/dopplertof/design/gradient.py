@@ -81,6 +81,10 @@ def gradient(record_or_result, sensor, objective: str = "velocity_crb", paramete
         heterodyne).
     reference_time_s : float, optional. As for :func:`~dopplertof.design.crb`.
 
+    Returns
+    -------
+    Gradient
+
     Raises
     ------
     ValueError

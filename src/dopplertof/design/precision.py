@@ -63,7 +63,12 @@ class Precision:
     moving: np.ndarray
 
     def summary(self) -> dict:
-        """Mean and median bounds over the moving pixels where they are finite (m/s, m)."""
+        """Mean and median bounds over the moving pixels where they are finite (m/s, m).
+
+        Returns
+        -------
+        dict
+        """
         out = {}
         for name in ("velocity_crb", "depth_crb"):
             values = getattr(self, name)[self.moving]
@@ -75,7 +80,23 @@ class Precision:
 
 
 def record_of(record_or_result, what: str) -> Record:
-    """The record of a :class:`Record` or of a render made with ``record=``; ValueError otherwise."""
+    """The record of a :class:`Record` or of a render made with ``record=``; ValueError otherwise.
+
+    Parameters
+    ----------
+    record_or_result : Record or RenderResult
+    what : str
+        The caller, named in the error.
+
+    Returns
+    -------
+    Record
+
+    Raises
+    ------
+    ValueError
+        Neither a record nor a render with one.
+    """
     record = record_or_result if isinstance(record_or_result, Record) else getattr(record_or_result, "__dict__", {}).get("record")
     if not isinstance(record, Record):
         raise ValueError(f"{what}: needs a response record (dopplertof.render(..., record=dict(doppler=True)) or its .record), got {type(record_or_result).__name__}")
@@ -84,14 +105,62 @@ def record_of(record_or_result, what: str) -> Record:
 
 def derivatives(record: Record, camera, reference_time_s: float, where: str = "camera"):
     """(M, ∂M/∂L, ∂M/∂L̇), each (H, W) float64, of ``camera`` read out of ``record``
-    (module docstring); ``record`` must hold the first moments (``doppler=True``)."""
+    (module docstring); ``record`` must hold the first moments (``doppler=True``).
+
+    Parameters
+    ----------
+    record : Record
+        With first moments (``doppler=True``).
+    camera : Camera
+    reference_time_s : float, s
+        The time the depths refer to.
+    where : str, default ``"camera"``
+        Named in errors.
+
+    Returns
+    -------
+    tuple of ndarray
+        (M, ∂M/∂L, ∂M/∂L̇), each (H, W) float64; L in m, L̇ in m/s.
+
+    Raises
+    ------
+    ValueError
+        The record holds no first moments, or not the camera's window, frequency or beat.
+    """
     w, constant, terms = readout_terms(record, camera, where)
     return contract(record, w, constant, terms, camera.wavenumber, reference_time_s, where)
 
 
 def contract(record: Record, w: int, constant: float, terms, wavenumber: float, reference_time_s: float, where: str):
     """(M, ∂M/∂L, ∂M/∂L̇) of the weight c₀ + Re Σ a_m e^{imΔ} with ``terms`` located in window
-    ``w`` of ``record`` as :func:`~dopplertof.design.record.readout_terms` gives them."""
+    ``w`` of ``record`` as :func:`~dopplertof.design.record.readout_terms` gives them.
+
+    Parameters
+    ----------
+    record : Record
+    w : int
+        The window's index.
+    constant : float
+        c₀.
+    terms : list of tuple
+        As :func:`~dopplertof.design.record.readout_terms` gives them.
+    wavenumber : float, rad/m
+        2π f / c of the camera's modulation.
+    reference_time_s : float, s
+        The time the depths refer to.
+    where : str
+        Named in errors.
+
+    Returns
+    -------
+    tuple of ndarray
+        (M, ∂M/∂L, ∂M/∂L̇), each (H, W) float64.
+
+    Raises
+    ------
+    ValueError
+        The record holds no first moments.
+    """
     if record.moments is None:
         raise ValueError(f"{where}: the record holds no first moments; render it with record=dict(doppler=True, ...) for derivatives with respect to the velocity")
     start_s, exposure_s = record.windows[w]
@@ -110,7 +179,20 @@ def contract(record: Record, w: int, constant: float, terms, wavenumber: float, 
 def tap_terms(sensor, measurements, jacobians):
     """(∂μ (P, frames, taps, H, W), 1/σ² (frames, taps, H, W), μ) of a sensor's taps from its
     camera measurements (cameras, H, W) and their derivatives (P, cameras, H, W); taps at or
-    above the full well get weight 0 (module docstring)."""
+    above the full well get weight 0 (module docstring).
+
+    Parameters
+    ----------
+    sensor : Sensor
+    measurements : ndarray
+        (cameras, H, W).
+    jacobians : ndarray
+        (P, cameras, H, W).
+
+    Returns
+    -------
+    tuple of ndarray
+    """
     raw = sensor.raw(measurements, clip=False)
     zero = sensor.expected_electrons(np.zeros_like(raw))
     mean_e = sensor.expected_electrons(np.maximum(raw, 0.0))
@@ -123,18 +205,56 @@ def tap_terms(sensor, measurements, jacobians):
 def fisher_information(sensor, measurements, jacobians) -> np.ndarray:
     """Fisher information (H, W, P, P) of P parameters from a sensor's camera measurements
     (cameras, H, W) and their derivatives (P, cameras, H, W), through the sensor's taps and
-    noise chain (module docstring)."""
+    noise chain (module docstring).
+
+    Parameters
+    ----------
+    sensor : Sensor
+    measurements : ndarray
+        (cameras, H, W).
+    jacobians : ndarray
+        (P, cameras, H, W).
+
+    Returns
+    -------
+    ndarray
+        (H, W, P, P).
+    """
     d_e, weight, _ = tap_terms(sensor, measurements, jacobians)
     return fisher_from_taps(d_e, weight)
 
 
 def fisher_from_taps(d_e, weight) -> np.ndarray:
-    """Σ_taps ∂μ_a ∂μ_b w (H, W, P, P) of :func:`tap_terms`' derivatives and weights."""
+    """Σ_taps ∂μ_a ∂μ_b w (H, W, P, P) of :func:`tap_terms`' derivatives and weights.
+
+    Parameters
+    ----------
+    d_e : ndarray
+        (P, frames, taps, H, W) derivatives of the tap means (e⁻ per parameter unit).
+    weight : ndarray
+        (frames, taps, H, W) 1/σ² (e⁻⁻²).
+
+    Returns
+    -------
+    ndarray
+        (H, W, P, P).
+    """
     return np.einsum("aftyx,bftyx,ftyx->yxab", d_e, d_e, weight)
 
 
 def inverse_fisher(fisher: np.ndarray):
-    """(F⁻¹, ok) per pixel: ok where F is regular (module docstring), F⁻¹ meaningless elsewhere."""
+    """(F⁻¹, ok) per pixel: ok where F is regular (module docstring), F⁻¹ meaningless elsewhere.
+
+    Parameters
+    ----------
+    fisher : ndarray
+        (H, W, P, P).
+
+    Returns
+    -------
+    tuple of (ndarray, ndarray)
+        F⁻¹ (H, W, P, P) and ok (H, W) bool.
+    """
     diagonal = np.einsum("...ii->...i", fisher)
     ok = np.all(diagonal > 0, axis=-1) & np.all(np.isfinite(fisher), axis=(-2, -1))
     scale = 1.0 / np.sqrt(np.where(ok[..., None], diagonal, 1.0))
@@ -147,7 +267,18 @@ def inverse_fisher(fisher: np.ndarray):
 
 
 def bounds(fisher: np.ndarray) -> np.ndarray:
-    """√diag(F⁻¹) (H, W, P) per pixel; inf where F is singular (module docstring)."""
+    """√diag(F⁻¹) (H, W, P) per pixel; inf where F is singular (module docstring).
+
+    Parameters
+    ----------
+    fisher : ndarray
+        (H, W, P, P).
+
+    Returns
+    -------
+    ndarray
+        (H, W, P), in the parameters' units.
+    """
     inverse, ok = inverse_fisher(fisher)
     return np.where(ok[..., None], np.sqrt(np.clip(np.einsum("...ii->...i", inverse), 0.0, None)), np.inf)
 
@@ -187,12 +318,34 @@ def crb(record_or_result, sensor, *, reference_time_s: float | None = None) -> P
 
 
 def reference_time(record: Record, reference_time_s) -> float:
-    """The time depths refer to: ``reference_time_s``, default the first window's start."""
+    """The time depths refer to: ``reference_time_s``, default the first window's start.
+
+    Parameters
+    ----------
+    record : Record
+    reference_time_s : float or None, s
+        None: the first window's start.
+
+    Returns
+    -------
+    float
+        s.
+    """
     return record.windows[0][0] if reference_time_s is None else float(reference_time_s)
 
 
 def moving_pixels(record: Record) -> np.ndarray:
-    """Pixels (H, W) whose ground-truth radial velocity is finite and non-zero."""
+    """Pixels (H, W) whose ground-truth radial velocity is finite and non-zero.
+
+    Parameters
+    ----------
+    record : Record
+
+    Returns
+    -------
+    ndarray
+        (H, W) bool.
+    """
     velocity = record.maps.get("velocity")
     if velocity is None:
         return np.zeros(record.luminance.shape[1:], bool)
@@ -200,7 +353,27 @@ def moving_pixels(record: Record) -> np.ndarray:
 
 
 def sensor_derivatives(record: Record, sensor, t_ref: float, what: str):
-    """(M, ∂M/∂L, ∂M/∂L̇), each (cameras, H, W), of every camera of ``sensor``."""
+    """(M, ∂M/∂L, ∂M/∂L̇), each (cameras, H, W), of every camera of ``sensor``.
+
+    Parameters
+    ----------
+    record : Record
+    sensor : Sensor
+    t_ref : float, s
+        The time the depths refer to.
+    what : str
+        The caller, named in errors.
+
+    Returns
+    -------
+    tuple of ndarray
+        (M, ∂M/∂L, ∂M/∂L̇), each (cameras, H, W).
+
+    Raises
+    ------
+    ValueError
+        What the record does not hold (:func:`derivatives`).
+    """
     columns = [derivatives(record, c, t_ref, f"{what}: camera {i} ({c.label()})") for i, c in enumerate(sensor.cameras())]
     return tuple(np.stack(x) for x in zip(*columns))
 
@@ -208,6 +381,23 @@ def sensor_derivatives(record: Record, sensor, t_ref: float, what: str):
 def achieved_rmse(record_or_result, sensor, *, draws: int = 200, seed: int = 0, method: str = "auto") -> np.ndarray:
     """Per-pixel RMSE (H, W, m/s) of :func:`dopplertof.reconstruct.velocity` (``method``)
     over ``draws`` read-outs of ``sensor``, about its value on the noiseless measurements.
+
+    Parameters
+    ----------
+    record_or_result : Record or RenderResult
+        A response record, or a render made with ``record=``.
+    sensor : Sensor
+    draws : int, default 200
+        Read-outs, ≥ 2.
+    seed : int, default 0
+        Seed of the read-outs' noise.
+    method : str, default ``"auto"``
+        The reconstruction method (``auto``, ``ratio``, ``fit``).
+
+    Returns
+    -------
+    ndarray
+        (H, W), m/s.
 
     Raises
     ------

@@ -142,18 +142,48 @@ class RecordSpec:
 
     def bytes_per_pixel(self, n_windows: int = 1) -> int:
         """Record size per pixel (bytes): complex64 R(F, ν) (and R₁ with ``doppler``, their
-        slopes with ``slopes``) and float32 Ī per window."""
+        slopes with ``slopes``) and float32 Ī per window.
+
+        Parameters
+        ----------
+        n_windows : int, default 1
+            Exposure windows recorded.
+
+        Returns
+        -------
+        int
+            Bytes.
+        """
         arrays = (2 if self.doppler else 1) * (2 if self.slopes else 1)
         return n_windows * (8 * arrays * self.frequencies_hz.size * len(self.beats) + 4)
 
     def as_dict(self) -> dict:
-        """The spec as a JSON-friendly dict (``RecordSpec(**spec.as_dict())`` is the same spec)."""
+        """The spec as a JSON-friendly dict (``RecordSpec(**spec.as_dict())`` is the same spec).
+
+        Returns
+        -------
+        dict
+        """
         return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler, "slopes": self.slopes}
 
 
 def as_spec(value) -> RecordSpec:
     """``record=`` of :func:`dopplertof.render` as a :class:`RecordSpec`: True (defaults),
-    a RecordSpec, or a dict of its fields."""
+    a RecordSpec, or a dict of its fields.
+
+    Parameters
+    ----------
+    value : bool, dict or RecordSpec
+
+    Returns
+    -------
+    RecordSpec
+
+    Raises
+    ------
+    ValueError
+        Anything else, or a dict with unknown keys.
+    """
     if value is True:
         return RecordSpec()
     if isinstance(value, RecordSpec):
@@ -182,6 +212,7 @@ class Record:
     settings : RenderSettings of the render (its cameras dropped; the windows are above).
     maps : dict. The render's intensity and ground truth (reference window).
     spp : int. Paths per pixel.
+    info : dict, default {}. ``render_seconds`` (s), ``renders`` and ``probe_cameras``.
     """
 
     phasors: np.ndarray
@@ -200,7 +231,12 @@ class Record:
 
     def to_arrays(self) -> dict:
         """Every array of the record, and its metadata as a JSON string (``metadata``), for
-        :func:`dopplertof.io.write_record`."""
+        :func:`dopplertof.io.write_record`.
+
+        Returns
+        -------
+        dict
+        """
         import json
 
         settings = self.settings.as_dict()
@@ -215,7 +251,24 @@ class Record:
 
     @classmethod
     def from_arrays(cls, arrays: dict, where: str = "record") -> "Record":
-        """The record :meth:`to_arrays` wrote; ValueError naming ``where`` if it is not one."""
+        """The record :meth:`to_arrays` wrote; ValueError naming ``where`` if it is not one.
+
+        Parameters
+        ----------
+        arrays : dict
+            Name → array, as :meth:`to_arrays` gives them.
+        where : str, default ``"record"``
+            Named in errors (a file).
+
+        Returns
+        -------
+        Record
+
+        Raises
+        ------
+        ValueError
+            Another format, or arrays that do not match the record's grid.
+        """
         import json
 
         from ..settings import RenderSettings
@@ -247,7 +300,23 @@ class Record:
 
     def window_index(self, camera: Camera, where: str) -> int:
         """Index of ``camera``'s exposure window in :attr:`windows`; a ValueError starting with
-        ``where`` if the window was not recorded."""
+        ``where`` if the window was not recorded.
+
+        Parameters
+        ----------
+        camera : Camera
+        where : str
+            Named in the error.
+
+        Returns
+        -------
+        int
+
+        Raises
+        ------
+        ValueError
+            The window was not recorded.
+        """
         window = camera.window(self.settings.exposure_start)
         for index, recorded in enumerate(self.windows):
             if math.isclose(window[0], recorded[0], rel_tol=1e-12, abs_tol=1e-15) and math.isclose(window[1], recorded[1], rel_tol=1e-12):
@@ -256,7 +325,23 @@ class Record:
 
     def frequency_index(self, frequency_hz: float, where: str) -> int:
         """Index of ``frequency_hz`` (Hz) on the record's frequency grid; a ValueError starting
-        with ``where`` if it is off the grid or outside the band."""
+        with ``where`` if it is off the grid or outside the band.
+
+        Parameters
+        ----------
+        frequency_hz : float, Hz
+        where : str
+            Named in the error.
+
+        Returns
+        -------
+        int
+
+        Raises
+        ------
+        ValueError
+            Off the grid or outside the band.
+        """
         low, high = self.spec.band_hz
         grid = self.spec.frequencies_hz
         j = round(frequency_hz / self.spec.step_hz)
@@ -270,7 +355,23 @@ class Record:
 
     def beat_index(self, beat: float, where: str) -> int:
         """Index of ``beat`` (cycles per exposure) among the record's beats; a ValueError
-        starting with ``where`` if it was not declared."""
+        starting with ``where`` if it was not declared.
+
+        Parameters
+        ----------
+        beat : float, cycles per exposure
+        where : str
+            Named in the error.
+
+        Returns
+        -------
+        int
+
+        Raises
+        ------
+        ValueError
+            A beat that was not declared.
+        """
         for index, recorded in enumerate(self.spec.beats):
             if abs(beat - recorded) <= GRID_TOLERANCE * max(1.0, abs(recorded)):
                 return index
@@ -316,7 +417,21 @@ def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
 def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int) -> None:
     """ValueError where the record of ``spec`` on a ``width`` × ``height`` film of
     ``n_windows`` windows (and the probes' sides until their differences are taken) needs
-    more than the available memory."""
+    more than the available memory.
+
+    Parameters
+    ----------
+    spec : RecordSpec
+    width, height : int
+        Film size in pixels.
+    n_windows : int
+        Exposure windows recorded.
+
+    Raises
+    ------
+    ValueError
+        The record does not fit in the available memory.
+    """
     from ..render import available_memory_bytes
 
     arrays = len(_sides(spec)) + len(_derived_of(spec))  # every side is held until the derived arrays are made
@@ -336,6 +451,24 @@ def record_scene(scene, settings, spec: RecordSpec) -> Record:
     each chunk holds the same number of every window's probes, in the windows' order, so
     each window keeps its seed (:func:`dopplertof.tracing.lanes.window_seed`). A Ctrl-C
     raises KeyboardInterrupt: there is no partial record.
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    settings : RenderSettings
+        Its windows, seed and spp.
+    spec : RecordSpec
+
+    Returns
+    -------
+    Record
+
+    Raises
+    ------
+    ValueError
+        The record does not fit in memory.
+    KeyboardInterrupt
+        On Ctrl-C.
     """
     from ..render import render
 
@@ -389,7 +522,23 @@ def record_scene(scene, settings, spec: RecordSpec) -> Record:
 
 def harmonics(camera: Camera, where: str) -> tuple[float, list[tuple[int, complex]]]:
     """(c₀, [(m, a_m)]) of ``camera``'s low-pass weight W = c₀ + Re Σ a_m e^{imΔ}
-    (module docstring); ValueError naming ``where`` for weights the record cannot hold."""
+    (module docstring); ValueError naming ``where`` for weights the record cannot hold.
+
+    Parameters
+    ----------
+    camera : Camera
+    where : str
+        Named in the error.
+
+    Returns
+    -------
+    tuple of (float, list of tuple of (int, complex))
+
+    Raises
+    ------
+    ValueError
+        A full-waveform model or a waveform with unbounded harmonics.
+    """
     if not camera.low_pass:
         raise ValueError(f"{where}: the full-waveform model (low_pass=False) has unbounded harmonics; a record reads out low-pass cameras only")
     if camera.coded:
@@ -408,7 +557,24 @@ def harmonics(camera: Camera, where: str) -> tuple[float, list[tuple[int, comple
 def readout_terms(record: Record, camera: Camera, where: str = "camera") -> tuple[int, float, list[tuple]]:
     """(window, c₀, [(m, a_m e^{imψ}, frequency index, beat index)]) of ``camera``: where
     in ``record`` its harmonics are read (module docstring); ValueError naming ``where``
-    for what the record does not hold."""
+    for what the record does not hold.
+
+    Parameters
+    ----------
+    record : Record
+    camera : Camera
+    where : str, default ``"camera"``
+        Named in errors.
+
+    Returns
+    -------
+    tuple of (int, float, list of tuple)
+
+    Raises
+    ------
+    ValueError
+        The record does not hold the camera's window, frequency or beat.
+    """
     constant, terms = harmonics(camera, where)
     w = record.window_index(camera, where)
     located = [
@@ -419,7 +585,25 @@ def readout_terms(record: Record, camera: Camera, where: str = "camera") -> tupl
 
 
 def measure(record: Record, camera: Camera, where: str = "camera") -> np.ndarray:
-    """The measurement (H, W) of ``camera`` read out of ``record`` (module docstring)."""
+    """The measurement (H, W) of ``camera`` read out of ``record`` (module docstring).
+
+    Parameters
+    ----------
+    record : Record
+    camera : Camera
+    where : str, default ``"camera"``
+        Named in errors.
+
+    Returns
+    -------
+    ndarray
+        (H, W) float64, in the units of ``RenderResult.measurements``.
+
+    Raises
+    ------
+    ValueError
+        The record does not hold the camera's window, frequency or beat.
+    """
     w, constant, terms = readout_terms(record, camera, where)
     out = constant * record.luminance[w].astype(np.float64)
     for _, coefficient, j, b in terms:

@@ -43,7 +43,22 @@ MAX_SWEEP_POINTS = 10_000
 
 
 def parse_sweep(text: str) -> tuple[str, np.ndarray]:
-    """``KEY=LO:HI:N`` → (key, N values from LO to HI); ValueError naming the text."""
+    """``KEY=LO:HI:N`` → (key, N values from LO to HI); ValueError naming the text.
+
+    Parameters
+    ----------
+    text : str
+        ``KEY=LO:HI:N`` with a key of :data:`KEYS`.
+
+    Returns
+    -------
+    tuple of (str, ndarray)
+
+    Raises
+    ------
+    ValueError
+        Not ``KEY=LO:HI:N``, or an unknown key.
+    """
     if "=" not in text:
         raise ValueError(f"--sweep {text!r}: expected KEY=LO:HI:N, e.g. modulation_frequency=10e6:100e6:10")
     key, _, grid = text.partition("=")
@@ -64,7 +79,23 @@ def parse_sweep(text: str) -> tuple[str, np.ndarray]:
 
 def variant(sensor, changes: dict):
     """``sensor`` with ``changes`` ({key: value}, keys of :data:`KEYS`) set on its frames,
-    checked against its limits (ValueError where its chip cannot capture them)."""
+    checked against its limits (ValueError where its chip cannot capture them).
+
+    Parameters
+    ----------
+    sensor : Sensor
+    changes : dict
+        Key of :data:`KEYS` → value (Hz, beat cycles per exposure or s).
+
+    Returns
+    -------
+    Sensor
+
+    Raises
+    ------
+    ValueError
+        The chip cannot capture the changed frames.
+    """
     frames = []
     for frame in sensor.frames:
         update = {}
@@ -82,7 +113,29 @@ def variant(sensor, changes: dict):
 def record_spec(sensor, sweeps, beats_extra=(), optimize=(), doppler=True):
     """(RecordSpec, cameras) for a record holding every variant of ``sweeps`` (list of
     (key, values)) and of ``optimize`` (the modulation frequency: the chip's whole range at
-    its frequency step, else 1 MHz): the cameras give its windows to ``render``."""
+    its frequency step, else 1 MHz): the cameras give its windows to ``render``.
+
+    Parameters
+    ----------
+    sensor : Sensor
+    sweeps : list of tuple of (str, ndarray)
+        As :func:`parse_sweep` gives them.
+    beats_extra : sequence of float, default ()
+        More beats to record (cycles per exposure).
+    optimize : sequence of str, default ()
+        Keys of :data:`OPTIMIZE_KEYS`.
+    doppler : bool, default True
+        Record the first moments (velocity bounds need them).
+
+    Returns
+    -------
+    tuple of (RecordSpec, list of Camera)
+
+    Raises
+    ------
+    ValueError
+        A frequency that is not whole Hz, or too many sweep points.
+    """
     from .record import RecordSpec, harmonics
 
     _check_size(sweeps)
@@ -120,7 +173,24 @@ def _check_size(sweeps):
 
 
 def objective_value(record, sensor, objective: str) -> float:
-    """The mean bound (:data:`OBJECTIVES`) over the moving pixels where it is finite."""
+    """The mean bound (:data:`OBJECTIVES`) over the moving pixels where it is finite.
+
+    Parameters
+    ----------
+    record : Record
+    sensor : Sensor
+    objective : str
+        One of :data:`OBJECTIVES`.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        An unknown objective.
+    """
     if objective not in OBJECTIVES:
         raise ValueError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}")
     return crb(record, sensor).summary()[f"{objective}_mean"]
@@ -129,7 +199,26 @@ def objective_value(record, sensor, objective: str) -> float:
 def sweep(record, sensor, sweeps, objective: str = "velocity_crb") -> list[dict]:
     """One row per combination of the sweeps' values: the values, ``objective`` (NaN and
     ``status`` = the reason where the chip refuses the variant) and the mean and median
-    bounds."""
+    bounds.
+
+    Parameters
+    ----------
+    record : Record
+    sensor : Sensor
+    sweeps : list of tuple of (str, ndarray)
+        As :func:`parse_sweep` gives them.
+    objective : str, default ``"velocity_crb"``
+        One of :data:`OBJECTIVES`.
+
+    Returns
+    -------
+    list of dict
+
+    Raises
+    ------
+    ValueError
+        Too many sweep points, or an unknown objective.
+    """
     _check_size(sweeps)
     keys = [k for k, _ in sweeps]
     rows = []
@@ -148,7 +237,28 @@ def sweep(record, sensor, sweeps, objective: str = "velocity_crb") -> list[dict]
 def optimize(record, sensor, keys, objective: str = "velocity_crb", *, iterations: int = 50):
     """Minimise ``objective`` over ``keys`` (:data:`OPTIMIZE_KEYS`) from ``sensor``'s values.
 
-    Returns (best sensor, history: one dict per step with the values and the objective).
+    Parameters
+    ----------
+    record : Record
+    sensor : Sensor
+        The starting point.
+    keys : sequence of str
+        Keys of :data:`OPTIMIZE_KEYS`.
+    objective : str, default ``"velocity_crb"``
+        One of :data:`OBJECTIVES`.
+    iterations : int, default 50
+        Steps at most.
+
+    Returns
+    -------
+    tuple of (Sensor, list of dict)
+        The best sensor, and the history: one dict per step with the values and the
+        objective.
+
+    Raises
+    ------
+    ValueError
+        Keys outside :data:`OPTIMIZE_KEYS`, or an unknown objective.
     """
     from .gradient import gradient
 

@@ -102,8 +102,24 @@ class ExperimentScene:
 def open_scene(scene_arg: str, resolution: int | None) -> ExperimentScene:
     """Load a built-in scene by name or a Mitsuba XML file, as ``dopplertof render`` does.
 
-    Raises ValueError (or SceneError) for an unknown scene, a missing file or bad
-    ``<integrator>`` parameters; ``resolution`` replaces a file's film size too.
+    Parameters
+    ----------
+    scene_arg : str
+        A built-in scene name (:data:`dopplertof.scenes.SCENES`) or the path of a Mitsuba
+        XML file.
+    resolution : int or None
+        Film size in pixels (square); replaces a file's film size too. None: the scene's.
+
+    Returns
+    -------
+    ExperimentScene
+
+    Raises
+    ------
+    ValueError
+        An unknown scene or a missing file.
+    SceneError
+        Bad ``<integrator>`` parameters or a bad scene file.
     """
     from .. import scenes
     from ..settings import scene_camera, scene_layer
@@ -125,7 +141,22 @@ def open_scene(scene_arg: str, resolution: int | None) -> ExperimentScene:
 
 
 def camera_grid(base: Camera, h_values: Sequence[float], phases_rad: Sequence[float]) -> list[Camera]:
-    """One camera per (h, ψ), h-major: ``cams[i * len(phases) + j]`` has h_i and ψ_j."""
+    """One camera per (h, ψ), h-major: ``cams[i * len(phases) + j]`` has h_i and ψ_j.
+
+    Parameters
+    ----------
+    base : Camera
+        The camera every other parameter comes from.
+    h_values : sequence of float
+        Heterodyne ratios h (beat cycles per exposure).
+    phases_rad : sequence of float
+        Phase offsets ψ (rad).
+
+    Returns
+    -------
+    list of Camera
+        ``len(h_values) * len(phases_rad)`` cameras.
+    """
     return [dataclasses.replace(base, heterodyne=float(h), phase=float(p)) for h in h_values for p in phases_rad]
 
 
@@ -137,7 +168,23 @@ class Estimator:
     """A time sampling and a correlation mode; the shift defaults to the method's usual one,
     per-interval stratification (``stratify_intervals``) to the render default (on).
 
-    Raises ValueError for an unknown method or mode, or a shift outside [0, 1].
+    Parameters
+    ----------
+    time_sampling : str
+        A :class:`~dopplertof.RenderSettings` ``time_sampling`` (``uniform``,
+        ``stratified``, ``antithetic``, ``antithetic_mirror``).
+    correlation : str
+        A :class:`~dopplertof.RenderSettings` ``correlation`` mode (``none``, ``pixel``,
+        ``replay``, ``reconnection``, ``adaptive``).
+    shift : float or None, units of T, default None
+        The antithetic shift in [0, 1]; None: 0.5 (0 for ``antithetic_mirror``).
+    stratify_intervals : bool or None, default None
+        Stratify each time interval; None: the render default (on).
+
+    Raises
+    ------
+    ValueError
+        An unknown method or mode, or a shift outside [0, 1].
     """
 
     time_sampling: str
@@ -171,7 +218,17 @@ class Estimator:
         return f"{self.time_sampling}/{self.correlation}" + ("" if self.stratified else "/no further stratification")
 
     def render_settings(self) -> dict:
-        """Render settings (:class:`~dopplertof.settings.RenderSettings` fields) of this estimator."""
+        """Render settings (:class:`~dopplertof.settings.RenderSettings` fields) of this estimator.
+
+        Returns
+        -------
+        dict
+
+        Raises
+        ------
+        ValueError
+            An unknown method or mode, or a shift outside [0, 1].
+        """
         settings = {"time_sampling": self.time_sampling, "n_times": N_TIMES, "correlation": self.correlation}
         if self.time_sampling in _DEFAULT_SHIFT:
             settings["antithetic_shift"] = self.antithetic_shift
@@ -185,27 +242,93 @@ REFERENCE_ESTIMATOR = Estimator("antithetic", "replay")
 
 
 def sweep_lanes_per_pass(n_cameras: int) -> int:
-    """Lanes per pass of a render of ``n_cameras`` cameras (:data:`SWEEP_CAMERA_LANES`)."""
+    """Lanes per pass of a render of ``n_cameras`` cameras (:data:`SWEEP_CAMERA_LANES`).
+
+    Parameters
+    ----------
+    n_cameras : int
+        Cameras of the render.
+
+    Returns
+    -------
+    int
+        Between 2¹⁶ and the render default.
+    """
     return max(1 << 16, min(FIELDS["lanes_per_pass"].default, SWEEP_CAMERA_LANES // max(n_cameras, 1)))
 
 
 def reference_seed(seed: int) -> int:
-    """The reference's seed: never the seed of the renders it judges."""
+    """The reference's seed: never the seed of the renders it judges.
+
+    Parameters
+    ----------
+    seed : int
+        The seed of the renders judged, in [0, 2³²).
+
+    Returns
+    -------
+    int
+        ``seed + 1`` modulo 2³².
+    """
     return (seed + 1) % (1 << 32)
 
 
 def check_spp(name: str, spp: int) -> int:
-    """spp must be a positive multiple of the :data:`N_TIMES` paths of a group."""
+    """spp must be a positive multiple of the :data:`N_TIMES` paths of a group.
+
+    Parameters
+    ----------
+    name : str
+        The option or parameter named in the error.
+    spp : int
+        Samples per pixel.
+
+    Returns
+    -------
+    int
+        ``spp``, unchanged.
+
+    Raises
+    ------
+    ValueError
+        ``spp`` is not an int, not positive or not a multiple of :data:`N_TIMES`.
+    """
     if isinstance(spp, bool) or not isinstance(spp, int) or spp <= 0 or spp % N_TIMES:
         raise ValueError(f"{name} must be a positive multiple of {N_TIMES} (paths of an antithetic pair), got {spp!r}")
     return spp
 
 
 def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int, seed: int, max_depth: int, progress=False, replicates=None, lanes_per_pass=None, **executor):
-    """(RenderResult, wall seconds) of one render; an interrupted render raises KeyboardInterrupt.
+    """(RenderResult, wall seconds) of one render.
 
-    ``replicates``, ``lanes_per_pass``: the render's (None: the render default);
-    ``executor``: :func:`~dopplertof.render.render`'s ``executor``, ``address``, ``workers``.
+    Parameters
+    ----------
+    scene : ExperimentScene
+    cameras : list of Camera
+    estimator : Estimator
+        Its time sampling and correlation mode.
+    spp : int
+        Samples per pixel.
+    seed : int
+        Seed of the replayable random numbers, in [0, 2³²).
+    max_depth : int
+        Path depth.
+    progress : bool, default False
+        Show a progress bar.
+    replicates, lanes_per_pass : int or None, default None
+        The render's (None: the render default).
+    **executor
+        :func:`~dopplertof.render.render`'s ``executor``, ``address``, ``workers``.
+
+    Returns
+    -------
+    tuple of (RenderResult, float)
+        The result and the wall time in seconds.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        The render was interrupted.
     """
     start = time.perf_counter()
     given = {"replicates": replicates, "lanes_per_pass": lanes_per_pass}
@@ -234,7 +357,17 @@ _NOT_RENDERING_PACKAGES = {"experiments", "reconstruct"}
 
 
 def rendering_source_files(package_dir: Path = PACKAGE_DIR) -> list[Path]:
-    """The package's ``*.py`` files that can change a render, sorted by relative path."""
+    """The package's ``*.py`` files that can change a render, sorted by relative path.
+
+    Parameters
+    ----------
+    package_dir : path, default :data:`PACKAGE_DIR`
+        The ``dopplertof`` package folder.
+
+    Returns
+    -------
+    list of Path
+    """
     package_dir = Path(package_dir)
     relative = {path: path.relative_to(package_dir) for path in package_dir.rglob("*.py")}
     kept = [path for path, rel in relative.items() if rel.as_posix() not in _NOT_RENDERING and rel.parts[0] not in _NOT_RENDERING_PACKAGES]
@@ -242,7 +375,18 @@ def rendering_source_files(package_dir: Path = PACKAGE_DIR) -> list[Path]:
 
 
 def rendering_source_digest(package_dir: Path = PACKAGE_DIR) -> str:
-    """SHA-256 (hex) over the relative paths and bytes of :func:`rendering_source_files`."""
+    """SHA-256 (hex) over the relative paths and bytes of :func:`rendering_source_files`.
+
+    Parameters
+    ----------
+    package_dir : path, default :data:`PACKAGE_DIR`
+        The ``dopplertof`` package folder.
+
+    Returns
+    -------
+    str
+        64 hex digits.
+    """
     digest = hashlib.sha256()
     for path in rendering_source_files(package_dir):
         name = path.relative_to(package_dir).as_posix().encode()
@@ -254,7 +398,12 @@ def rendering_source_digest(package_dir: Path = PACKAGE_DIR) -> str:
 
 
 def default_cache_dir() -> Path:
-    """``$DOPPLERTOF_CACHE``, else ``$XDG_CACHE_HOME/dopplertof/references`` (``~/.cache``)."""
+    """``$DOPPLERTOF_CACHE``, else ``$XDG_CACHE_HOME/dopplertof/references`` (``~/.cache``).
+
+    Returns
+    -------
+    Path
+    """
     if os.environ.get(CACHE_ENV_VAR):
         return Path(os.environ[CACHE_ENV_VAR])
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
@@ -267,9 +416,14 @@ _ARRAY_FIELDS = tuple(name for o in OUTPUTS for name in (o.name, o.stderr_name) 
 class ReferenceCache:
     """Reference renders stored as ``<key>.npz`` in ``folder`` (created on first store).
 
-    ``executor``: how a reference missing from the cache is rendered, as
-    :func:`~dopplertof.render.render`'s ``executor``, ``address``, ``workers`` (e.g.
-    ``{"executor": "ray"}``); the key leaves it out, the pixels being the same.
+    Parameters
+    ----------
+    folder : str or path
+        The cache folder.
+    executor : dict or None, default None
+        How a reference missing from the cache is rendered, as
+        :func:`~dopplertof.render.render`'s ``executor``, ``address``, ``workers`` (e.g.
+        ``{"executor": "ray"}``); the key leaves it out, the pixels being the same.
     """
 
     def __init__(self, folder, executor: dict | None = None):
@@ -278,7 +432,27 @@ class ReferenceCache:
 
     @staticmethod
     def key(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, estimator: Estimator, replicates=None) -> str:
-        """SHA-256 of everything that determines the reference's pixels."""
+        """SHA-256 of everything that determines the reference's pixels.
+
+        Parameters
+        ----------
+        scene : ExperimentScene
+        cameras : list of Camera
+        spp : int
+            Samples per pixel.
+        seed : int
+            Seed, in [0, 2³²).
+        max_depth : int
+            Path depth.
+        estimator : Estimator
+        replicates : int or None, default None
+            Replicates per pixel (None: the render default).
+
+        Returns
+        -------
+        str
+            64 hex digits.
+        """
         import mitsuba as mi
 
         settings = estimator.render_settings()
@@ -298,11 +472,33 @@ class ReferenceCache:
         return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()
 
     def path(self, key: str) -> Path:
-        """The cache file of the reference with cache key ``key``: ``<folder>/<key>.npz``."""
+        """The cache file of the reference with cache key ``key``: ``<folder>/<key>.npz``.
+
+        Parameters
+        ----------
+        key : str
+            A cache key (:meth:`key`).
+
+        Returns
+        -------
+        Path
+        """
         return self.folder / f"{key}.npz"
 
     def load(self, key: str, cameras) -> RenderResult | None:
-        """The cached render, or None if there is none (or it cannot be read)."""
+        """The cached render, or None if there is none (or it cannot be read).
+
+        Parameters
+        ----------
+        key : str
+            A cache key (:meth:`key`).
+        cameras : list of Camera
+            The cameras the reference was rendered with (the file keeps only their images).
+
+        Returns
+        -------
+        RenderResult or None
+        """
         try:
             with np.load(self.path(key), allow_pickle=False) as data:
                 meta = json.loads(str(data["meta"]))
@@ -313,7 +509,20 @@ class ReferenceCache:
         return RenderResult(maps=arrays, settings=settings, spp=meta["spp"])
 
     def store(self, key: str, result: RenderResult) -> Path:
-        """Write atomically, so that an interrupted write never leaves a readable bad file."""
+        """Write atomically, so that an interrupted write never leaves a readable bad file.
+
+        Parameters
+        ----------
+        key : str
+            A cache key (:meth:`key`).
+        result : RenderResult
+            The reference render.
+
+        Returns
+        -------
+        Path
+            The cache file written.
+        """
         self.folder.mkdir(parents=True, exist_ok=True)
         final = self.path(key)
         partial = final.with_name(f"{key}.{os.getpid()}.partial.npz")
@@ -324,9 +533,34 @@ class ReferenceCache:
 
 
 def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_depth: int, cache: ReferenceCache, echo: Echo, replicates=None, lanes_per_pass=None) -> RenderResult:
-    """The high-spp reference of ``cameras``: from the cache, else rendered and stored
-    (``replicates``, ``lanes_per_pass`` as for :func:`timed_render`; the pass split does not
-    change the pixels, so the cache key leaves it out)."""
+    """The high-spp reference of ``cameras``: from the cache, else rendered and stored.
+
+    Parameters
+    ----------
+    scene : ExperimentScene
+    cameras : list of Camera
+    spp : int
+        Samples per pixel of the reference.
+    seed : int
+        The seed of the renders it judges (the reference uses :func:`reference_seed`).
+    max_depth : int
+        Path depth.
+    cache : ReferenceCache
+    echo : callable
+        Called with one line of progress text.
+    replicates, lanes_per_pass : int or None, default None
+        As for :func:`timed_render`; the pass split does not change the pixels, so the
+        cache key leaves it out.
+
+    Returns
+    -------
+    RenderResult
+
+    Raises
+    ------
+    KeyboardInterrupt
+        The reference render was interrupted.
+    """
     seed = reference_seed(seed)
     key = cache.key(scene, cameras, spp, seed, max_depth, REFERENCE_ESTIMATOR, replicates)
     cached = cache.load(key, cameras)
@@ -348,9 +582,16 @@ def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_d
 def image_errors(image: np.ndarray, reference: np.ndarray) -> dict:
     """Error of an image against a reference, as the original ``main_plot.py`` computed it.
 
-    Returns ``mae``, ``rmse`` (units of the images), ``relative_mae`` and ``relative_rmse``
-    (divided by mean |reference|; NaN if the reference is zero everywhere) and ``psnr_db``
-    (data range max − min of the reference; +inf for an exact match).
+    Parameters
+    ----------
+    image, reference : array_like, same shape
+
+    Returns
+    -------
+    dict
+        ``mae``, ``rmse`` (units of the images), ``relative_mae`` and ``relative_rmse``
+        (divided by mean |reference|; NaN if the reference is zero everywhere) and ``psnr_db``
+        (data range max − min of the reference; +inf for an exact match).
     """
     image = np.asarray(image, dtype=np.float64)
     reference = np.asarray(reference, dtype=np.float64)
@@ -370,7 +611,16 @@ def image_errors(image: np.ndarray, reference: np.ndarray) -> dict:
 
 
 def rms(values: np.ndarray) -> float:
-    """Root mean square, e.g. of a standard-error image (the RMSE that noise alone gives)."""
+    """Root mean square, e.g. of a standard-error image (the RMSE that noise alone gives).
+
+    Parameters
+    ----------
+    values : array_like
+
+    Returns
+    -------
+    float
+    """
     values = np.asarray(values, dtype=np.float64)
     return float(np.sqrt(np.mean(values * values)))
 
@@ -379,7 +629,22 @@ def rms(values: np.ndarray) -> float:
 
 
 def write_csv(path: Path, rows: list[dict], columns: Sequence[str]) -> Path:
-    """Rows as CSV with a header; floats with 9 significant digits."""
+    """Rows as CSV with a header; floats with 9 significant digits.
+
+    Parameters
+    ----------
+    path : Path
+        The file written (its folder is created).
+    rows : list of dict
+        One dict per row, holding every column.
+    columns : sequence of str
+        The header, in order.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="") as f:
         writer = csv.writer(f)
@@ -393,6 +658,20 @@ def mean_over(rows: list[dict], group_by: Sequence[str], metrics: Sequence[str])
     """Rows averaged over everything not in ``group_by``: ``<metric>_mean`` and ``<metric>_std``.
 
     Groups keep the order of their first row. Infinite values (an exact PSNR) stay infinite.
+
+    Parameters
+    ----------
+    rows : list of dict
+    group_by : sequence of str
+        The columns that identify a group.
+    metrics : sequence of str
+        The columns averaged.
+
+    Returns
+    -------
+    list of dict
+        One row per group: the ``group_by`` columns, ``count``, and ``<metric>_mean`` and
+        ``<metric>_std`` (the std NaN where a value is not finite).
     """
     groups: dict[tuple, list[dict]] = {}
     for row in rows:

@@ -55,19 +55,60 @@ CORRELATION_STYLES = {"none": "-.", "pixel": ":", "replay": "-", "reconnection":
 
 
 def protocol_max_depth(scene: ExperimentScene) -> int:
-    """The scene's own max_depth, else 4 for :data:`SHALLOW_SCENES` and 8 for the others."""
+    """The scene's own max_depth, else 4 for :data:`SHALLOW_SCENES` and 8 for the others.
+
+    Parameters
+    ----------
+    scene : ExperimentScene
+
+    Returns
+    -------
+    int
+    """
     if scene.max_depth is not None:
         return scene.max_depth
     return 4 if scene.identity.get("builtin") in SHALLOW_SCENES else 8
 
 
 def protocol_phases(steps: int) -> tuple:
-    """ψ = 2π·linspace(0, 1, steps) (rad), as the original's ``hetero_offset`` sweep."""
+    """ψ = 2π·linspace(0, 1, steps) (rad), as the original's ``hetero_offset`` sweep.
+
+    Parameters
+    ----------
+    steps : int
+        Phases, at least 2.
+
+    Returns
+    -------
+    tuple of float
+        Phases in rad.
+
+    Raises
+    ------
+    ValueError
+        ``steps`` is not an integer ≥ 2.
+    """
     return evenly_spaced(steps, "--phase-steps", stop=2.0 * math.pi)
 
 
 def fig12_estimators(time_samplings: Sequence[str] = (), correlations: Sequence[str] = ()) -> list[Estimator]:
-    """Every time sampling × correlation (default: all methods, ``none`` and ``replay``)."""
+    """Every time sampling × correlation (default: all methods, ``none`` and ``replay``).
+
+    Parameters
+    ----------
+    time_samplings : sequence of str, default all methods
+    correlations : sequence of str, default ``("none", "replay")``
+
+    Returns
+    -------
+    list of Estimator
+        Time-sampling-major.
+
+    Raises
+    ------
+    ValueError
+        An unknown time sampling or correlation mode.
+    """
     return [Estimator(t, c) for t in dict.fromkeys(time_samplings or METHODS) for c in dict.fromkeys(correlations or FIG12_CORRELATIONS)]
 
 
@@ -75,7 +116,25 @@ def run_fig12(scene: ExperimentScene, folder, estimators: Sequence[Estimator], s
     """Fig. 12: each estimator's RMSE × T and PSNR (mean over ψ, ±1 std) against ω_r.
 
     Writes ``results.csv`` (one row per estimator and camera), ``summary.csv`` (mean and
-    std over ψ), ``metadata.json`` and ``fig12.png``. Returns the paths written.
+    std over ψ), ``metadata.json`` and ``fig12.png``.
+
+    Parameters
+    ----------
+    scene : ExperimentScene
+    folder : str or path
+        Output folder (created).
+    estimators : sequence of Estimator
+    settings : SweepSettings
+        The grid, spp, seeds and depth.
+    cache : ReferenceCache
+        Where the reference is looked up and stored.
+    echo : callable
+        Called with one line of progress text.
+
+    Returns
+    -------
+    list of Path
+        The files written.
     """
     folder = Path(folder)
     rows, _ = _sweep(scene, estimators, settings, cache, echo)
@@ -91,11 +150,28 @@ def run_fig12(scene: ExperimentScene, folder, estimators: Sequence[Estimator], s
 
 
 def run_fig9(scene: ExperimentScene, folder, settings: SweepSettings, cache: ReferenceCache, echo: Echo) -> list[Path]:
-    """Fig. 9: per waveform of ``settings.waveforms`` (default all of
-    :data:`~dopplertof.modulation.WAVEFORMS`), :data:`FIG9_ESTIMATORS`' RMSE × T against
-    ω_r, with further stratification (solid) and without (dashed).
+    """Fig. 9: per waveform, :data:`FIG9_ESTIMATORS`' RMSE × T against ω_r, with further
+    stratification (solid) and without (dashed).
 
     Writes ``results.csv``, ``summary.csv``, ``metadata.json`` and ``fig9.png``.
+
+    Parameters
+    ----------
+    scene : ExperimentScene
+    folder : str or path
+        Output folder (created).
+    settings : SweepSettings
+        The grid, spp, seeds and depth; its ``waveforms`` (default all of
+        :data:`~dopplertof.modulation.WAVEFORMS`).
+    cache : ReferenceCache
+        Where the reference is looked up and stored.
+    echo : callable
+        Called with one line of progress text.
+
+    Returns
+    -------
+    list of Path
+        The files written.
     """
     folder = Path(folder)
     settings = settings if settings.waveforms else dataclasses.replace(settings, waveforms=WAVEFORMS)

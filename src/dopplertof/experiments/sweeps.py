@@ -105,7 +105,26 @@ class SweepSettings:
 
 
 def evenly_spaced(count: int, name: str, stop: float = 1.0) -> tuple:
-    """``count`` ≥ 2 values from 0 to ``stop`` inclusive (the original linspace(0, 1, 11))."""
+    """``count`` ≥ 2 values from 0 to ``stop`` inclusive (the original linspace(0, 1, 11)).
+
+    Parameters
+    ----------
+    count : int
+        Values, at least 2.
+    name : str
+        The option named in the error.
+    stop : float, default 1
+        The last value.
+
+    Returns
+    -------
+    tuple of float
+
+    Raises
+    ------
+    ValueError
+        ``count`` is not an integer ≥ 2.
+    """
     if isinstance(count, bool) or not isinstance(count, int) or count < 2:
         raise ValueError(f"{name} must be an integer >= 2, got {count!r}")
     return tuple(float(v) for v in np.linspace(0.0, stop, count))
@@ -116,6 +135,21 @@ def phase_offsets(count: int) -> tuple:
 
     Half a period is enough: every sensor waveform flips sign under ψ → ψ + π, so the
     measurement and its error at ψ + π are those at ψ with the sign flipped.
+
+    Parameters
+    ----------
+    count : int
+        Phases, at least 1.
+
+    Returns
+    -------
+    tuple of float
+        Phases in rad.
+
+    Raises
+    ------
+    ValueError
+        ``count`` is not an integer ≥ 1.
     """
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
         raise ValueError(f"phases must be an integer >= 1, got {count!r}")
@@ -123,7 +157,19 @@ def phase_offsets(count: int) -> tuple:
 
 
 def folded_phases(phases_rad: Sequence[float]) -> tuple[tuple, list[int]]:
-    """(phases to render, index of each given phase's among them): ψ folded into [0, π)."""
+    """Phases folded into [0, π), each rendered once.
+
+    Parameters
+    ----------
+    phases_rad : sequence of float
+        Phases ψ (rad), any range.
+
+    Returns
+    -------
+    tuple of (tuple of float, list of int)
+        The phases to render (rad, in [0, π), distinct), and for each given phase the index
+        of its folded phase among them.
+    """
     rendered: list[float] = []
     index = []
     for phase in phases_rad:
@@ -138,7 +184,19 @@ def folded_phases(phases_rad: Sequence[float]) -> tuple[tuple, list[int]]:
 
 
 def sweep_cameras(base, settings: SweepSettings) -> list:
-    """The rendered cameras, waveform-major, then h, then folded phase (:func:`folded_phases`)."""
+    """The rendered cameras, waveform-major, then h, then folded phase (:func:`folded_phases`).
+
+    Parameters
+    ----------
+    base : Camera
+        The camera every other parameter comes from.
+    settings : SweepSettings
+        Its ``waveforms`` (empty: ``base``'s), ``h_values`` and ``phases_rad``.
+
+    Returns
+    -------
+    list of Camera
+    """
     rendered, _ = folded_phases(settings.phases_rad)
     waveforms = settings.waveforms or (base.waveform,)
     return [camera for w in waveforms for camera in camera_grid(dataclasses.replace(base, waveform=w), settings.h_values, rendered)]
@@ -231,7 +289,30 @@ def run_time_sampling(scene: ExperimentScene, folder, estimators: Sequence[Estim
 
     Writes ``results.csv``, ``summary.csv``, ``metadata.json`` and, per correlation mode,
     ``rmse_vs_h_<mode>.png`` and ``psnr_vs_h_<mode>.png`` (one curve per time sampling:
-    mean over ψ with ±1 std band). Returns the paths written.
+    mean over ψ with ±1 std band).
+
+    Parameters
+    ----------
+    scene : ExperimentScene
+    folder : str or path
+        Output folder (created).
+    estimators : sequence of Estimator
+    settings : SweepSettings
+        The grid, spp, seeds and depth.
+    cache : ReferenceCache
+        Where the reference is looked up and stored.
+    echo : callable
+        Called with one line of progress text.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        A render was interrupted.
     """
     folder = Path(folder)
     rows, _ = _sweep(scene, estimators, settings, cache, echo)
@@ -255,7 +336,35 @@ def run_shifts(scene: ExperimentScene, folder, methods: Sequence[str], shifts: S
 
     Writes ``results.csv``, ``summary.csv``, ``metadata.json`` and per method
     ``rmse_<method>_shift_h.png`` (RMSE averaged over ψ as an image over a × h) and
-    ``rmse_vs_shift_<method>.png`` (one curve per h). Returns the paths written.
+    ``rmse_vs_shift_<method>.png`` (one curve per h).
+
+    Parameters
+    ----------
+    scene : ExperimentScene
+    folder : str or path
+        Output folder (created).
+    methods : sequence of str
+        Antithetic time samplings (``antithetic``, ``antithetic_mirror``).
+    shifts : sequence of float
+        Shifts a, units of T, in [0, 1].
+    correlation : str
+        The correlation mode of every estimator.
+    settings : SweepSettings
+        The grid, spp, seeds and depth.
+    cache : ReferenceCache
+        Where the reference is looked up and stored.
+    echo : callable
+        Called with one line of progress text.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+
+    Raises
+    ------
+    ValueError
+        A method that is not antithetic, or a shift outside [0, 1].
     """
     for method in methods:
         if method not in ("antithetic", "antithetic_mirror"):

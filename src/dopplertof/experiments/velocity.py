@@ -58,14 +58,37 @@ the velocity reconstructed on valid static pixels (should be 0)."""
 
 
 def velocity_cameras(base) -> list:
-    """Homodyne and heterodyne (h = 1) at ψ = 0 and 90°, in matched pairs."""
+    """Homodyne and heterodyne (h = 1) at ψ = 0 and 90°, in matched pairs.
+
+    Parameters
+    ----------
+    base : Camera
+        The camera every other parameter comes from.
+
+    Returns
+    -------
+    list of Camera
+        Four cameras: (h = 0, ψ = 0), (h = 1, ψ = 0), (h = 0, ψ = 90°), (h = 1, ψ = 90°).
+    """
     return [dataclasses.replace(base, heterodyne=h, phase=psi) for psi in (0.0, math.pi / 2) for h in (0.0, 1.0)]
 
 
 def velocity_errors(estimate: np.ndarray, truth: np.ndarray) -> dict:
-    """Error statistics of a velocity map (NaN = no estimate) against the ground truth (m/s).
+    """Error statistics of a velocity map against the ground truth.
 
-    Statistics of an empty pixel set are NaN.
+    Parameters
+    ----------
+    estimate : ndarray, m/s
+        Reconstructed radial velocity, NaN where there is no estimate.
+    truth : ndarray, m/s, same shape
+        Ground-truth radial velocity, NaN where unknown.
+
+    Returns
+    -------
+    dict
+        ``moving_pixels``, ``valid_fraction``, ``mae_m_s``, ``rmse_m_s``, ``bias_m_s``,
+        ``median_abs_error_m_s``, ``relative_mae``, ``static_pixels``,
+        ``static_rmse_m_s``. Statistics of an empty pixel set are NaN.
     """
     known = np.isfinite(truth)
     moving = known & (np.abs(truth) > MOVING_SPEED_M_S)
@@ -106,6 +129,24 @@ def sensor_for(reference, camera, signal_electrons: float) -> SensorModel:
     Read noise and ADC depth are :class:`SensorModel`'s defaults; above the default full
     well, the full well and the conversion gain grow with ``signal_electrons`` (same
     DN range), so that the signal level, not saturation, sets the noise.
+
+    Parameters
+    ----------
+    reference : RenderResult
+        The reference render whose intensity sets the brightness.
+    camera : Camera
+        Its exposure and g₀.
+    signal_electrons : float, e⁻
+        Finite, > 0.
+
+    Returns
+    -------
+    SensorModel
+
+    Raises
+    ------
+    ValueError
+        ``signal_electrons`` is not a finite number > 0, or the reference is black.
     """
     _check_signal_electrons(signal_electrons)
     bright = float(np.percentile(_luminance(reference.intensity), 99))
@@ -133,7 +174,40 @@ def run_velocity(
     cache: ReferenceCache,
     echo: Echo,
 ) -> list[Path]:
-    """Velocity maps and their errors for each estimator and the reference; returns the paths."""
+    """Velocity maps and their errors for each estimator and the reference.
+
+    Parameters
+    ----------
+    scene : ExperimentScene
+    folder : str or path
+        Output folder (created).
+    estimators : sequence of Estimator
+    spp : int
+        Samples per pixel of each estimator's render (a multiple of :data:`N_TIMES`).
+    reference_spp : int
+        Samples per pixel of the reference (a multiple of :data:`N_TIMES`).
+    seed : int
+        Seed, in [0, 2³²).
+    max_depth : int
+        Path depth.
+    signal_electrons : float, e⁻
+        Signal of the brightest pixels in the sensor model (:func:`sensor_for`).
+    cache : ReferenceCache
+        Where the reference is looked up and stored.
+    echo : callable
+        Called with one line of progress text.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+
+    Raises
+    ------
+    ValueError
+        An spp that is not a positive multiple of :data:`N_TIMES`, or a bad
+        ``signal_electrons``.
+    """
     check_spp("spp", spp)
     check_spp("reference spp", reference_spp)
     _check_signal_electrons(signal_electrons)

@@ -319,7 +319,23 @@ def _combine_frequencies(parts, groups, sets, covariance) -> VelocityResult:
 
 
 def unambiguous_speed_m_s(cams) -> float:
-    """The radial speed c/(4 f_g T) at which the Doppler phase over the exposure reaches π."""
+    """The radial speed c/(4 f_g T) at which the Doppler phase over the exposure reaches π.
+
+    Parameters
+    ----------
+    cams : sequence of Camera
+        Cameras of one modulation frequency f_g and exposure T.
+
+    Returns
+    -------
+    float
+        m/s.
+
+    Raises
+    ------
+    ValueError
+        Cameras that do not share f_g and T.
+    """
     cams = cams if isinstance(cams, _CameraSet) else _camera_set(cams)
     return SPEED_OF_LIGHT_M_S / (4.0 * cams.frequency_hz * cams.exposure_s)
 

@@ -35,7 +35,18 @@ def _frequency_groups(cameras: list) -> list[list[int]]:
 
 
 def beat_range_m(range_a_m: float, range_b_m: float) -> float:
-    """c/(2 |f_a − f_b|) (m) from the two ranges c/(2 f): the depth range of the pair."""
+    """c/(2 |f_a − f_b|) (m) from the two ranges c/(2 f): the depth range of the pair.
+
+    Parameters
+    ----------
+    range_a_m, range_b_m : float, m
+        The ranges c/(2 f) of two modulation frequencies (different).
+
+    Returns
+    -------
+    float
+        m.
+    """
     return range_a_m * range_b_m / abs(range_a_m - range_b_m)
 
 
@@ -45,7 +56,9 @@ def unwrap_depth(depth_a_m, range_a_m: float, depth_b_m, range_b_m: float) -> np
     Parameters
     ----------
     depth_a_m, depth_b_m : array_like, same shape
-        Depths (m) modulo ``range_a_m`` and ``range_b_m`` (m, different); NaN where unknown.
+        Depths (m) modulo ``range_a_m`` and ``range_b_m``; NaN where unknown.
+    range_a_m, range_b_m : float, m
+        The two ranges c/(2 f) (different).
 
     Returns
     -------
@@ -66,7 +79,20 @@ def unwrap_depth(depth_a_m, range_a_m: float, depth_b_m, range_b_m: float) -> np
 
 def inverse_variance_weights(velocities, stderrs) -> np.ndarray:
     """Weights (K, ...) summing to 1 per pixel over the K frequencies that give a velocity
-    there (finite), ∝ 1/σ², or equal without errors (``stderrs`` None); 0 elsewhere."""
+    there (finite), ∝ 1/σ², or equal without errors (``stderrs`` None); 0 elsewhere.
+
+    Parameters
+    ----------
+    velocities : sequence of array_like, m/s
+        K velocity maps of one shape, NaN where unknown.
+    stderrs : sequence of array_like or None, m/s
+        Their standard errors; None: equal weights.
+
+    Returns
+    -------
+    ndarray
+        (K, ...) float64.
+    """
     v = np.stack([np.asarray(x, dtype=np.float64) for x in velocities])
     known = np.isfinite(v)
     if stderrs is None:

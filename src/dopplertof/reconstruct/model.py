@@ -341,7 +341,17 @@ def _doppler_to_velocity(doppler_phase, cams: _CameraSet):
 
 
 def ambiguity_range_m(modulation_frequency_hz: float) -> float:
-    """Unambiguous depth range c/(2 f_g) (m) of a co-located ToF camera."""
+    """Unambiguous depth range c/(2 f_g) (m) of a co-located ToF camera.
+
+    Parameters
+    ----------
+    modulation_frequency_hz : float, Hz
+
+    Returns
+    -------
+    float
+        m.
+    """
     if not (np.isfinite(modulation_frequency_hz) and modulation_frequency_hz > 0):
         raise ValueError(
             f"modulation_frequency_hz must be > 0, got {modulation_frequency_hz!r}"

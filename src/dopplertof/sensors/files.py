@@ -47,6 +47,15 @@ _SILICON_KEYS = tuple(f.name for f in dataclasses.fields(Silicon))
 def load_sensor(spec: str) -> Sensor:
     """A sensor from a preset name (:data:`~dopplertof.sensors.PRESETS`) or a ``.toml`` file.
 
+    Parameters
+    ----------
+    spec : str
+        A preset name or the path of a ``.toml`` sensor file.
+
+    Returns
+    -------
+    Sensor
+
     Raises
     ------
     ValueError
@@ -154,6 +163,17 @@ def sensor_record(sensor: Sensor, scheduled=None) -> dict:
 
     ``scheduled``: the frames as rendered (a result's first ``len(sensor.frames)``
     cameras, whose ``exposure_start`` is filled in); default the sensor's own.
+
+    Parameters
+    ----------
+    sensor : Sensor
+    scheduled : list of Camera or None, default None
+        As above.
+
+    Returns
+    -------
+    dict
+        JSON-able.
     """
     silicon = dataclasses.asdict(sensor.noise)
     frames = [{**f.as_dict(), "heterodyne_hz": f.heterodyne / f.exposure} for f in (scheduled or sensor.frames)]
@@ -173,7 +193,22 @@ def sensor_record(sensor: Sensor, scheduled=None) -> dict:
 def sensor_toml(sensor: Sensor) -> str:
     """``sensor`` as a TOML sensor file (module docstring) that :func:`load_sensor` reads
     back to the same sensor: a preset's name and frames (its silicon written out whole), or
-    the taps, silicon and frames of a custom one."""
+    the taps, silicon and frames of a custom one.
+
+    Parameters
+    ----------
+    sensor : Sensor
+
+    Returns
+    -------
+    str
+        TOML text.
+
+    Raises
+    ------
+    ValueError
+        A setting with no TOML form.
+    """
     silicon = {k: v for k, v in dataclasses.asdict(sensor.noise).items() if v is not None}
     lines = [f"preset = {_toml(sensor.name)}"] if sensor.name in PRESETS else [f"taps = {sensor.taps}"]
     lines += ["", "[silicon]"] + [f"{k} = {_toml(v)}" for k, v in silicon.items()]

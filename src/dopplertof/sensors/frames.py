@@ -65,9 +65,8 @@ class RawFrame(Camera):
     ----------
     heterodyne : float or None. h; None: from ``heterodyne_hz``, else 0.
     heterodyne_hz : float or None, Hz. The sensor-minus-light frequency offset.
-    **camera
-        Every other :class:`~dopplertof.Camera` parameter (``modulation_frequency``,
-        ``phase``, ``exposure``, ``exposure_start``, ``light_code``, ``sensor_code``, …).
+    modulation_frequency, exposure, phase, waveform, g1, g0, low_pass, exposure_start, light_code, sensor_code, light_bandwidth
+        As :class:`~dopplertof.Camera`'s: same units (Hz, s, rad) and defaults.
 
     Examples
     --------
@@ -96,7 +95,12 @@ class RawFrame(Camera):
 
     def label(self) -> str:
         """Short text naming this frame: its modulation frequency (Hz), then the
-        :meth:`Camera.label <dopplertof.Camera.label>`."""
+        :meth:`Camera.label <dopplertof.Camera.label>`.
+
+        Returns
+        -------
+        str
+        """
         return f"f={self.modulation_frequency:g},{super().label()}"
 
 
@@ -124,7 +128,19 @@ def tap_electrons(kappa_t, light, signal, taps: int) -> list:
 
 
 def mean_light_camera(start_s, exposure_s) -> Camera:
-    """The camera that measures a window's mean luminance Ī (constant weight 1)."""
+    """The camera that measures a window's mean luminance Ī (constant weight 1).
+
+    Parameters
+    ----------
+    start_s : float, s
+        When the window opens.
+    exposure_s : float, s
+        Its length.
+
+    Returns
+    -------
+    Camera
+    """
     return Camera(exposure=exposure_s, exposure_start=start_s, heterodyne=0.0, g1=0.0, g0=1.0, light_code=_CONSTANT, sensor_code=_CONSTANT)
 
 
@@ -198,7 +214,12 @@ class Sensor:
     # ------------------------------------------------------------------ rendering
     def cameras(self) -> list[Camera]:
         """What a render traces: every frame (and its 4-tap phase shifts), then one
-        constant-weight camera per exposure window (the window's mean luminance)."""
+        constant-weight camera per exposure window (the window's mean luminance).
+
+        Returns
+        -------
+        list of Camera
+        """
         out = list(self.frames)
         if self.taps == 4:
             out += [dataclasses.replace(f, phase=f.phase + j * math.pi / 2) for j in (1, 2, 3) for f in self.frames]
@@ -221,7 +242,25 @@ class Sensor:
         :meth:`cameras` (a render's ``measurements``, in that order; module docstring).
 
         ``clip=False``: the linear map itself, in float64 and unclipped (applied to the
-        derivatives of the measurements it gives the electrons' derivatives)."""
+        derivatives of the measurements it gives the electrons' derivatives).
+
+        Parameters
+        ----------
+        measurements : array_like
+            (len(cameras()), H, W), as above.
+        clip : bool, default True
+            Clip the electrons at zero.
+
+        Returns
+        -------
+        ndarray
+            (frames, taps, H, W), e⁻.
+
+        Raises
+        ------
+        ValueError
+            ``measurements`` of another shape.
+        """
         m = np.asarray(measurements, dtype=np.float64)
         n_frames, windows = len(self.frames), self._windows()
         expected = self.frame_cameras + len(windows)
@@ -273,7 +312,18 @@ class Sensor:
     # ------------------------------------------------------------------ read-out
     def expected_electrons(self, raw) -> np.ndarray:
         """Mean tap charge (frames, taps, H, W) before the full well: signal with the tap
-        gain mismatch, plus its share of the ambient light and the dark current."""
+        gain mismatch, plus its share of the ambient light and the dark current.
+
+        Parameters
+        ----------
+        raw : ndarray
+            (frames, taps, H, W) signal electrons, as :meth:`raw` gives them.
+
+        Returns
+        -------
+        ndarray
+            (frames, taps, H, W), e⁻.
+        """
         raw = np.asarray(raw, dtype=np.float64)
         gain, _ = self.noise.pattern(raw.shape[1:])
         column = (-1, *([1] * (raw.ndim - 1)))

@@ -238,7 +238,21 @@ class Silicon:
         return _interpolate("Silicon: quantum_efficiency", self.quantum_efficiency, self.wavelength_m, "m")
 
     def contrast(self, modulation_frequency_hz: float) -> float:
-        """Demodulation contrast at a modulation frequency (ValueError outside its table)."""
+        """Demodulation contrast at a modulation frequency (ValueError outside its table).
+
+        Parameters
+        ----------
+        modulation_frequency_hz : float, Hz
+
+        Returns
+        -------
+        float
+
+        Raises
+        ------
+        ValueError
+            A frequency outside the ``demodulation_contrast`` table.
+        """
         return _interpolate("Silicon: demodulation_contrast", self.demodulation_contrast, modulation_frequency_hz, "Hz")
 
     @property
@@ -250,7 +264,18 @@ class Silicon:
         return power_w / photon_j * self.qe
 
     def pattern(self, shape) -> tuple[np.ndarray, np.ndarray]:
-        """The fixed pattern for taps of ``shape`` (taps, H, W): gain factors and offsets (e⁻)."""
+        """The fixed pattern for taps of ``shape`` (taps, H, W): gain factors and offsets (e⁻).
+
+        Parameters
+        ----------
+        shape : tuple of int
+            (taps, H, W).
+
+        Returns
+        -------
+        tuple of (ndarray, ndarray)
+            Gain factors and offsets (e⁻), drawn from ``pattern_seed``.
+        """
         if self.tap_gain_mismatch == 0 and self.tap_offset_mismatch_e == 0:
             return np.ones(shape), np.zeros(shape)
         rng = np.random.default_rng(self.pattern_seed)
@@ -259,12 +284,42 @@ class Silicon:
 
     def tap_variance_e2(self, mean_e) -> np.ndarray:
         """Variance of a tap (e⁻²) with mean charge ``mean_e`` below the full well: shot +
-        read² + quantisation gain²/12 (the fixed pattern is not noise: it repeats)."""
+        read² + quantisation gain²/12 (the fixed pattern is not noise: it repeats).
+
+        Parameters
+        ----------
+        mean_e : array_like, e⁻
+
+        Returns
+        -------
+        ndarray
+            e⁻².
+        """
         mean_e = np.asarray(mean_e, dtype=np.float64)
         return (mean_e if self.shot_noise else np.zeros_like(mean_e)) + self.read_noise_e**2 + self.gain_e_per_dn**2 / 12.0
 
     def digitize(self, expected_e, rng, offset_e=0.0) -> np.ndarray:
-        """:func:`digitize` with this silicon's well, read noise and ADC."""
+        """:func:`digitize` with this silicon's well, read noise and ADC.
+
+        Parameters
+        ----------
+        expected_e : array_like, e⁻
+            Mean tap charges.
+        rng : numpy.random.Generator
+            Draws the shot noise, then the read noise.
+        offset_e : float or ndarray, e⁻, default 0
+            Offset added after the well (the taps' offset mismatch).
+
+        Returns
+        -------
+        ndarray
+            Digital numbers.
+
+        Raises
+        ------
+        ValueError
+            A charge that is not finite.
+        """
         return digitize(
             expected_e, rng, full_well_e=self.full_well_e, read_noise_e=self.read_noise_e, gain_e_per_dn=self.gain_e_per_dn,
             black_level_dn=self.black_level_dn, max_dn=self.max_dn, shot_noise=self.shot_noise, offset_e=offset_e,

@@ -61,7 +61,16 @@ class Limits:
     hint: str = ""
 
     def violations(self, frame) -> list[str]:
-        """Why this chip cannot capture ``frame`` (empty if it can)."""
+        """Why this chip cannot capture ``frame`` (empty if it can).
+
+        Parameters
+        ----------
+        frame : RawFrame
+
+        Returns
+        -------
+        list of str
+        """
         out = []
         f = frame.modulation_frequency
         low, high = self.frequency_hz
@@ -82,7 +91,17 @@ class Limits:
         return out
 
     def check(self, frames) -> None:
-        """ValueError naming every violation of every frame, in one message."""
+        """ValueError naming every violation of every frame, in one message.
+
+        Parameters
+        ----------
+        frames : sequence of RawFrame
+
+        Raises
+        ------
+        ValueError
+            This chip cannot capture the frames (too many, or a frame it cannot take).
+        """
         problems = []
         if self.max_frames is not None and len(frames) > self.max_frames:
             problems.append(f"{len(frames)} raw frames (at most {self.max_frames})")
@@ -115,6 +134,22 @@ def mlx75027(frames=None, **silicon) -> Sensor:
 
     Default schedule: 4 phases (0°, 90°, 180°, 270°) at 100 MHz, 300 µs each (the
     datasheet's 120 fps example); square-wave modulation. Black level **[unverified]**: 0.
+
+    Parameters
+    ----------
+    frames : list of RawFrame or None, default None
+        The schedule; None: the default one above.
+    **silicon
+        :class:`~dopplertof.sensors.noise.Silicon` parameters that replace the chip's.
+
+    Returns
+    -------
+    Sensor
+
+    Raises
+    ------
+    ValueError
+        An unknown silicon parameter, or frames the chip cannot capture.
     """
     base = dict(
         pixel_pitch_m=10e-6, quantum_efficiency=((850e-9, 0.51), (940e-9, 0.28)),
@@ -144,6 +179,22 @@ def opt8241(frames=None, **silicon) -> Sensor:
     clock for light and pixel (no heterodyne offset). Full well, read noise, dark current
     **[unverified]**: ideal. Default schedule: 4 phases (quad) at 50 MHz, 1 ms each
     **[unverified]** integration.
+
+    Parameters
+    ----------
+    frames : list of RawFrame or None, default None
+        The schedule; None: the default one above.
+    **silicon
+        :class:`~dopplertof.sensors.noise.Silicon` parameters that replace the chip's.
+
+    Returns
+    -------
+    Sensor
+
+    Raises
+    ------
+    ValueError
+        An unknown silicon parameter, or frames the chip cannot capture.
     """
     base = dict(pixel_pitch_m=15e-6, quantum_efficiency=0.51, demodulation_contrast=0.45, adc_bits=12)
     limits = Limits("OPT8241", (10e6, 100e6), heterodyne=False, waveforms=("rectangular", "sinusoidal"),
@@ -162,6 +213,22 @@ def imx556(frames=None, **silicon) -> Sensor:
     range is taken as the MLX75027's class, 4–100 MHz **[inference]**, the silicon ideal;
     one clock for light and pixel. Default schedule: 4 phases at 100 MHz, 500 µs
     **[unverified]**.
+
+    Parameters
+    ----------
+    frames : list of RawFrame or None, default None
+        The schedule; None: the default one above.
+    **silicon
+        :class:`~dopplertof.sensors.noise.Silicon` parameters that replace the chip's.
+
+    Returns
+    -------
+    Sensor
+
+    Raises
+    ------
+    ValueError
+        An unknown silicon parameter, or frames the chip cannot capture.
     """
     limits = Limits("IMX556", (4e6, 100e6), heterodyne=False, hint="for D-ToF offsets use the 'dtof-prototype' preset")
     return _sensor("imx556", frames or _phases(4, math.pi / 2, modulation_frequency=100e6, exposure=500e-6, waveform="rectangular"), 2, dict(pixel_pitch_m=10e-6), silicon, limits)
@@ -182,6 +249,22 @@ def kinect_v2(frames=None, **silicon) -> Sensor:
     Pixel pitch, QE, contrast, noise, exposure **[unverified]**: ideal silicon, 2 taps
     **[inference]**, 11-bit ADC, 1 ms per raw frame; frames one after another (each its own
     window, as a real capture). Light and pixel share a clock: no heterodyne offset.
+
+    Parameters
+    ----------
+    frames : list of RawFrame or None, default None
+        The schedule; None: the default one above.
+    **silicon
+        :class:`~dopplertof.sensors.noise.Silicon` parameters that replace the chip's.
+
+    Returns
+    -------
+    Sensor
+
+    Raises
+    ------
+    ValueError
+        An unknown silicon parameter, or frames the chip cannot capture.
     """
     limits = Limits("Kinect v2", (1e6, 130e6), phase_step_rad=2 * math.pi / 3, heterodyne=False, max_frames=9, waveforms=("rectangular", "sinusoidal"))
     exposure = 1e-3
@@ -205,6 +288,22 @@ def dtof_prototype(frames=None, **silicon) -> Sensor:
 
     The DDS's 0.12 Hz / 0.02° steps are below what a render resolves, so frequencies, offsets
     and phases are not restricted to them.
+
+    Parameters
+    ----------
+    frames : list of RawFrame or None, default None
+        The schedule; None: the default one above.
+    **silicon
+        :class:`~dopplertof.sensors.noise.Silicon` parameters that replace the chip's.
+
+    Returns
+    -------
+    Sensor
+
+    Raises
+    ------
+    ValueError
+        An unknown silicon parameter, or frames the chip cannot capture.
     """
     base = dict(pixel_pitch_m=15e-6, quantum_efficiency=0.51, demodulation_contrast=0.45, adc_bits=12)
     limits = Limits("D-ToF prototype (OPT8241 + AD9959)", (10e6, 100e6), heterodyne=True, waveforms=("code",))
@@ -229,6 +328,10 @@ def preset(name: str, frames=None, **silicon) -> Sensor:
     **silicon
         :class:`~dopplertof.sensors.noise.Silicon` parameters to change (optics, scale,
         ambient light, …).
+
+    Returns
+    -------
+    Sensor
 
     Raises
     ------

@@ -26,7 +26,22 @@ from __future__ import annotations
 
 
 def trace_pass(scene, settings, setup, tables):
-    """Per-lane outputs of one pass (:class:`~dopplertof.tracing.sink.Sink` layout)."""
+    """Per-lane outputs of one pass (:class:`~dopplertof.tracing.sink.Sink` layout).
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    settings : RenderSettings
+    setup : LaneSetup
+        The pass's pixels, samples and exposure window.
+    tables : MaterialTables
+        Of ``scene``.
+
+    Returns
+    -------
+    dict
+        Name → per-lane Dr.Jit array, not yet evaluated.
+    """
     if settings.paired:
         from .paired import trace_pair
 

@@ -23,7 +23,18 @@ _TABLE_SIZE = 2049
 
 
 class FilterSampler:
-    """Offsets (pixels) from pixel centres, drawn from the film's filter."""
+    """Offsets (pixels) from pixel centres, drawn from the film's filter.
+
+    Parameters
+    ----------
+    film : mi.Film
+        Its reconstruction filter (box, tent or gaussian).
+
+    Raises
+    ------
+    ValueError
+        A filter with negative lobes.
+    """
 
     def __init__(self, film):
         import mitsuba as mi
@@ -61,7 +72,19 @@ class FilterSampler:
 
     def offset(self, sample, pixel_x, pixel_y):
         """(offset from the centre of pixel (``pixel_x``, ``pixel_y``) in pixels, weight)
-        for a uniform ``mi.Point2f`` ``sample``."""
+        for a uniform ``mi.Point2f`` ``sample``.
+
+        Parameters
+        ----------
+        sample : mi.Point2f
+            Uniform in [0, 1)².
+        pixel_x, pixel_y : mi.UInt32
+            The pixel.
+
+        Returns
+        -------
+        tuple of (mi.Point2f, mi.Float)
+        """
         import drjit as dr
         import mitsuba as mi
 

@@ -34,7 +34,31 @@ STREAM_ROTATION = 0x5EED0003
 
 @dataclass(frozen=True)
 class LaneSetup:
-    """Host-side description of one pass."""
+    """Host-side description of one pass.
+
+    Parameters
+    ----------
+    width, height : int
+        Film size in pixels.
+    pixel_start : int
+        First pixel (row-major index) of the pass's tile.
+    n_pixels : int
+        Pixels in the tile.
+    first_sample : int
+        Global index of the pass's first sample in each pixel.
+    samples : int
+        Samples of each pixel in this pass (a multiple of ``n_times``).
+    spp_total : int
+        Samples per pixel of the whole render.
+    n_times : int
+        Correlated times per group (N).
+    replicates : int
+        Requested replicates R (fewer where the pixel has fewer groups).
+    exposure_start_s, exposure_s : float, s
+        The exposure window.
+    seed : int
+        The window's seed, in [0, 2³²).
+    """
 
     width: int
     height: int
@@ -63,20 +87,57 @@ class LaneSetup:
 
 def replicate_layout(n_groups: int, replicates: int) -> tuple[int, int, int]:
     """(R, base, extra): R = min(replicates, G) runs; the first ``extra`` have ``base + 1``
-    groups, the others ``base``."""
+    groups, the others ``base``.
+
+    Parameters
+    ----------
+    n_groups : int
+        Groups G of a pixel.
+    replicates : int
+        Requested replicates.
+
+    Returns
+    -------
+    tuple of (int, int, int)
+    """
     count = max(1, min(replicates, n_groups))
     return count, n_groups // count, n_groups % count
 
 
 def replicate_bounds(n_groups: int, replicates: int) -> list[tuple[int, int]]:
-    """[(first group, group count)] of each replicate (host side, same layout)."""
+    """[(first group, group count)] of each replicate (host side, same layout).
+
+    Parameters
+    ----------
+    n_groups : int
+        Groups of a pixel.
+    replicates : int
+        Requested replicates.
+
+    Returns
+    -------
+    list of tuple of (int, int)
+    """
     count, base, extra = replicate_layout(n_groups, replicates)
     return [(r * base + min(r, extra), base + (r < extra)) for r in range(count)]
 
 
 def window_seed(seed: int, window: int) -> int:
     """The seed of window ``window`` of a capture schedule: ``seed`` itself for the first,
-    else a 32-bit hash of (seed, window), far from ``seed + i`` (an animation's frames)."""
+    else a 32-bit hash of (seed, window), far from ``seed + i`` (an animation's frames).
+
+    Parameters
+    ----------
+    seed : int
+        The render's seed, in [0, 2³²).
+    window : int
+        The window's index, from 0.
+
+    Returns
+    -------
+    int
+        In [0, 2³²).
+    """
     if window == 0:
         return seed
     digest = hashlib.sha256(f"dopplertof window {seed} {window}".encode()).digest()
@@ -84,7 +145,16 @@ def window_seed(seed: int, window: int) -> int:
 
 
 def opaque_u32(value):
-    """A UInt32 scalar as kernel data rather than code: another value reuses the kernel."""
+    """A UInt32 scalar as kernel data rather than code: another value reuses the kernel.
+
+    Parameters
+    ----------
+    value : int
+
+    Returns
+    -------
+    mi.UInt32
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -94,7 +164,21 @@ def opaque_u32(value):
 
 
 def seeded_pcg(seed_u32, stream, key_a, key_b):
-    """A PCG32 seeded from (seed, stream, key_a, key_b) alone (DESIGN §3.2)."""
+    """A PCG32 seeded from (seed, stream, key_a, key_b) alone (DESIGN §3.2).
+
+    Parameters
+    ----------
+    seed_u32 : mi.UInt32
+        The window's seed.
+    stream : int
+        Which stream (``STREAM_*``).
+    key_a, key_b : mi.UInt32
+        The keys (pixel, sample or group).
+
+    Returns
+    -------
+    mi.PCG32
+    """
     import mitsuba as mi
 
     v0, v1 = mi.sample_tea_32(seed_u32 ^ stream, key_a, 4)
@@ -111,6 +195,13 @@ class Streams:
     when it is the same for every lane (only that stream advances) or a per-lane Bool
     (both advance, so each stays in step within its group). It is a Dr.Jit PyTree, so
     a symbolic loop carries its generators' state from one iteration to the next.
+
+    Parameters
+    ----------
+    shared : mi.PCG32 or None, default None
+        The group's stream.
+    own : mi.PCG32 or None, default None
+        The lane's own stream.
     """
 
     DRJIT_STRUCT = {"shared": object, "own": object}  # a PyTree: loop state for Dr.Jit
@@ -120,7 +211,16 @@ class Streams:
 
     def next_1d(self, correlated):
         """The next uniform number in [0, 1) per lane: the group's stream where ``correlated``
-        (a bool for every lane, or a per-lane Bool), else the lane's own (class docstring)."""
+        (a bool for every lane, or a per-lane Bool), else the lane's own (class docstring).
+
+        Parameters
+        ----------
+        correlated : bool or mi.Bool
+
+        Returns
+        -------
+        mi.Float
+        """
         import drjit as dr
 
         if correlated is True:
@@ -132,7 +232,16 @@ class Streams:
         return dr.select(correlated, a, b)
 
     def next_2d(self, correlated):
-        """Two numbers of :meth:`next_1d` as a ``mi.Point2f``."""
+        """Two numbers of :meth:`next_1d` as a ``mi.Point2f``.
+
+        Parameters
+        ----------
+        correlated : bool or mi.Bool
+
+        Returns
+        -------
+        mi.Point2f
+        """
         import mitsuba as mi
 
         return mi.Point2f(self.next_1d(correlated), self.next_1d(correlated))
@@ -140,7 +249,18 @@ class Streams:
 
 def pixel_and_index(setup: LaneSetup, per_pixel: int):
     """(global pixel, index within the pixel's pass range) of every lane, ``per_pixel``
-    lanes per pixel."""
+    lanes per pixel.
+
+    Parameters
+    ----------
+    setup : LaneSetup
+    per_pixel : int
+        Lanes per pixel.
+
+    Returns
+    -------
+    tuple of (mi.UInt32, mi.UInt32)
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -150,7 +270,18 @@ def pixel_and_index(setup: LaneSetup, per_pixel: int):
 
 
 def stratum(setup: LaneSetup, group):
-    """(replicate, index in it, its group count) of per-lane ``group`` (UInt32)."""
+    """(replicate, index in it, its group count) of per-lane ``group`` (UInt32).
+
+    Parameters
+    ----------
+    setup : LaneSetup
+    group : mi.UInt32
+        Each lane's group in its pixel.
+
+    Returns
+    -------
+    tuple of mi.UInt32
+    """
     import drjit as dr
 
     _, base, extra = setup.layout
@@ -164,7 +295,25 @@ def stratum(setup: LaneSetup, group):
 
 
 def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared, r_own):
-    """Normalised time u (Float64) of each lane (:mod:`dopplertof.timesampling`)."""
+    """Normalised time u (Float64) of each lane (:mod:`dopplertof.timesampling`).
+
+    Parameters
+    ----------
+    setup : LaneSetup
+    settings : RenderSettings
+        Its time sampling, shift and stratification.
+    seed : mi.UInt32
+        The window's seed.
+    pixel, group, member : mi.UInt32
+        Each lane's pixel, group and member in the group.
+    r_shared, r_own : mi.Float
+        The group's and the lane's uniform numbers.
+
+    Returns
+    -------
+    mi.Float64
+        u in [0, 1).
+    """
     import mitsuba as mi
 
     from ..timesampling import sample_times
@@ -179,7 +328,19 @@ def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared
 
 def lane_times(setup: LaneSetup, u):
     """Scene times (s, Float64) of normalised times ``u``; the exposure is opaque data, so
-    another exposure window (an animation's next frame) reuses the kernel."""
+    another exposure window (an animation's next frame) reuses the kernel.
+
+    Parameters
+    ----------
+    setup : LaneSetup
+    u : mi.Float64
+        Normalised times.
+
+    Returns
+    -------
+    mi.Float64
+        Seconds.
+    """
     import drjit as dr
     import mitsuba as mi
 

@@ -25,7 +25,20 @@ _STRAIGHT_THROUGH = ("ThinDielectric", "MaskBSDF", "NullBSDF")  # transmit witho
 @dataclass
 class MaterialTables:
     """Per-BSDF tables the kernel gathers from (roughness for ``adaptive``, relative index
-    of refraction for optical lengths), with the film's filter and the sensor's projection."""
+    of refraction for optical lengths), with the film's filter and the sensor's projection.
+
+    Parameters
+    ----------
+    roughness : mi.Float
+        Per-BSDF roughness.
+    relative_ior : mi.Float
+        Per-BSDF relative index of refraction (1 where it does not refract).
+    film : FilterSampler or None, default None
+    pinhole : tuple or None, default None
+        The sensor's :func:`~dopplertof.tracing.path.pinhole_scales`.
+    refracts : bool, default True
+        Whether any BSDF refracts (else the indices are skipped).
+    """
     roughness: object  # mi.Float indexed by BSDF id
     relative_ior: object  # mi.Float indexed by BSDF id
     film: object = None  # the FilterSampler of the scene's film (dopplertof.tracing.film)
@@ -35,7 +48,21 @@ class MaterialTables:
     @classmethod
     def of(cls, scene) -> "MaterialTables":
         """The tables of ``scene`` (a :class:`~dopplertof.DynamicScene`): every BSDF of the
-        static scene and of the bodies, its film's filter and its sensor's projection."""
+        static scene and of the bodies, its film's filter and its sensor's projection.
+
+        Parameters
+        ----------
+        scene : DynamicScene
+
+        Returns
+        -------
+        MaterialTables
+
+        Raises
+        ------
+        ValueError
+            A transmissive BSDF nested in another, or a film filter with negative lobes.
+        """
         import drjit as dr
         import mitsuba as mi
 
@@ -66,7 +93,19 @@ class MaterialTables:
 
     def gather(self, table, bsdf, active):
         """The entry of ``table`` (``roughness`` or ``relative_ior``) of each lane's BSDF
-        pointer ``bsdf``, where ``active``."""
+        pointer ``bsdf``, where ``active``.
+
+        Parameters
+        ----------
+        table : mi.Float
+            ``roughness`` or ``relative_ior``.
+        bsdf : mi.BSDFPtr
+        active : mi.Bool
+
+        Returns
+        -------
+        mi.Float
+        """
         import drjit as dr
         import mitsuba as mi
 

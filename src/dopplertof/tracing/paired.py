@@ -87,7 +87,20 @@ def _pair_times(setup, settings, seed, pixel, group, rng):
 @dr.syntax
 def trace_pair(scene, settings, setup, tables):
     """Trace one pass of pairs; the outputs of :func:`dopplertof.tracing.single.trace`,
-    one entry per pair (``hits`` counts the members whose camera ray hit: 0, 1 or 2)."""
+    one entry per pair (``hits`` counts the members whose camera ray hit: 0, 1 or 2).
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    settings : RenderSettings
+    setup : LaneSetup
+    tables : MaterialTables
+
+    Returns
+    -------
+    dict
+        Name → per-pair Dr.Jit array, not yet evaluated.
+    """
     pixel, group_in_pass = lanes.pixel_and_index(setup, setup.samples // 2)
     group = group_in_pass + lanes.opaque_u32(setup.first_sample // 2)
     seed = lanes.opaque_u32(setup.seed)

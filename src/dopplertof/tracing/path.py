@@ -36,6 +36,16 @@ def aperture_point(sensor, ray):
 
     Mitsuba's perspective cameras start rays at the near-clip plane; optical path lengths
     and depths are measured from the aperture instead.
+
+    Parameters
+    ----------
+    sensor : mi.Sensor
+    ray : mi.Ray3f
+        A camera ray in the sensor's rest frame.
+
+    Returns
+    -------
+    mi.Point3d
     """
     import drjit as dr
     import mitsuba as mi
@@ -49,7 +59,24 @@ def aperture_point(sensor, ray):
 
 def camera_ray(sensor, filter_sampler, setup, pixel, time_s, next_1d, next_2d):
     """(ray, weight, Float64 aperture point) of ``pixel``'s sample, in the sensor's rest
-    frame (where the sensor's ``to_world`` puts it): :func:`place_camera_ray` moves it."""
+    frame (where the sensor's ``to_world`` puts it): :func:`place_camera_ray` moves it.
+
+    Parameters
+    ----------
+    sensor : mi.Sensor
+    filter_sampler : FilterSampler
+    setup : LaneSetup
+    pixel : mi.UInt32
+        Each lane's pixel (row-major).
+    time_s : mi.Float64
+        Each lane's time, s.
+    next_1d, next_2d : callable
+        Draw the lane's next uniform numbers.
+
+    Returns
+    -------
+    tuple of (mi.Ray3f, mi.Spectrum, mi.Point3d)
+    """
     import mitsuba as mi
 
     px, py = pixel % setup.width, pixel // setup.width
@@ -65,7 +92,22 @@ def place_camera_ray(scene, ray, x0, time_s):
     """(ray, Float64 aperture point) of a camera ray from :func:`camera_ray` where the
     camera is at ``time_s``: a moving camera's ray leaves its aperture at the lane's time,
     and optical lengths start there. Correlated lanes at other times place the same
-    rest-frame ray (the pixel sample replayed in the camera's frame)."""
+    rest-frame ray (the pixel sample replayed in the camera's frame).
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    ray : mi.Ray3f
+        From :func:`camera_ray`.
+    x0 : mi.Point3d
+        Its aperture point.
+    time_s : mi.Float64
+        Each lane's time, s.
+
+    Returns
+    -------
+    tuple of (mi.Ray3f, mi.Point3d)
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -78,7 +120,22 @@ def place_camera_ray(scene, ray, x0, time_s):
 
 def first_hit(scene, ray, time_s, poses, hide_emitters):
     """First hit of the camera ray (a :class:`~dopplertof.scene.Hit`); with
-    ``hide_emitters`` it passes through up to ``MAX_HIDDEN_LAYERS`` emitter surfaces."""
+    ``hide_emitters`` it passes through up to ``MAX_HIDDEN_LAYERS`` emitter surfaces.
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    ray : mi.Ray3f
+    time_s : mi.Float64
+        Each lane's time, s.
+    poses : object
+        The bodies' poses at the lanes' times (``scene.poses``).
+    hide_emitters : bool
+
+    Returns
+    -------
+    Hit
+    """
     import drjit as dr
 
     hit = scene.intersect(ray, time_s, True, poses=poses)
@@ -94,6 +151,22 @@ def hit_distance64(scene, poses64, hit, x_prev, direction):
 
     Recomputed against the hit primitive's plane in the body's frame, so two correlated
     paths hitting the same primitive at different times differ by the motion alone.
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    poses64 : object
+        The bodies' Float64 poses at the lanes' times.
+    hit : Hit
+    x_prev : mi.Vector3d
+        The previous vertex.
+    direction : mi.Vector3f
+        The ray's direction.
+
+    Returns
+    -------
+    tuple of (mi.Float64, mi.Point3d)
+        Distance (m) and hit point.
     """
     import drjit as dr
     import mitsuba as mi
@@ -115,6 +188,26 @@ def extend(scene, poses64, hit, x_prev, direction, length_m, index, active, prec
 
     ``precise``: the distance from the primitive's plane in Float64 (needed for phases);
     else the float32 hit distance (intensity only).
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    poses64 : object
+        The bodies' Float64 poses at the lanes' times.
+    hit : Hit
+    x_prev : mi.Point3d
+        The previous vertex.
+    direction : mi.Vector3f
+    length_m : mi.Float64
+        Optical length so far, m.
+    index : mi.Float
+        Refractive index of the segment.
+    active : mi.Bool
+    precise : bool, default True
+
+    Returns
+    -------
+    tuple of (mi.Float64, mi.Point3d, mi.Float64)
     """
     import drjit as dr
     import mitsuba as mi
@@ -131,7 +224,22 @@ def segment_index(index, tables, bsdf, active, wi_local, wo_local):
     """Refractive index of the segment leaving a vertex of ``bsdf`` towards ``wo_local``,
     arriving from ``wi_local`` in a medium of ``index``: times η entering, 1/η leaving a
     refracting surface (η from :class:`~dopplertof.tracing.materials.MaterialTables`),
-    unchanged on reflection, and everywhere in a scene without refracting surfaces."""
+    unchanged on reflection, and everywhere in a scene without refracting surfaces.
+
+    Parameters
+    ----------
+    index : mi.Float
+        Index of the medium the path arrives from.
+    tables : MaterialTables
+    bsdf : mi.BSDFPtr
+    active : mi.Bool
+    wi_local, wo_local : mi.Vector3f
+        Arriving and leaving directions in the local shading frame.
+
+    Returns
+    -------
+    mi.Float
+    """
     import drjit as dr
 
     if not tables.refracts:
@@ -143,7 +251,16 @@ def segment_index(index, tables, bsdf, active, wi_local, wo_local):
 
 
 def vertex_interaction(si):
-    """The part of a vertex that the density of emitter sampling from it needs."""
+    """The part of a vertex that the density of emitter sampling from it needs.
+
+    Parameters
+    ----------
+    si : mi.SurfaceInteraction3f
+
+    Returns
+    -------
+    mi.Interaction3f
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -156,6 +273,24 @@ def emitter_hit(scene, si, body, prev_it, prev_delta, time_s, active):
 
     ``si`` may be invalid (an escaped ray meets the environment). The density is 0 after
     a delta lobe, where emitter sampling cannot produce the direction.
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    si : mi.SurfaceInteraction3f
+    body : mi.UInt32
+        The hit's body (:class:`~dopplertof.scene.Hit` numbering).
+    prev_it : mi.Interaction3f
+        The previous vertex (:func:`vertex_interaction`).
+    prev_delta : mi.Bool
+        Whether the previous bounce sampled a delta lobe.
+    time_s : mi.Float64
+        Each lane's time, s.
+    active : mi.Bool
+
+    Returns
+    -------
+    tuple of (mi.Spectrum, mi.Float, mi.Bool)
     """
     import drjit as dr
 
@@ -166,7 +301,22 @@ def emitter_hit(scene, si, body, prev_it, prev_delta, time_s, active):
 
 
 def length_to_emitter(length_m, index, x, p_light):
-    """Optical length of a path whose last vertex ``x`` connects to ``p_light`` (Float64)."""
+    """Optical length of a path whose last vertex ``x`` connects to ``p_light`` (Float64).
+
+    Parameters
+    ----------
+    length_m : mi.Float64
+        Optical length to ``x``, m.
+    index : mi.Float
+        Refractive index of the last segment.
+    x : mi.Point3d
+    p_light : mi.Point3d
+
+    Returns
+    -------
+    mi.Float64
+        m.
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -175,7 +325,23 @@ def length_to_emitter(length_m, index, x, p_light):
 
 @dataclass
 class LightSample:
-    """Result of :func:`sample_emitter` (all per lane)."""
+    """Result of :func:`sample_emitter` (all per lane).
+
+    Parameters
+    ----------
+    ds : mi.DirectionSample3f
+        The emitter sample.
+    weight : mi.Spectrum
+        Emitted radiance over the density.
+    bsdf_value : mi.Spectrum
+        The BSDF towards the light.
+    bsdf_pdf : mi.Float
+        The BSDF's density of that direction (for MIS).
+    length_m : mi.Float64
+        Optical length of the path through the light, m.
+    active : mi.Bool
+        Where the light is visible.
+    """
 
     ds: object  # mi.DirectionSample3f
     weight: object  # emitter weight Le/p (mi.Spectrum)
@@ -187,7 +353,32 @@ class LightSample:
 
 def sample_emitter(scene, si, bsdf, bsdf_ctx, sample, time_s, poses, length_m, index, x, tables, active):
     """Next-event estimation at ``si`` with the uniform ``sample`` (mi.Point2f), the
-    emitters (static and moving, :mod:`dopplertof.lights`) at the lane's time."""
+    emitters (static and moving, :mod:`dopplertof.lights`) at the lane's time.
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    si : mi.SurfaceInteraction3f
+    bsdf : mi.BSDFPtr
+    bsdf_ctx : mi.BSDFContext
+    sample : mi.Point2f
+    time_s : mi.Float64
+        Each lane's time, s.
+    poses : object
+        The bodies' poses at the lanes' times.
+    length_m : mi.Float64
+        Optical length to ``x``, m.
+    index : mi.Float
+        Refractive index of the segment leaving ``x``.
+    x : mi.Point3d
+        The vertex.
+    tables : MaterialTables
+    active : mi.Bool
+
+    Returns
+    -------
+    LightSample
+    """
     import mitsuba as mi
 
     active = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
@@ -207,6 +398,14 @@ def pinhole_scales(sensor):
     """(a, c): film pixels per unit of x/z and y/z in the sensor's frame, for sensors whose
     film position is a pinhole projection (perspective; thin lens through the aperture's
     centre), read off the sensor's own ``sample_direction``; None for others (orthographic).
+
+    Parameters
+    ----------
+    sensor : mi.Sensor
+
+    Returns
+    -------
+    tuple of (float, float) or None
     """
     import mitsuba as mi
 
@@ -224,7 +423,17 @@ def pinhole_scales(sensor):
 
 
 def image_position(sensor, p_world):
-    """Film position (pixels) of world points, through the sensor's own projection."""
+    """Film position (pixels) of world points, through the sensor's own projection.
+
+    Parameters
+    ----------
+    sensor : mi.Sensor
+    p_world : mi.Point3f
+
+    Returns
+    -------
+    mi.Point2f
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -237,7 +446,28 @@ def image_position(sensor, p_world):
 def ground_truth(scene, hit, ray_d, depth_m, time_s, poses, pinhole):
     """Ground-truth maps of the camera ray's hit: a dict of per-lane values (0 where no hit)
     and the hit mask. See :data:`dopplertof.outputs.OUTPUTS` for their meaning; with a
-    moving camera, velocities are relative to its frame (the scene as the camera sees it)."""
+    moving camera, velocities are relative to its frame (the scene as the camera sees it).
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    hit : Hit
+        The camera ray's hit.
+    ray_d : mi.Vector3f
+        The camera ray's direction.
+    depth_m : mi.Float64
+        Distance from the aperture to the hit, m.
+    time_s : mi.Float64
+        Each lane's time, s.
+    poses : object
+        The bodies' poses at the lanes' times.
+    pinhole : tuple or None
+        :func:`pinhole_scales` of the sensor (for the optical flow).
+
+    Returns
+    -------
+    tuple of (dict, mi.Bool)
+    """
     import drjit as dr
     import mitsuba as mi
 

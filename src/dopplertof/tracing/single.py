@@ -20,7 +20,16 @@ from .sink import Sink
 
 
 def mis_weight(pdf_a, pdf_b):
-    """Power heuristic (β = 2) for pdf_a against pdf_b; 0 where both vanish."""
+    """Power heuristic (β = 2) for pdf_a against pdf_b; 0 where both vanish.
+
+    Parameters
+    ----------
+    pdf_a, pdf_b : mi.Float
+
+    Returns
+    -------
+    mi.Float
+    """
     a2 = dr.square(pdf_a)
     w = a2 / (a2 + dr.square(pdf_b))
     return dr.select(dr.isfinite(w), w, 0.0)
@@ -28,7 +37,20 @@ def mis_weight(pdf_a, pdf_b):
 
 @dr.syntax
 def trace(scene, settings, setup, tables):
-    """Trace one pass; per-lane outputs (:meth:`Sink.outputs`), not yet evaluated."""
+    """Trace one pass; per-lane outputs (:meth:`Sink.outputs`), not yet evaluated.
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    settings : RenderSettings
+    setup : LaneSetup
+    tables : MaterialTables
+
+    Returns
+    -------
+    dict
+        Name → per-lane Dr.Jit array.
+    """
     pixel, index_in_pass = lanes.pixel_and_index(setup, setup.samples)
     sample = index_in_pass + lanes.opaque_u32(setup.first_sample)
     n = setup.n_times

@@ -12,7 +12,12 @@ from .. import modulation
 
 
 class Sink:
-    """The cameras of a render and how contributions reach them."""
+    """The cameras of a render and how contributions reach them.
+
+    Parameters
+    ----------
+    cameras : sequence of Camera
+    """
 
     def __init__(self, cameras):
         self.cameras = list(cameras)
@@ -24,7 +29,18 @@ class Sink:
         return mi.Spectrum(0), [mi.Float(0) for _ in self.cameras]
 
     def bank(self, u):
-        """The cameras' weights for lanes at normalised time ``u``."""
+        """The cameras' weights for lanes at normalised time ``u``.
+
+        Parameters
+        ----------
+        u : mi.Float64
+            Normalised times.
+
+        Returns
+        -------
+        list
+            Each camera's weight per lane.
+        """
         return modulation.CameraBank(self.cameras, u)
 
     @property
@@ -33,7 +49,24 @@ class Sink:
         return bool(self.cameras)
 
     def add(self, state, bank, contrib, length_m, mask):
-        """``state`` plus an emitter contribution with optical length ``length_m`` (Float64)."""
+        """``state`` plus an emitter contribution with optical length ``length_m`` (Float64).
+
+        Parameters
+        ----------
+        state : tuple
+            (intensity, [per-camera values]).
+        bank : list
+            :meth:`bank` of the lanes' times.
+        contrib : mi.Spectrum
+        length_m : mi.Float64
+            m.
+        mask : mi.Bool
+
+        Returns
+        -------
+        tuple
+            The new state.
+        """
         import drjit as dr
 
         radiance, measurements = state
@@ -59,6 +92,21 @@ class Sink:
         The original ramped a contribution missing at the end to zero (L held) and dropped
         one missing at the start; holding it constant was this package's earlier rule. Both
         are further from the unbiased estimate (README, ``benchmarks/analytic_bias.py``).
+
+        Parameters
+        ----------
+        state : tuple
+            (intensity, [per-camera values]).
+        cameras : sequence of Camera
+        first, second : tuple
+            (X, L, mask) at the exposure's start and end; L in m.
+        continuous : mi.Bool
+            Where the partner path lies on the primal's surfaces.
+
+        Returns
+        -------
+        tuple
+            The new state.
         """
         import drjit as dr
         import mitsuba as mi
@@ -80,7 +128,22 @@ class Sink:
 
     @staticmethod
     def outputs(state, truth: dict, hits, label):
-        """Per-lane outputs: estimates, truth sums (value × hit), hit count, label."""
+        """Per-lane outputs: estimates, truth sums (value × hit), hit count, label.
+
+        Parameters
+        ----------
+        state : tuple
+            (intensity, [per-camera values]).
+        truth : dict
+            Ground-truth sums.
+        hits : mi.UInt32
+        label : mi.UInt32
+            Instance id.
+
+        Returns
+        -------
+        dict
+        """
         radiance, measurements = state
         return {"intensity": radiance, "measurements": measurements, "hits": hits, "instance_id": label, **truth}
 
