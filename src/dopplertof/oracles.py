@@ -135,3 +135,217 @@ def moving_plane_measurement_pixels(camera, speed_m_s, resolution, nodes_per_pix
     weights = (w * resolution).reshape(resolution, n)  # each pixel's nodes average to 1
     blocks = field.reshape(resolution, n, resolution, n)
     return np.einsum("anbm,an,bm->ab", blocks, weights, weights).T
+
+
+# ----------------------------------------------------------------------------------------
+# Moving outlines: the exposure integral by quadrature over stock renders at fixed instants
+
+
+def _matrix(transform):
+    """A keyframe's transform (Mitsuba transform or 4x4 array) as a float64 4x4 array."""
+    return np.asarray(getattr(transform, "matrix", transform), dtype=np.float64).reshape(4, 4)
+
+
+def baked_scene_dict(scene_dict, time_s):
+    """A stock ``mi.load_dict`` scene dict with every keyframed shape at its pose at ``time_s``.
+
+    The shapes' ``"motion"`` entries (keyframes whose transforms differ by translations
+    only: a translating rigid body) are replaced by the ``to_world`` at ``time_s``, the
+    translation interpolated linearly between the bracketing keys and held before the
+    first and after the last key, as :mod:`dopplertof.motion` does. It is written here
+    again on purpose, so that the oracle does not share the renderer's motion code.
+
+    Parameters
+    ----------
+    scene_dict : dict
+        A scene in the dict form of :func:`dopplertof.load_scene` (for example
+        :func:`dopplertof.scenes.cornell_box_dict`).
+    time_s : float, s
+        The instant of scene time.
+
+    Returns
+    -------
+    dict
+        The same scene, every entry shared except the moving shapes' (copied and baked).
+
+    Raises
+    ------
+    ValueError
+        For a motion that is not keyframed or whose keys rotate or scale (naming the
+        entry), and for a moving sensor or emitter.
+    """
+    import mitsuba as mi
+
+    baked = dict(scene_dict)
+    for name, entry in scene_dict.items():
+        if not isinstance(entry, dict) or "motion" not in entry:
+            continue
+        if entry.get("type") in ("perspective", "thinlens", "orthographic", "point", "spot"):
+            raise ValueError(f"baked_scene_dict: {name!r} is a moving sensor or emitter; only shapes may move")
+        motion = entry["motion"]
+        if not isinstance(motion, dict) or motion.get("type") != "keyframes":
+            raise ValueError(f"baked_scene_dict: {name!r} has motion {motion!r}; only keyframes are supported")
+        times = np.array([float(t) for t, _ in motion["keys"]])
+        matrices = np.stack([_matrix(m) for _, m in motion["keys"]])
+        if np.any(np.abs(matrices[:, :3, :3] - matrices[:1, :3, :3]) > 1e-7 * np.abs(matrices[:1, :3, :3]).max()):
+            raise ValueError(f"baked_scene_dict: the keys of {name!r} rotate or scale; only translations are supported")
+        pose = matrices[0].copy()
+        pose[:3, 3] = [np.interp(time_s, times, matrices[:, i, 3]) for i in range(3)]
+        shape = {k: v for k, v in entry.items() if k != "motion"}
+        shape["to_world"] = mi.ScalarTransform4f(pose.astype(np.float32))
+        baked[name] = shape
+    return baked
+
+
+def _stock_scene(scene_dict, time_s):
+    """(stock mi.Scene at ``time_s``, its sensor, the shapes that move) with the checks
+    the oracle's model of the measurement needs."""
+    import mitsuba as mi
+
+    scene = mi.load_dict(baked_scene_dict(scene_dict, time_s), optimize=False)  # unmerged: the moving shapes keep their ids
+    sensor = scene.sensors()[0]
+    if sensor.class_name() != "PerspectiveCamera" or not sensor.film().rfilter().is_box_filter():
+        raise ValueError("the outline oracle needs a perspective (pinhole) camera with a box filter")
+    if not all(mi.has_flag(e.flags(), mi.EmitterFlags.DeltaPosition) for e in scene.emitters()):
+        raise ValueError("the outline oracle needs point lights only (its light paths are camera, surface, light)")
+    moving = {name for name, entry in scene_dict.items() if isinstance(entry, dict) and "motion" in entry}
+    return scene, sensor, [s for s in scene.shapes() if s.id() in moving]
+
+
+def _trace_instant(scene, sensor, moving, film_xy, time_s):
+    """Per film position (n, 2; pixels): (luminance of the direct light, optical length m,
+    hits a moving shape) in the stock ``scene`` at ``time_s``."""
+    import drjit as dr
+    import mitsuba as mi
+
+    width, height = (int(v) for v in sensor.film().crop_size())
+    position = mi.Point2f(mi.Float((film_xy[:, 0] / width).astype(np.float32)), mi.Float((film_xy[:, 1] / height).astype(np.float32)))
+    ray, ray_weight = sensor.sample_ray(mi.Float(time_s), mi.Float(0.5), position, mi.Point2f(0.5))
+    si = scene.ray_intersect(ray)
+    valid = si.is_valid()
+    ds, emitter_weight = scene.sample_emitter_direction(si, mi.Point2f(0.5), True, valid)
+    bsdf_value = si.bsdf(ray).eval(mi.BSDFContext(), si, si.to_local(ds.d), valid)
+    luminance = dr.select(valid & (ds.pdf > 0), mi.luminance(ray_weight * emitter_weight * bsdf_value), 0.0)
+    on_moving = mi.Bool(False)
+    for shape in moving:
+        on_moving |= valid & (si.shape == mi.ShapePtr(shape))
+    dr.eval(luminance, si.p, ds.dist, on_moving)  # one kernel: converting each unevaluated output would trace again
+    eye = np.asarray(sensor.world_transform().translation(), dtype=np.float64).reshape(3)
+    p = np.stack([np.asarray(c, dtype=np.float64) for c in (si.p.x, si.p.y, si.p.z)], axis=1)
+    length_m = np.linalg.norm(p - eye, axis=1) + np.asarray(ds.dist, dtype=np.float64)
+    return np.asarray(luminance, dtype=np.float64), length_m, np.asarray(on_moving, dtype=bool)
+
+
+def moving_outline_pixels(scene_dict, start_s, end_s, grid=16):
+    """The pixels on the outlines of the moving shapes: partly covered by one at the
+    exposure's start or end, or covered differently at the two.
+
+    Parameters
+    ----------
+    scene_dict : dict
+        As for :func:`baked_scene_dict` (a pinhole camera, a box filter, point lights).
+    start_s, end_s : float, s
+        The exposure's ends in scene time.
+    grid : int, default 16
+        Film positions per pixel side at which coverage is tested (centres of a grid).
+
+    Returns
+    -------
+    numpy.ndarray, int, shape (n, 2)
+        (x, y) of the outline pixels, row-major order.
+    """
+    coverage = []
+    for time_s in (start_s, end_s):
+        scene, sensor, moving = _stock_scene(scene_dict, time_s)
+        width, height = (int(v) for v in sensor.film().crop_size())
+        offsets = (np.arange(grid) + 0.5) / grid
+        y, x, oy, ox = np.meshgrid(np.arange(height), np.arange(width), offsets, offsets, indexing="ij")
+        xy = np.stack([(x + ox).ravel(), (y + oy).ravel()], axis=1)
+        hits = _trace_instant(scene, sensor, moving, xy, time_s)[2]
+        coverage.append(hits.reshape(height, width, grid * grid).mean(axis=2))
+    a, b = coverage
+    outline = ((a > 0) & (a < 1)) | ((b > 0) & (b < 1)) | (a != b)
+    y, x = np.nonzero(outline)
+    return np.stack([x, y], axis=1)
+
+
+def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=16, grid=24, replicates=4, seed=0, frozen_at_s=None):
+    """The direct-light D-ToF measurement of chosen pixels by quadrature over stock
+    Mitsuba scenes at fixed instants, with its standard error.
+
+    A pixel (box filter) holds (1/T)∫ dt ∫_pixel W(u, L(x, t)) X(x, t) dx, u = (t − t₀)/T,
+    X the luminance of the light reaching film position x from a point light over one
+    bounce and L that path's optical length (from the pinhole). Each replicate takes
+    ``time_strata`` equally spaced instants u_j = (j + ξ)/J with one uniform random shift
+    ξ; at each instant the scene is baked (:func:`baked_scene_dict`) and loaded by stock
+    ``mi.load_dict``, and the pixel integral is a ``grid`` × ``grid`` jittered-stratified
+    sum (fresh jitter at each instant) of stock camera rays, intersections, emitter
+    samples and BSDF evaluations, each weighted by
+    :func:`dopplertof.modulation.lowpass_weight` at its own L. Every instant is uniform in
+    its stratum and every film position in its cell, so each replicate is unbiased; the
+    spread of ``replicates`` independent ones is the standard error. The pixel integral
+    at an instant is smooth in time (the outline sweeps the pixel continuously), and for
+    an integer h its large part, W over a still region, is periodic over the exposure,
+    which the shifted equally spaced rule integrates almost exactly: the error left is
+    that of the outline's motion, a small fraction of the pixel.
+
+    Parameters
+    ----------
+    scene_dict : dict
+        As for :func:`baked_scene_dict`: a pinhole camera with a box filter, point lights,
+        shapes translated by keyframes. Equal to ``dt.render(..., max_depth=2)`` of
+        ``dt.load_scene(scene_dict)`` in expectation.
+    cameras : list of dopplertof.Camera
+        Low-pass cameras of one exposure window (``Camera.window``; default start 0 s).
+    pixels : array_like of int, shape (n, 2)
+        (x, y) of the pixels (for example :func:`moving_outline_pixels`).
+    time_strata : int, default 16
+        Instants per replicate.
+    grid : int, default 24
+        Film positions per pixel side at each instant.
+    replicates : int, default 4
+        Independent replicates (at least 2).
+    seed : int, default 0
+        Seed of the jitter (numpy).
+    frozen_at_s : float or None, s, default None
+        If given, the shapes stay at their pose at this instant while W still runs
+        over the exposure: the measurement of a renderer whose geometry ignores the
+        motion, to show that a comparison resolves the outlines' motion.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray), each float64 of shape (n_cameras, n)
+        The measurement (units of ``RenderResult.measurements``) and its standard error.
+
+    Raises
+    ------
+    ValueError
+        For cameras of different windows or in the full-waveform model, fewer than 2
+        replicates, and the scenes :func:`baked_scene_dict` refuses.
+    """
+    from .modulation import lowpass_phase, lowpass_weight
+
+    cameras = list(cameras)
+    windows = {camera.window() for camera in cameras}
+    if len(windows) != 1 or any(not camera.low_pass for camera in cameras):
+        raise ValueError(f"direct_light_pixels: cameras must be low-pass and share one exposure window, got {cameras!r}")
+    if replicates < 2:
+        raise ValueError(f"direct_light_pixels: replicates must be >= 2 (the standard error needs a spread), got {replicates!r}")
+    (start_s, exposure_s), = windows
+    pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+    rng = np.random.default_rng(seed)
+    cells = (np.arange(grid * grid)[:, None] // grid, np.arange(grid * grid)[:, None] % grid)
+    estimates = np.zeros((replicates, len(cameras), len(pixels)))
+    for r in range(replicates):
+        shift = rng.random()
+        for j in range(time_strata):
+            u = (j + shift) / time_strata
+            time_s = start_s + u * exposure_s
+            scene, sensor, moving = _stock_scene(scene_dict, time_s if frozen_at_s is None else frozen_at_s)
+            jitter = rng.random((grid * grid, len(pixels), 2))
+            xy = np.stack([pixels[None, :, 0] + (cells[1] + jitter[..., 0]) / grid, pixels[None, :, 1] + (cells[0] + jitter[..., 1]) / grid], axis=-1)
+            luminance, length_m, _ = _trace_instant(scene, sensor, moving, xy.reshape(-1, 2), time_s)
+            for c, camera in enumerate(cameras):
+                value = lowpass_weight(camera, lowpass_phase(camera, u, length_m)) * luminance
+                estimates[r, c] += value.reshape(grid * grid, len(pixels)).mean(axis=0) / time_strata
+    return estimates.mean(axis=0), estimates.std(axis=0, ddof=1) / math.sqrt(replicates)
