@@ -50,8 +50,26 @@ def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, move
     The plane is the front face (z = −``PLANE_DISTANCE_M`` at t = 0) of a flattened
     40 m x 40 m cube, so that hits are on a triangle mesh.
     """
-    from .backend import ensure_variant
     from .loader import load_scene
+
+    return load_scene(moving_plane_dict(speed_m_s, exposure, resolution, mover, duration))
+
+
+def moving_plane_dict(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, mover="plane", duration=None):
+    """The scene dict of :func:`moving_plane_scene` (same parameters), in the dict form of
+    :func:`dopplertof.load_scene`.
+
+    Returns
+    -------
+    dict
+        The scene dict (the variant set first if none is: it holds Mitsuba transforms).
+
+    Raises
+    ------
+    ValueError
+        For a ``mover`` other than ``"plane"`` or ``"camera"``.
+    """
+    from .backend import ensure_variant
 
     ensure_variant()
     import mitsuba as mi
@@ -76,7 +94,7 @@ def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, move
     else:  # the camera recedes from the plane, with its light (in its frame, at the aperture)
         sensor["motion"] = {"type": "keyframes", "keys": [(0.0, look), (duration, shift.inverse() @ look)]}
         sensor["light"] = light
-    return load_scene(scene)
+    return scene
 
 
 def _gauss_legendre_01(panels, order):
@@ -269,25 +287,26 @@ def moving_outline_pixels(scene_dict, start_s, end_s, grid=16):
     return np.stack([x, y], axis=1)
 
 
-def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=16, grid=24, replicates=4, seed=0, frozen_at_s=None):
+def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=8, grid=16, replicates=16, seed=0, frozen_at_s=None):
     """The direct-light D-ToF measurement of chosen pixels by quadrature over stock
     Mitsuba scenes at fixed instants, with its standard error.
 
     A pixel (box filter) holds (1/T)∫ dt ∫_pixel W(u, L(x, t)) X(x, t) dx, u = (t − t₀)/T,
     X the luminance of the light reaching film position x from a point light over one
     bounce and L that path's optical length (from the pinhole). Each replicate takes
-    ``time_strata`` equally spaced instants u_j = (j + ξ)/J with one uniform random shift
-    ξ; at each instant the scene is baked (:func:`baked_scene_dict`) and loaded by stock
+    2J instants, u = (j + ξ)/J and its mirror image (j + 1 − ξ)/J for j < J =
+    ``time_strata``, with one uniform random shift ξ; at each instant the scene is baked (:func:`baked_scene_dict`) and loaded by stock
     ``mi.load_dict``, and the pixel integral is a ``grid`` × ``grid`` jittered-stratified
     sum (fresh jitter at each instant) of stock camera rays, intersections, emitter
     samples and BSDF evaluations, each weighted by
     :func:`dopplertof.modulation.lowpass_weight` at its own L. Every instant is uniform in
     its stratum and every film position in its cell, so each replicate is unbiased; the
     spread of ``replicates`` independent ones is the standard error. The pixel integral
-    at an instant is smooth in time (the outline sweeps the pixel continuously), and for
-    an integer h its large part, W over a still region, is periodic over the exposure,
-    which the shifted equally spaced rule integrates almost exactly: the error left is
-    that of the outline's motion, a small fraction of the pixel.
+    at an instant is smooth in time (the outline sweeps the pixel continuously). Each
+    half of the rule integrates trigonometric polynomials of degree < J exactly (W over
+    a still region, for an integer h, is one), and the mirror pairs cancel the linear
+    part of what is not periodic (the outlines' motion, a non-integer h), so the error
+    left falls as J⁻², not J⁻¹.
 
     Parameters
     ----------
@@ -299,11 +318,11 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=16, grid=24,
         Low-pass cameras of one exposure window (``Camera.window``; default start 0 s).
     pixels : array_like of int, shape (n, 2)
         (x, y) of the pixels (for example :func:`moving_outline_pixels`).
-    time_strata : int, default 16
-        Instants per replicate.
-    grid : int, default 24
+    time_strata : int, default 8
+        J: each replicate takes 2J instants (above).
+    grid : int, default 16
         Film positions per pixel side at each instant.
-    replicates : int, default 4
+    replicates : int, default 16
         Independent replicates (at least 2).
     seed : int, default 0
         Seed of the jitter (numpy).
@@ -338,8 +357,8 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=16, grid=24,
     estimates = np.zeros((replicates, len(cameras), len(pixels)))
     for r in range(replicates):
         shift = rng.random()
-        for j in range(time_strata):
-            u = (j + shift) / time_strata
+        instants = np.concatenate([np.arange(time_strata) + shift, np.arange(time_strata) + 1.0 - shift]) / time_strata
+        for u in instants:
             time_s = start_s + u * exposure_s
             scene, sensor, moving = _stock_scene(scene_dict, time_s if frozen_at_s is None else frozen_at_s)
             jitter = rng.random((grid * grid, len(pixels), 2))
@@ -347,5 +366,5 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=16, grid=24,
             luminance, length_m, _ = _trace_instant(scene, sensor, moving, xy.reshape(-1, 2), time_s)
             for c, camera in enumerate(cameras):
                 value = lowpass_weight(camera, lowpass_phase(camera, u, length_m)) * luminance
-                estimates[r, c] += value.reshape(grid * grid, len(pixels)).mean(axis=0) / time_strata
+                estimates[r, c] += value.reshape(grid * grid, len(pixels)).mean(axis=0) / len(instants)
     return estimates.mean(axis=0), estimates.std(axis=0, ddof=1) / math.sqrt(replicates)
