@@ -56,8 +56,21 @@ def moving_plane_scene(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, move
 
 
 def moving_plane_dict(speed_m_s, exposure=PLANE_EXPOSURE_S, resolution=16, mover="plane", duration=None):
-    """The scene dict of :func:`moving_plane_scene` (same parameters), in the dict form of
-    :func:`dopplertof.load_scene`.
+    """The scene dict of :func:`moving_plane_scene`, in the dict form of
+    :func:`dopplertof.load_scene` (for :func:`direct_light_pixels`, which bakes it).
+
+    Parameters
+    ----------
+    speed_m_s : float, m/s
+        Receding speed of the plane (or of the camera) along the optical axis.
+    exposure : float, s, default ``PLANE_EXPOSURE_S``
+        The mover moves over [0, exposure] unless ``duration`` says otherwise.
+    resolution : int, default 16
+        Film side, pixels (square film, box filter).
+    mover : str, default "plane"
+        ``"plane"`` or ``"camera"`` (see :func:`moving_plane_scene`).
+    duration : float, s, optional
+        How long the mover moves, from t = 0 (default ``exposure``).
 
     Returns
     -------

@@ -156,14 +156,31 @@ def cornell_box(resolution=256, light="point", exposure=CORNELL_EXPOSURE_S, disp
 
 
 def cornell_box_dict(resolution=256, light="point", exposure=CORNELL_EXPOSURE_S, displacement=0.015):
-    """The scene dict of :func:`cornell_box` (same parameters), in ``mi.load_dict`` form
-    with the boxes' ``"motion"`` entries, for :func:`dopplertof.load_scene` or for baking
-    the boxes at one instant (:func:`dopplertof.oracles.baked_scene_dict`).
+    """The scene dict of :func:`cornell_box`, in ``mi.load_dict`` form with the boxes'
+    ``"motion"`` entries, for :func:`dopplertof.load_scene` or for baking the boxes at one
+    instant (:func:`dopplertof.oracles.baked_scene_dict`).
+
+    Parameters
+    ----------
+    resolution : int, default 256
+        Film width and height in pixels.
+    light : str, default "point"
+        ``"point"`` (at the camera) or ``"area"`` (in the ceiling).
+    exposure : float, s, default 1.5e-3
+        Exposure T, over which the boxes move.
+    displacement : float, m, default 0.015
+        How far each box moves during the exposure.
 
     Returns
     -------
     dict
         The scene dict (the variant set first if none is: it holds Mitsuba transforms).
+
+    Raises
+    ------
+    ValueError
+        For a ``light`` other than ``"point"`` or ``"area"``, or a ``resolution`` that is
+        not a positive integer.
     """
     from .backend import ensure_variant
 
