@@ -174,10 +174,27 @@ def test_baked_scene_dict_refuses_what_it_cannot_bake(change, match):
         oracles.baked_scene_dict(scene_dict, 0.0)
 
 
+def test_the_outline_oracle_refuses_bad_arguments():
+    scene_dict = dt.scenes.cornell_box_dict(resolution=8)
+    with pytest.raises(ValueError, match=r"'time_s' must be a finite number, got nan"):
+        oracles.baked_scene_dict(scene_dict, float("nan"))
+    with pytest.raises(ValueError, match=r"'grid' must be >= 1, got 0"):
+        oracles.moving_outline_pixels(scene_dict, 0.0, EXPOSURE_S, grid=0)
+    with pytest.raises(ValueError, match=r"'end_s' must be a finite number"):
+        oracles.moving_outline_pixels(scene_dict, 0.0, "1.5e-3")
+
+
 def test_direct_light_pixels_refuses_bad_requests():
     scene_dict = dt.scenes.cornell_box_dict(resolution=8)
-    with pytest.raises(ValueError, match=r"replicates must be >= 2"):
+    with pytest.raises(ValueError, match=r"'replicates' must be >= 2"):
         oracles.direct_light_pixels(scene_dict, CAMERAS[:1], [[1, 1]], replicates=1)
+    with pytest.raises(ValueError, match=r"'time_strata' must be >= 1, got 0"):
+        oracles.direct_light_pixels(scene_dict, CAMERAS[:1], [[1, 1]], time_strata=0)
+    with pytest.raises(ValueError, match=r"'grid' must be an integer, got 2.5"):
+        oracles.direct_light_pixels(scene_dict, CAMERAS[:1], [[1, 1]], grid=2.5)
+    for pixels in ([[8, 1]], [[1, -1]], [[0.5, 1]], []):
+        with pytest.raises(ValueError, match=r"'pixels' must be \(x, y\) integer pairs on the 8x8 film"):
+            oracles.direct_light_pixels(scene_dict, CAMERAS[:1], pixels)
     with pytest.raises(ValueError, match=r"share one exposure window"):
         oracles.direct_light_pixels(scene_dict, [CAMERAS[0], dt.Camera(exposure_start=1e-3)], [[1, 1]])
     with pytest.raises(ValueError, match=r"low-pass"):

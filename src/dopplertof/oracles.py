@@ -203,10 +203,13 @@ def baked_scene_dict(scene_dict, time_s):
     ------
     ValueError
         For a motion that is not keyframed or whose keys rotate or scale (naming the
-        entry), and for a moving sensor or emitter.
+        entry), a moving sensor or emitter, and a ``time_s`` that is not a finite number.
     """
     import mitsuba as mi
 
+    from .validation import checked
+
+    time_s = checked("time_s", time_s, "float", "baked_scene_dict")
     baked = dict(scene_dict)
     for name, entry in scene_dict.items():
         if not isinstance(entry, dict) or "motion" not in entry:
@@ -228,6 +231,12 @@ def baked_scene_dict(scene_dict, time_s):
     return baked
 
 
+def _film_size(scene_dict):
+    """(width, height) of the scene's film, pixels."""
+    _, sensor, _ = _stock_scene(scene_dict, 0.0)
+    return tuple(int(v) for v in sensor.film().crop_size())
+
+
 def _stock_scene(scene_dict, time_s):
     """(stock mi.Scene at ``time_s``, its sensor, the shapes that move) with the checks
     the oracle's model of the measurement needs."""
@@ -236,9 +245,9 @@ def _stock_scene(scene_dict, time_s):
     scene = mi.load_dict(baked_scene_dict(scene_dict, time_s), optimize=False)  # unmerged: the moving shapes keep their ids
     sensor = scene.sensors()[0]
     if sensor.class_name() != "PerspectiveCamera" or not sensor.film().rfilter().is_box_filter():
-        raise ValueError("the outline oracle needs a perspective (pinhole) camera with a box filter")
+        raise ValueError("scene_dict: the outline oracle needs a perspective (pinhole) camera with a box filter")
     if not all(mi.has_flag(e.flags(), mi.EmitterFlags.DeltaPosition) for e in scene.emitters()):
-        raise ValueError("the outline oracle needs point lights only (its light paths are camera, surface, light)")
+        raise ValueError("scene_dict: the outline oracle needs point lights only (its light paths are camera, surface, light)")
     moving = {name for name, entry in scene_dict.items() if isinstance(entry, dict) and "motion" in entry}
     return scene, sensor, [s for s in scene.shapes() if s.id() in moving]
 
@@ -284,7 +293,18 @@ def moving_outline_pixels(scene_dict, start_s, end_s, grid=16):
     -------
     numpy.ndarray, int, shape (n, 2)
         (x, y) of the outline pixels, row-major order.
+
+    Raises
+    ------
+    ValueError
+        For a ``grid`` below 1, times that are not finite numbers, and the scenes
+        :func:`direct_light_pixels` refuses.
     """
+    from .validation import checked
+
+    if checked("grid", grid, "int", "moving_outline_pixels") < 1:
+        raise ValueError(f"moving_outline_pixels: 'grid' must be >= 1, got {grid!r}")
+    start_s, end_s = (checked(name, value, "float", "moving_outline_pixels") for name, value in (("start_s", start_s), ("end_s", end_s)))
     coverage = []
     for time_s in (start_s, end_s):
         scene, sensor, moving = _stock_scene(scene_dict, time_s)
@@ -308,18 +328,21 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=8, grid=16, 
     X the luminance of the light reaching film position x from a point light over one
     bounce and L that path's optical length (from the pinhole). Each replicate takes
     2J instants, u = (j + ξ)/J and its mirror image (j + 1 − ξ)/J for j < J =
-    ``time_strata``, with one uniform random shift ξ; at each instant the scene is baked (:func:`baked_scene_dict`) and loaded by stock
-    ``mi.load_dict``, and the pixel integral is a ``grid`` × ``grid`` jittered-stratified
-    sum (fresh jitter at each instant) of stock camera rays, intersections, emitter
-    samples and BSDF evaluations, each weighted by
-    :func:`dopplertof.modulation.lowpass_weight` at its own L. Every instant is uniform in
+    ``time_strata``, with one uniform random shift ξ; at each instant the scene is baked
+    (:func:`baked_scene_dict`) and loaded by stock ``mi.load_dict``, and the pixel
+    integral is a ``grid`` × ``grid`` jittered-stratified sum (fresh jitter at each
+    instant) of stock camera rays, intersections, emitter samples and BSDF evaluations,
+    each weighted by :func:`dopplertof.modulation.lowpass_weight` at its own L (the
+    weight is the one piece shared with the renderer; the tests check it against closed
+    forms of its own). Every instant is uniform in
     its stratum and every film position in its cell, so each replicate is unbiased; the
     spread of ``replicates`` independent ones is the standard error. The pixel integral
     at an instant is smooth in time (the outline sweeps the pixel continuously). Each
     half of the rule integrates trigonometric polynomials of degree < J exactly (W over
     a still region, for an integer h, is one), and the mirror pairs cancel the linear
     part of what is not periodic (the outlines' motion, a non-integer h), so the error
-    left falls as J⁻², not J⁻¹.
+    left falls as J⁻², not J⁻¹. Stock scenes hold float32 positions (0.5 µm steps at
+    5 m): meant for displacements of millimetres, not micrometres.
 
     Parameters
     ----------
@@ -353,18 +376,26 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=8, grid=16, 
     ------
     ValueError
         For cameras of different windows or in the full-waveform model, fewer than 2
-        replicates, and the scenes :func:`baked_scene_dict` refuses.
+        replicates, ``time_strata`` or ``grid`` below 1, pixels off the film, a scene
+        other than a pinhole camera with a box filter lit by point lights, and the
+        scenes :func:`baked_scene_dict` refuses.
     """
     from .modulation import lowpass_phase, lowpass_weight
+    from .validation import checked
 
     cameras = list(cameras)
     windows = {camera.window() for camera in cameras}
     if len(windows) != 1 or any(not camera.low_pass for camera in cameras):
         raise ValueError(f"direct_light_pixels: cameras must be low-pass and share one exposure window, got {cameras!r}")
-    if replicates < 2:
-        raise ValueError(f"direct_light_pixels: replicates must be >= 2 (the standard error needs a spread), got {replicates!r}")
+    for name, value, minimum in (("replicates", replicates, 2), ("time_strata", time_strata, 1), ("grid", grid, 1)):
+        if checked(name, value, "int", "direct_light_pixels") < minimum:
+            why = " (the standard error needs a spread)" if name == "replicates" else ""
+            raise ValueError(f"direct_light_pixels: {name!r} must be >= {minimum}{why}, got {value!r}")
     (start_s, exposure_s), = windows
     pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+    width, height = _film_size(scene_dict)
+    if len(pixels) == 0 or np.any((pixels < 0) | (pixels >= [width, height]) | (pixels != np.round(pixels))):
+        raise ValueError(f"direct_light_pixels: 'pixels' must be (x, y) integer pairs on the {width}x{height} film, got {pixels.tolist()!r}")
     rng = np.random.default_rng(seed)
     cells = (np.arange(grid * grid)[:, None] // grid, np.arange(grid * grid)[:, None] % grid)
     estimates = np.zeros((replicates, len(cameras), len(pixels)))
