@@ -14,6 +14,7 @@ still running): what a comparison that resolves the outlines' motion must reject
 
     python benchmarks/edges.py            # 128x128, 16 seeds x 512 spp, as the fork comparison (~4 min, 2 cores)
     python benchmarks/edges.py --quick    # 32x32, 4 seeds x 256 spp (< 1 min)
+    python benchmarks/edges.py --filter gaussian --resolution 64 --seeds 4 --spp 1024 --csv benchmarks/results/edges_gaussian.csv
 
 Outputs: per estimator, camera and reference (``oracle``, ``frozen``) the z-scores'
 mean, spread and share beyond |z| = 3, printed as a table and written to the CSV.
@@ -32,6 +33,8 @@ import _common
 EXPOSURE_S = 1.5e-3
 CAMERAS = [(1.0, 0.0), (1.0, math.pi / 2), (0.0, 0.0)]
 ESTIMATORS = {"antithetic+replay": dict(time_sampling="antithetic", correlation="replay"), "uniform": dict(time_sampling="uniform", correlation="none")}
+# film positions per side of the filter's support (1, 2 and 4 pixels) at each of the oracle's instants
+ORACLE_GRID = {"box": 16, "tent": 24, "gaussian": 32}
 DEFAULTS = dict(resolution=128, seeds=16, spp=512)
 QUICK = dict(resolution=32, seeds=4, spp=256)
 
@@ -42,6 +45,7 @@ def parse(argv):
     p.add_argument("--seeds", type=int, default=None, help="independent renders per estimator (default 16; quick 4)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel of each render (default 512; quick 256)")
     p.add_argument("--estimators", nargs="+", choices=list(ESTIMATORS), default=["antithetic+replay"])
+    p.add_argument("--filter", choices=list(ORACLE_GRID), default="box", help="the film's reconstruction filter (default box, the scene's)")
     _common.add_output_options(p, "edges", "small settings (< 1 min)", plot=False)
     args = p.parse_args(argv)
     _common.fill_defaults(args, QUICK if args.quick else DEFAULTS)
@@ -58,20 +62,23 @@ def z_summary(ours, ours_se, reference, reference_se):
 
 def main(argv=None):
     args = parse(argv)
+    grid = ORACLE_GRID[args.filter]
     settings = (
-        f"settings: cornell-box {args.resolution}x{args.resolution}, max_depth 2, {args.seeds} seeds x {args.spp} spp per estimator, "
-        "oracle 16 replicates x 8 instants x 16x16 film positions per pixel (frozen: 4 replicates)"
+        f"settings: cornell-box {args.resolution}x{args.resolution}, {args.filter} filter, max_depth 2, {args.seeds} seeds x {args.spp} spp per estimator, "
+        f"oracle 16 replicates x 8 instants x {grid}x{grid} film positions over the filter's support (frozen: 4 replicates)"
     )  # fmt: skip
     run = _common.Run("edges", args, argv, settings)
     from dopplertof import oracles
 
     cameras = [dopplertof.Camera(heterodyne=h, phase=psi) for h, psi in CAMERAS]
     scene_dict = dopplertof.scenes.cornell_box_dict(resolution=args.resolution)
+    film = dict(scene_dict["sensor"]["film"], rfilter={"type": args.filter})
+    scene_dict = dict(scene_dict, sensor=dict(scene_dict["sensor"], film=film))
     pixels = oracles.moving_outline_pixels(scene_dict, 0.0, EXPOSURE_S)
     run.log(f"{len(pixels)} outline pixels")
     references = {
-        "oracle": oracles.direct_light_pixels(scene_dict, cameras, pixels, time_strata=4, replicates=16, seed=1),
-        "frozen": oracles.direct_light_pixels(scene_dict, cameras, pixels, time_strata=4, replicates=4, seed=2, frozen_at_s=EXPOSURE_S / 2),
+        "oracle": oracles.direct_light_pixels(scene_dict, cameras, pixels, time_strata=4, grid=grid, replicates=16, seed=1),
+        "frozen": oracles.direct_light_pixels(scene_dict, cameras, pixels, time_strata=4, grid=grid, replicates=4, seed=2, frozen_at_s=EXPOSURE_S / 2),
     }
     run.log("oracles done")
     scene = dopplertof.load_scene(scene_dict)

@@ -231,10 +231,48 @@ def baked_scene_dict(scene_dict, time_s):
     return baked
 
 
-def _film_size(scene_dict):
-    """(width, height) of the scene's film, pixels."""
-    _, sensor, _ = _stock_scene(scene_dict, 0.0)
-    return tuple(int(v) for v in sensor.film().crop_size())
+class _Footprint:
+    """Where a pixel's film positions lie and how they are weighted: Mitsuba's pixel
+    estimate converges to ∫∫ f(x − c) f(y − c') L / ∫∫ f f over the film (c, c' the pixel's
+    centre, f the reconstruction filter); the box filter is the uniform average over the
+    pixel. Stock ``rfilter.eval`` gives f; its integral over the part of the support inside
+    the film, per pixel column and row, by a fine midpoint rule."""
+
+    NORM_NODES = 8192
+
+    def __init__(self, scene_dict):
+        import mitsuba as mi
+
+        _, sensor, _ = _stock_scene(scene_dict, 0.0)
+        film = sensor.film()
+        self.size = tuple(int(v) for v in film.crop_size())
+        self.rfilter = film.rfilter()
+        self.box = bool(self.rfilter.is_box_filter())
+        self.radius = 0.5 if self.box else float(self.rfilter.radius())
+        if not self.box:
+            self.norms = []
+            for n in self.size:
+                centres = np.arange(n) + 0.5
+                lo, hi = np.maximum(-self.radius, -centres), np.minimum(self.radius, n - centres)
+                x = lo[:, None] + (hi - lo)[:, None] * (np.arange(self.NORM_NODES) + 0.5) / self.NORM_NODES
+                f = np.asarray(self.rfilter.eval(mi.Float(x.ravel().astype(np.float32))), dtype=np.float64).reshape(x.shape)
+                self.norms.append(f.mean(axis=1) * (hi - lo))
+
+    def positions(self, pixels, offsets):
+        """Film positions (..., 2; pixels) of ``offsets`` in [0, 1)² of the filter's
+        support around ``pixels`` (n, 2), and each one's weight in its pixel's estimate
+        (the mean of weight × value over uniform offsets is the pixel's value)."""
+        import mitsuba as mi
+
+        span = 2.0 * self.radius
+        xy = pixels + 0.5 + (offsets - 0.5) * span
+        if self.box:
+            return xy, np.ones(xy.shape[:-1])
+        o = (offsets - 0.5) * span
+        f = np.asarray(self.rfilter.eval(mi.Float(o.ravel().astype(np.float32))), dtype=np.float64).reshape(o.shape)
+        inside = np.all((xy >= 0) & (xy < self.size), axis=-1)
+        norm = self.norms[0][pixels[:, 0].astype(int)] * self.norms[1][pixels[:, 1].astype(int)]
+        return xy, np.where(inside, f[..., 0] * f[..., 1] * span * span / norm, 0.0)
 
 
 def _stock_scene(scene_dict, time_s):
@@ -244,8 +282,8 @@ def _stock_scene(scene_dict, time_s):
 
     scene = mi.load_dict(baked_scene_dict(scene_dict, time_s), optimize=False)  # unmerged: the moving shapes keep their ids
     sensor = scene.sensors()[0]
-    if sensor.class_name() != "PerspectiveCamera" or not sensor.film().rfilter().is_box_filter():
-        raise ValueError("scene_dict: the outline oracle needs a perspective (pinhole) camera with a box filter")
+    if sensor.class_name() != "PerspectiveCamera":
+        raise ValueError("scene_dict: the outline oracle needs a perspective (pinhole) camera")
     if not all(mi.has_flag(e.flags(), mi.EmitterFlags.DeltaPosition) for e in scene.emitters()):
         raise ValueError("scene_dict: the outline oracle needs point lights only (its light paths are camera, surface, light)")
     moving = {name for name, entry in scene_dict.items() if isinstance(entry, dict) and "motion" in entry}
@@ -283,7 +321,7 @@ def moving_outline_pixels(scene_dict, start_s, end_s, grid=16):
     Parameters
     ----------
     scene_dict : dict
-        As for :func:`baked_scene_dict` (a pinhole camera, a box filter, point lights).
+        As for :func:`baked_scene_dict` (a pinhole camera, point lights).
     start_s, end_s : float, s
         The exposure's ends in scene time.
     grid : int, default 16
@@ -324,14 +362,15 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=8, grid=16, 
     """The direct-light D-ToF measurement of chosen pixels by quadrature over stock
     Mitsuba scenes at fixed instants, with its standard error.
 
-    A pixel (box filter) holds (1/T)∫ dt ∫_pixel W(u, L(x, t)) X(x, t) dx, u = (t − t₀)/T,
-    X the luminance of the light reaching film position x from a point light over one
+    A pixel holds (1/T)∫ dt ∫ w(x) W(u, L(x, t)) X(x, t) dx, u = (t − t₀)/T, w the film's
+    reconstruction filter about the pixel's centre normalised over the film (the box
+    filter: the uniform average over the pixel; :class:`_Footprint`), X the luminance of the light reaching film position x from a point light over one
     bounce and L that path's optical length (from the pinhole). Each replicate takes
     2J instants, u = (j + ξ)/J and its mirror image (j + 1 − ξ)/J for j < J =
     ``time_strata``, with one uniform random shift ξ; at each instant the scene is baked
     (:func:`baked_scene_dict`) and loaded by stock ``mi.load_dict``, and the pixel
-    integral is a ``grid`` × ``grid`` jittered-stratified sum (fresh jitter at each
-    instant) of stock camera rays, intersections, emitter samples and BSDF evaluations,
+    integral is a ``grid`` × ``grid`` jittered-stratified sum over the filter's support
+    (fresh jitter at each instant) of stock camera rays, intersections, emitter samples and BSDF evaluations,
     each weighted by :func:`dopplertof.modulation.lowpass_weight` at its own L (the
     weight is the one piece shared with the renderer; the tests check it against closed
     forms of its own). Every instant is uniform in
@@ -347,8 +386,8 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=8, grid=16, 
     Parameters
     ----------
     scene_dict : dict
-        As for :func:`baked_scene_dict`: a pinhole camera with a box filter, point lights,
-        shapes translated by keyframes. Equal to ``dt.render(..., max_depth=2)`` of
+        As for :func:`baked_scene_dict`: a pinhole camera, any reconstruction filter,
+        point lights, shapes translated by keyframes. Equal to ``dt.render(..., max_depth=2)`` of
         ``dt.load_scene(scene_dict)`` in expectation.
     cameras : list of dopplertof.Camera
         Low-pass cameras of one exposure window (``Camera.window``; default start 0 s).
@@ -357,7 +396,7 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=8, grid=16, 
     time_strata : int, default 8
         J: each replicate takes 2J instants (above).
     grid : int, default 16
-        Film positions per pixel side at each instant.
+        Film positions per side of the filter's support at each instant.
     replicates : int, default 16
         Independent replicates (at least 2).
     seed : int, default 0
@@ -377,7 +416,7 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=8, grid=16, 
     ValueError
         For cameras of different windows or in the full-waveform model, fewer than 2
         replicates, ``time_strata`` or ``grid`` below 1, pixels off the film, a scene
-        other than a pinhole camera with a box filter lit by point lights, and the
+        other than a pinhole camera lit by point lights, and the
         scenes :func:`baked_scene_dict` refuses.
     """
     from .modulation import lowpass_phase, lowpass_weight
@@ -393,7 +432,8 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=8, grid=16, 
             raise ValueError(f"direct_light_pixels: {name!r} must be >= {minimum}{why}, got {value!r}")
     (start_s, exposure_s), = windows
     pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
-    width, height = _film_size(scene_dict)
+    footprint = _Footprint(scene_dict)
+    width, height = footprint.size
     if len(pixels) == 0 or np.any((pixels < 0) | (pixels >= [width, height]) | (pixels != np.round(pixels))):
         raise ValueError(f"direct_light_pixels: 'pixels' must be (x, y) integer pairs on the {width}x{height} film, got {pixels.tolist()!r}")
     rng = np.random.default_rng(seed)
@@ -406,8 +446,10 @@ def direct_light_pixels(scene_dict, cameras, pixels, *, time_strata=8, grid=16, 
             time_s = start_s + u * exposure_s
             scene, sensor, moving = _stock_scene(scene_dict, time_s if frozen_at_s is None else frozen_at_s)
             jitter = rng.random((grid * grid, len(pixels), 2))
-            xy = np.stack([pixels[None, :, 0] + (cells[1] + jitter[..., 0]) / grid, pixels[None, :, 1] + (cells[0] + jitter[..., 1]) / grid], axis=-1)
+            offsets = np.stack([(cells[1] + jitter[..., 0]) / grid, (cells[0] + jitter[..., 1]) / grid], axis=-1)
+            xy, weight = footprint.positions(pixels, offsets)
             luminance, length_m, _ = _trace_instant(scene, sensor, moving, xy.reshape(-1, 2), time_s)
+            luminance = luminance * weight.ravel()
             for c, camera in enumerate(cameras):
                 value = lowpass_weight(camera, lowpass_phase(camera, u, length_m)) * luminance
                 estimates[r, c] += value.reshape(grid * grid, len(pixels)).mean(axis=0) / len(instants)
