@@ -14,7 +14,8 @@ still running): what a comparison that resolves the outlines' motion must reject
 
     python benchmarks/edges.py            # 128x128, 16 seeds x 512 spp, as the fork comparison (~4 min, 2 cores)
     python benchmarks/edges.py --quick    # 32x32, 4 seeds x 256 spp (< 1 min)
-    python benchmarks/edges.py --filter gaussian --resolution 64 --seeds 4 --spp 1024 --csv benchmarks/results/edges_gaussian.csv
+    python benchmarks/edges.py --filter gaussian --resolution 64 --seeds 8 --spp 2048 --oracle-replicates 32 \
+        --estimators antithetic+replay uniform --csv benchmarks/results/edges_gaussian.csv
 
 Outputs: per estimator, camera and reference (``oracle``, ``frozen``) the z-scores'
 mean, spread and share beyond |z| = 3, printed as a table and written to the CSV.
@@ -46,10 +47,11 @@ def parse(argv):
     p.add_argument("--spp", type=int, default=None, help="paths per pixel of each render (default 512; quick 256)")
     p.add_argument("--estimators", nargs="+", choices=list(ESTIMATORS), default=["antithetic+replay"])
     p.add_argument("--filter", choices=list(ORACLE_GRID), default="box", help="the film's reconstruction filter (default box, the scene's)")
+    p.add_argument("--oracle-replicates", type=int, default=16, help="independent replicates of the oracle (default 16)")
     _common.add_output_options(p, "edges", "small settings (< 1 min)", plot=False)
     args = p.parse_args(argv)
     _common.fill_defaults(args, QUICK if args.quick else DEFAULTS)
-    _common.require_positive(p, args, ("resolution", "seeds", "spp"))
+    _common.require_positive(p, args, ("resolution", "seeds", "spp", "oracle_replicates"))
     _common.default_output_paths(args, "edges")
     return args
 
@@ -65,7 +67,7 @@ def main(argv=None):
     grid = ORACLE_GRID[args.filter]
     settings = (
         f"settings: cornell-box {args.resolution}x{args.resolution}, {args.filter} filter, max_depth 2, {args.seeds} seeds x {args.spp} spp per estimator, "
-        f"oracle 16 replicates x 8 instants x {grid}x{grid} film positions over the filter's support (frozen: 4 replicates)"
+        f"oracle {args.oracle_replicates} replicates x 8 instants x {grid}x{grid} film positions over the filter's support (frozen: 4 replicates)"
     )  # fmt: skip
     run = _common.Run("edges", args, argv, settings)
     from dopplertof import oracles
@@ -77,7 +79,7 @@ def main(argv=None):
     pixels = oracles.moving_outline_pixels(scene_dict, 0.0, EXPOSURE_S)
     run.log(f"{len(pixels)} outline pixels")
     references = {
-        "oracle": oracles.direct_light_pixels(scene_dict, cameras, pixels, time_strata=4, grid=grid, replicates=16, seed=1),
+        "oracle": oracles.direct_light_pixels(scene_dict, cameras, pixels, time_strata=4, grid=grid, replicates=args.oracle_replicates, seed=1),
         "frozen": oracles.direct_light_pixels(scene_dict, cameras, pixels, time_strata=4, grid=grid, replicates=4, seed=2, frozen_at_s=EXPOSURE_S / 2),
     }
     run.log("oracles done")
