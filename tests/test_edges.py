@@ -8,7 +8,8 @@ the exposure, the part of the pixel it covers changes with time, and the heterod
 which runs through a beat cycle in the exposure, turns that change into a signal of its own:
 at these pixels it is larger than the Doppler signal of the box's faces.
 
-The oracle, :func:`dopplertof.oracles.direct_light_pixels`, shares nothing with our tracer:
+The oracle, :func:`dopplertof.oracles.direct_light_pixels`, shares nothing with our tracer
+but the weight W (``modulation.lowpass_weight``, checked against closed forms elsewhere):
 at fixed instants it bakes the boxes at their pose (its own interpolation of the keys),
 loads the scene with stock ``mi.load_dict``, and integrates each outline pixel with stock
 camera rays, intersections, emitter samples and BSDF evaluations (direct light from the
