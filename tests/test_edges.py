@@ -5,8 +5,8 @@ outlines of the Cornell box's slowly moving boxes (10 m/s, 1.5 cm in the exposur
 the heterodyne pixels differed beyond |z| = 3, alternating in sign; the Mitsuba 0.6 fork
 agreed with us (``shared/peers/README.md``). Where a box's outline crosses a pixel during
 the exposure, the part of the pixel it covers changes with time, and the heterodyne weight,
-which runs through a beat cycle in the exposure, turns that change into a signal of its own:
-at these pixels it is larger than the Doppler signal of the box's faces.
+which runs through a beat cycle in the exposure, turns that change into a signal of its own,
+of the order of the Doppler signal of the box's faces.
 
 The oracle, :func:`dopplertof.oracles.direct_light_pixels`, shares nothing with our tracer
 but the weight W (``modulation.lowpass_weight``, checked against closed forms elsewhere):
