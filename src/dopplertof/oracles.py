@@ -16,6 +16,18 @@ so a pixel holds
 §5.2's one-line form assumes constant A and linear L; :func:`moving_plane_measurement_mean`
 keeps both exact and integrates over the film and the exposure by Gauss-Legendre quadrature,
 so its only error is the quadrature's, which refining the nodes bounds.
+
+Translating bodies, pixel by pixel, from stock Mitsuba
+------------------------------------------------------
+
+:func:`direct_light_pixels`: the direct-light measurement of chosen pixels of any scene
+dict whose shapes translate (a pinhole camera, point lights, any reconstruction filter),
+integrated over the exposure by quadrature over stock ``mi.load_dict`` scenes with the
+bodies baked at fixed instants (:func:`baked_scene_dict`), stock rays and shading, and W at
+each ray's own optical length; unbiased, with a standard error from independent
+replicates. It shares no code with the tracer, so it settles what the tracer does where
+the moving plane has nothing to say: on moving outlines (:func:`moving_outline_pixels`;
+``tests/test_edges.py``).
 """
 
 from __future__ import annotations
