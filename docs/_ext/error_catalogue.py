@@ -378,6 +378,17 @@ TOPICS = [
         ("--optimize: choose keys among …, got …", "a key that cannot be optimised", "one of those named"),
         ("frame …: a record's frequencies are whole Hz, got … Hz", "a swept frequency with a fraction of a Hz", "sweep values in whole Hz"),
     ]),
+    ("Oracles", "`dopplertof.oracles`: the independent references the tests and benchmarks compare renders with.", [
+        ("baked_scene_dict: … is a moving sensor or emitter; only shapes may move", "the outline oracle bakes moving shapes only", "keep the camera and lights static"),
+        ("baked_scene_dict: … has motion …; only keyframes are supported", "the oracle interpolates keyframes itself, not parametric motion", "describe the motion as keyframes"),
+        ("baked_scene_dict: the keys of … rotate or scale; only translations are supported", "the oracle's interpolation is translation only", "translating keyframes"),
+        ("scene_dict: the outline oracle needs a perspective (pinhole) camera", "its camera rays are those of a pinhole", "a `perspective` sensor"),
+        ("scene_dict: the outline oracle needs point lights only", "its paths are camera, surface, light", "point lights"),
+        ("moving_outline_pixels: 'grid' must be >= 1", "the sub-pixel grid that finds outline pixels is empty", "1 or more"),
+        ("direct_light_pixels: cameras must be low-pass and share one exposure window", "the oracle integrates one window with the low-pass weights", "low-pass cameras of one window"),
+        ("direct_light_pixels: … must be >= …, got …", "a count (replicates, strata, samples) below its minimum", "the minimum named"),
+        ("direct_light_pixels: 'pixels' must be (x, y) integer pairs on the …x… film", "pixels off the film or not integer pairs", "pixels inside the film"),
+    ]),
     ("Backend", "Starting Mitsuba and Dr.Jit (see [installation](installation.md)).", [
         ("unsupported Mitsuba variant …; choose one of …", "`--variant` names a variant dopplertof does not support", "`llvm_ad_rgb` runs on any CPU with libLLVM ≥ 16"),
         ("…=… is not a file; point it at libLLVM >= …", "`DRJIT_LIBLLVM_PATH` names no file", "point it at the library or unset it"),

@@ -122,7 +122,7 @@ def _load(scene):
 
 
 def cornell_box(resolution=256, light="point", exposure=CORNELL_EXPOSURE_S, displacement=0.015):
-    """The original D-ToF Cornell box.
+    """The original D-ToF Cornell box (its dict: :func:`cornell_box_dict`).
 
     Room [−1, 1] × [0, 2] × [−1, 1] m; camera at (0, 1, 6.8) looking down −z, fov 19.5°;
     a point light (intensity 100) at the camera (``light="point"``) or an area light in the
@@ -152,6 +152,36 @@ def cornell_box(resolution=256, light="point", exposure=CORNELL_EXPOSURE_S, disp
     >>> len(dt.scenes.cornell_box(resolution=16).bodies)
     2
     """
+    return _load(cornell_box_dict(resolution, light, exposure, displacement))
+
+
+def cornell_box_dict(resolution=256, light="point", exposure=CORNELL_EXPOSURE_S, displacement=0.015):
+    """The scene dict of :func:`cornell_box`, in ``mi.load_dict`` form with the boxes'
+    ``"motion"`` entries, for :func:`dopplertof.load_scene` or for baking the boxes at one
+    instant (:func:`dopplertof.oracles.baked_scene_dict`).
+
+    Parameters
+    ----------
+    resolution : int, default 256
+        Film width and height in pixels.
+    light : str, default "point"
+        ``"point"`` (at the camera) or ``"area"`` (in the ceiling).
+    exposure : float, s, default 1.5e-3
+        Exposure T, over which the boxes move.
+    displacement : float, m, default 0.015
+        How far each box moves during the exposure.
+
+    Returns
+    -------
+    dict
+        The scene dict (the variant set first if none is: it holds Mitsuba transforms).
+
+    Raises
+    ------
+    ValueError
+        For a ``light`` other than ``"point"`` or ``"area"``, or a ``resolution`` that is
+        not a positive integer.
+    """
     from .backend import ensure_variant
 
     ensure_variant()
@@ -179,7 +209,7 @@ def cornell_box(resolution=256, light="point", exposure=CORNELL_EXPOSURE_S, disp
             "bsdf": _diffuse(WHITE),
             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [17.0, 12.0, 4.0]}},
         }
-    return _load(scene)
+    return scene
 
 
 def cornell_box_area(resolution=256, exposure=CORNELL_EXPOSURE_S, displacement=0.015):
