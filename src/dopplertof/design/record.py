@@ -62,6 +62,10 @@ MOMENT_BEAT_STEP = 1e-3
 # 2π δF L / c of 1e-2 rad at 5 m (truncation 2e-5 relative), large enough that the Float32
 # rounding of the mixed difference ∂R₁/∂F stays near 1e-3 relative.
 SLOPE_FREQUENCY_STEP_HZ = 1e5
+# Frequencies one tracing kernel accumulates (:class:`~dopplertof.tracing.sink.PhasorGrid`):
+# their sums are per-lane loop state (8 bytes each, twice with ``slopes``), and a record of
+# more frequencies traces the paths again for every further run of them.
+FREQUENCIES_PER_KERNEL = 32
 # What a record may hold beside R: the first moments R₁ (``doppler``), the slopes ∂R/∂F
 # (``slopes``) and ∂R₁/∂F (both).
 DERIVED = ("moments", "slopes", "moment_slopes")
@@ -313,14 +317,38 @@ def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
     return out
 
 
-def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int) -> None:
+def by_probes(settings) -> bool:
+    """Whether a render with ``settings`` records through probe cameras: the paired tracers
+    give a lane's contributions two times (or integrate them over the exposure), which the
+    kernel's phasor sums (:class:`~dopplertof.tracing.sink.PhasorGrid`) do not model."""
+    return settings.paired
+
+
+def kernel_grids(spec: RecordSpec) -> list:
+    """The :class:`~dopplertof.tracing.sink.PhasorGrid` of each kernel that records ``spec``:
+    its frequencies in runs of at most :data:`FREQUENCIES_PER_KERNEL`."""
+    from ..tracing.sink import PhasorGrid
+
+    first = round(spec.frequencies_hz[0] / spec.step_hz)
+    n = spec.frequencies_hz.size
+    return [
+        PhasorGrid(first + j, min(FREQUENCIES_PER_KERNEL, n - j), spec.step_hz, spec.beats, spec.doppler, spec.slopes)
+        for j in range(0, n, FREQUENCIES_PER_KERNEL)
+    ]  # fmt: skip
+
+
+def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int, probes: bool = False) -> None:
     """ValueError where the record of ``spec`` on a ``width`` × ``height`` film of
-    ``n_windows`` windows (and the probes' sides until their differences are taken) needs
-    more than the available memory."""
+    ``n_windows`` windows needs more than the available memory: its complex64 arrays and,
+    while it is rendered, the Float64 per-pixel sums of one kernel's grid per window
+    (``probes``: every probe side until their differences are taken)."""
     from ..render import available_memory_bytes
 
-    arrays = len(_sides(spec)) + len(_derived_of(spec))  # every side is held until the derived arrays are made
-    need = width * height * n_windows * (8 * arrays * spec.frequencies_hz.size * len(spec.beats) + 4)
+    grid = spec.frequencies_hz.size * len(spec.beats)
+    if probes:
+        need = width * height * n_windows * (8 * (len(_sides(spec)) + len(_derived_of(spec))) * grid + 4)
+    else:
+        need = width * height * n_windows * (spec.bytes_per_pixel() + 8 * kernel_grids(spec)[0].channels)
     available = available_memory_bytes()
     if available is not None and need > available:
         raise ValueError(
@@ -329,20 +357,61 @@ def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int) -> N
         )  # fmt: skip
 
 
-def record_scene(scene, settings, spec: RecordSpec) -> Record:
-    """Render the record of ``scene`` for the windows of ``settings`` (same seed, same paths).
+def record_scene(scene, settings, spec: RecordSpec, rendered) -> Record:
+    """The record of ``scene`` for the windows of ``settings`` (same seed, same paths).
+
+    ``rendered`` is what :func:`dopplertof.render` traced: (settings of each window, per
+    window (the Float64 sums of the first of :func:`kernel_grids`
+    (:attr:`~dopplertof.passes.Accumulator.record_sum`), the samples per pixel, the passes
+    done), the passes, the result's maps). Each further grid traces the windows' finished
+    passes again. Renders that :func:`by_probes` record
+    through probe cameras instead (:func:`_record_by_probes`). A Ctrl-C raises
+    KeyboardInterrupt: there is no partial record.
+    """
+    from ..passes import PassTracer
+
+    if by_probes(settings):
+        return _record_by_probes(scene, settings, spec)
+    window_settings, recorded, passes, maps = rendered
+    width, height = scene.resolution
+    n_windows, n_beats = len(window_settings), len(spec.beats)
+    grids = kernel_grids(spec)
+    arrays = {name: np.zeros((n_windows, spec.frequencies_hz.size, n_beats, height, width), np.complex64) for name in grids[0].quantities}
+    luminance = np.zeros((n_windows, height, width), np.float32)
+    for w, (window, (first_sums, samples, done)) in enumerate(zip(window_settings, recorded)):
+        j0 = 0
+        for g, grid in enumerate(grids):
+            if g == 0:
+                sums = first_sums
+            else:
+                tracer, sums = PassTracer(scene, window, grid), np.zeros((grid.channels, height * width))
+                for p in passes[:done]:
+                    sums[:, p.pixel_start : p.pixel_start + p.n_pixels] += tracer(p)["record"]
+            means = sums / samples
+            luminance[w] = means[0].reshape(height, width)
+            parts = means[1:].reshape(len(grid.quantities), grid.count, n_beats, 2, height, width)
+            for q, name in enumerate(grid.quantities):
+                arrays[name][w, j0 : j0 + grid.count] = parts[q, :, :, 0] + 1j * parts[q, :, :, 1]
+            j0 += grid.count
+    maps = {k: v for k, v in maps.items() if not k.startswith("measurement") and k != "raw"}
+    windows = tuple((w.start_s, w.exposure_s) for w in settings.windows)
+    info = {"kernels": len(grids), "frequencies_per_kernel": FREQUENCIES_PER_KERNEL}
+    spp = int(min(samples.min() for _, samples, _ in recorded))
+    return Record(arrays.pop("phasors"), luminance, spec, windows, settings.replace(cameras=()), maps, spp, info, **arrays)
+
+
+def _record_by_probes(scene, settings, spec: RecordSpec) -> Record:
+    """The record rendered as probe cameras (for the paired tracers, :func:`by_probes`).
 
     The probe cameras of every window are traced in chunks of ``spec.cameras_per_render``;
     each chunk holds the same number of every window's probes, in the windows' order, so
-    each window keeps its seed (:func:`dopplertof.tracing.lanes.window_seed`). A Ctrl-C
-    raises KeyboardInterrupt: there is no partial record.
+    each window keeps its seed (:func:`dopplertof.tracing.lanes.window_seed`).
     """
     from ..render import render
 
     windows = [(w.start_s, w.exposure_s) for w in settings.windows]
     width, height = scene.resolution
     n_freq, n_beats = spec.frequencies_hz.size, len(spec.beats)
-    check_memory(spec, width, height, len(windows))
     phasors = np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64)
     # complex64 holds the float32 maps exactly; their difference is exact (Sterbenz) where they are close
     sides = {side: np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64) for side in _sides(spec) if side != (0, 0)}

@@ -48,6 +48,7 @@ class LaneSetup:
     exposure_start_s: float
     exposure_s: float
     seed: int
+    grid: object = None  # a response record's PhasorGrid (tracing.sink) the pass accumulates, or None
 
     @property
     def n_groups(self) -> int:

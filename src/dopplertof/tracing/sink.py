@@ -1,27 +1,155 @@
-"""Where a path's contributions go: the intensity and, weighted by W(u, L), every camera.
+"""Where a path's contributions go: the intensity and, weighted by W(u, L), every camera,
+and, for a response record, the phasors of a frequency grid.
 
 The per-lane accumulators are loop state, so they travel as a plain tuple
-``(intensity, [measurement per camera])`` that :meth:`Sink.add` returns anew (Dr.Jit
-tracks PyTrees, not attributes of Python objects). :meth:`Sink.outputs` lays the
-per-lane results out under the names of :data:`dopplertof.outputs.OUTPUTS`.
+``(intensity, [measurement per camera])`` (plus the phasor sums with a :class:`PhasorGrid`)
+that :meth:`Sink.add` returns anew (Dr.Jit tracks PyTrees, not attributes of Python
+objects). :meth:`Sink.outputs` lays the per-lane results out under the names of
+:data:`dopplertof.outputs.OUTPUTS` (and ``"record"``: :meth:`PhasorGrid.lane_values`).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from .. import modulation
 
 
-class Sink:
-    """The cameras of a render and how contributions reach them."""
+@dataclass(frozen=True)
+class PhasorGrid:
+    """The part of a response record (:mod:`dopplertof.design.record`) one kernel accumulates.
 
-    def __init__(self, cameras):
-        self.cameras = list(cameras)
+    Per lane, every contribution (luminance ``lum``, Float64 optical length L) adds
+    ``lum · e^{i2πF L/c}`` to one complex sum S(F) per frequency F = j·``step_hz``,
+    j = ``first`` … ``first + count − 1``: e^{i2πF L/c} is evaluated once per contribution
+    in Float64 at the first frequency and at the step, wrapped to one cycle, and the rest
+    by the rotation recurrence z ← z·e^{i2π step L/c} in Float32 (``count`` steps lose at
+    most ``count`` × 6e-8 of phase, far below a render's noise). After the bounce loop the
+    lane's time u gives every beat ν: the lane's R(F, ν) = S(F) e^{i2πνu}
+    (:meth:`lane_values`), which the pass reduces per pixel in Float64
+    (:meth:`~dopplertof.passes.Reducer.reduce`). This holds for tracers that give every
+    contribution of a lane the same u (:mod:`dopplertof.tracing.single`).
+
+    Parameters
+    ----------
+    first : int. Index j of the grid's first frequency (F = j·step_hz), >= 1.
+    count : int. Frequencies, >= 1.
+    step_hz : float, Hz. The grid's step.
+    beats : tuple of float. Beat cycles per exposure ν.
+    moments : bool. Also the first moments u·R(F, ν) (the lane's u is exact). Default False.
+    slopes : bool. Also ∂R/∂F = ⟨lum (i2πL/c) e^{…}⟩ (1/Hz), exact per contribution (and
+        their moments with ``moments``). Default False.
+    """
+
+    first: int
+    count: int
+    step_hz: float
+    beats: tuple
+    moments: bool = False
+    slopes: bool = False
+
+    @property
+    def quantities(self) -> tuple[str, ...]:
+        """The complex quantities per (F, ν), in the order of :meth:`lane_values`:
+        ``phasors``, then ``moments``, ``slopes`` and ``moment_slopes`` where held (the
+        names of :class:`dopplertof.design.Record`'s arrays)."""
+        names = ("phasors", "moments", "slopes", "moment_slopes")
+        held = (True, self.moments, self.slopes, self.moments and self.slopes)
+        return tuple(n for n, h in zip(names, held) if h)
+
+    @property
+    def channels(self) -> int:
+        """Real values per lane: the luminance, then re and im of every quantity, F and ν."""
+        return 1 + 2 * len(self.quantities) * self.count * len(self.beats)
 
     def empty(self):
-        """Zero contributions: the intensity and one value per camera."""
+        """Zero sums: S(F) (and ∂S/∂F) as lists of (re, im) Float32 per frequency."""
         import mitsuba as mi
 
-        return mi.Spectrum(0), [mi.Float(0) for _ in self.cameras]
+        sums = [[(mi.Float(0), mi.Float(0)) for _ in range(self.count)]]
+        if self.slopes:
+            sums.append([(mi.Float(0), mi.Float(0)) for _ in range(self.count)])
+        return sums
+
+    def add(self, sums, lum, length_m, mask):
+        """``sums`` plus a contribution of luminance ``lum`` (Float32) and optical length
+        ``length_m`` (Float64, m) where ``mask``."""
+        import drjit as dr
+        import mitsuba as mi
+
+        lum = dr.select(mask, lum, 0.0)
+        length_m = dr.select(mask, length_m, 0.0)  # an inactive lane's length may be anything, even inf
+        cycles = length_m * mi.Float64(self.step_hz / modulation.SPEED_OF_LIGHT_M_S)  # of the step, per path
+        sin_step, cos_step = (mi.Float(x) for x in dr.sincos(modulation.TWO_PI * (cycles - dr.floor(cycles))))
+        start = cycles * float(self.first)  # exact: an integer multiple
+        sin_0, cos_0 = (mi.Float(x) for x in dr.sincos(modulation.TWO_PI * (start - dr.floor(start))))
+        re, im = lum * cos_0, lum * sin_0
+        out = [list(s) for s in sums]
+        if self.slopes:  # d/dF e^{i2πFL/c} = i (2πL/c) e^{i2πFL/c}
+            scale = mi.Float(length_m * (modulation.TWO_PI / modulation.SPEED_OF_LIGHT_M_S))
+        for j in range(self.count):
+            out[0][j] = (out[0][j][0] + re, out[0][j][1] + im)
+            if self.slopes:
+                out[1][j] = (out[1][j][0] - scale * im, out[1][j][1] + scale * re)
+            if j + 1 < self.count:
+                re, im = re * cos_step - im * sin_step, re * sin_step + im * cos_step
+        return out
+
+    def lane_values(self, sums, lum_total, u):
+        """The lane's real values (:attr:`channels`, Float32): its luminance ``lum_total``,
+        then R(F, ν) = S(F) e^{i2πνu} (re, im) for every quantity, F (outer) and ν (inner)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        turns = []
+        for beat in self.beats:
+            cycles = u * mi.Float64(beat)
+            sin_b, cos_b = (mi.Float(x) for x in dr.sincos(modulation.TWO_PI * (cycles - dr.floor(cycles))))
+            turns.append((cos_b, sin_b))
+        u32 = mi.Float(u)
+        values = [lum_total]
+        for quantity in self.quantities:
+            source = sums[1] if "slopes" in quantity else sums[0]
+            weight = u32 if quantity.startswith("moment") else None
+            for re, im in source:
+                for cos_b, sin_b in turns:
+                    r, i = re * cos_b - im * sin_b, re * sin_b + im * cos_b
+                    values += [r, i] if weight is None else [r * weight, i * weight]
+        return values
+
+
+def scatter_pixels(values, lanes_per_pixel: int, n_pixels: int):
+    """Per-pixel Float64 sums (one array of ``n_pixels`` × len(values), pixel-major) of
+    per-lane ``values`` whose lanes are ``lanes_per_pixel`` consecutive lanes per pixel.
+
+    The scatter joins the kernel that traces the lanes (it is evaluated with the pass's
+    other outputs): the per-lane values never reach memory."""
+    import drjit as dr
+    import mitsuba as mi
+
+    k = len(values)
+    target = dr.zeros(mi.Float64, n_pixels * k)
+    base = dr.arange(mi.UInt32, n_pixels * lanes_per_pixel) // lanes_per_pixel * k
+    for c, value in enumerate(values):
+        dr.scatter_reduce(dr.ReduceOp.Add, target, mi.Float64(value), base + c, mode=dr.ReduceMode.Local)
+    return target
+
+
+class Sink:
+    """The cameras of a render and how contributions reach them; with a
+    :class:`PhasorGrid` (``grid``) also the record's phasors."""
+
+    def __init__(self, cameras, grid: PhasorGrid | None = None):
+        self.cameras = list(cameras)
+        self.grid = grid
+
+    def empty(self):
+        """Zero contributions: the intensity and one value per camera (and the grid's sums)."""
+        import mitsuba as mi
+
+        if self.grid is None:
+            return mi.Spectrum(0), [mi.Float(0) for _ in self.cameras]
+        return mi.Spectrum(0), [mi.Float(0) for _ in self.cameras], self.grid.empty()
 
     def bank(self, u):
         """The cameras' weights for lanes at normalised time ``u``."""
@@ -29,19 +157,22 @@ class Sink:
 
     @property
     def needs_length(self) -> bool:
-        """Float64 optical lengths are needed only where a camera weighs them."""
-        return bool(self.cameras)
+        """Float64 optical lengths are needed only where a camera or the grid weighs them."""
+        return bool(self.cameras) or self.grid is not None
 
     def add(self, state, bank, contrib, length_m, mask):
         """``state`` plus an emitter contribution with optical length ``length_m`` (Float64)."""
         import drjit as dr
 
-        radiance, measurements = state
+        radiance, measurements, *phasors = state
         radiance = dr.select(mask, radiance + contrib, radiance)
-        if not self.cameras:
+        if not self.cameras and self.grid is None:
             return radiance, measurements
         lum = _luminance(contrib)
-        return radiance, [dr.select(mask, m + w * lum, m) for m, w in zip(measurements, bank.weights(length_m))]
+        measurements = [dr.select(mask, m + w * lum, m) for m, w in zip(measurements, bank.weights(length_m))]
+        if self.grid is None:
+            return radiance, measurements
+        return radiance, measurements, self.grid.add(phasors[0], lum, length_m, mask)
 
     def add_analytic(self, state, cameras, first, second, continuous):
         """The analytic mode (:mod:`dopplertof.tracing.paired`): a contribution X with optical
@@ -78,11 +209,14 @@ class Sink:
             out.append(dr.select(present, m + mi.Float(dr.select(linear, moving, fading)), m))
         return radiance, out
 
-    @staticmethod
-    def outputs(state, truth: dict, hits, label):
-        """Per-lane outputs: estimates, truth sums (value × hit), hit count, label."""
-        radiance, measurements = state
-        return {"intensity": radiance, "measurements": measurements, "hits": hits, "instance_id": label, **truth}
+    def outputs(self, state, truth: dict, hits, label, u=None):
+        """Per-lane outputs: estimates, truth sums (value × hit), hit count, label; with a
+        grid, ``"record"``: :meth:`PhasorGrid.lane_values` at the lane's time ``u``."""
+        radiance, measurements, *phasors = state
+        out = {"intensity": radiance, "measurements": measurements, "hits": hits, "instance_id": label, **truth}
+        if self.grid is not None:
+            out["record"] = self.grid.lane_values(phasors[0], _luminance(radiance), u)
+        return out
 
 
 def _luminance(contrib):
