@@ -487,12 +487,15 @@ def readout_terms(record: Record, camera: Camera, where: str = "camera") -> tupl
     return w, constant, located
 
 
-def measure(record: Record, camera: Camera, where: str = "camera") -> np.ndarray:
-    """The measurement (H, W) of ``camera`` read out of ``record`` (module docstring)."""
+def measure(record: Record, camera: Camera, where: str = "camera", dtype=np.float64) -> np.ndarray:
+    """The measurement (H, W) of ``camera`` read out of ``record`` (module docstring), in
+    ``dtype`` (float64, or float32 as a render gives it)."""
     w, constant, terms = readout_terms(record, camera, where)
-    out = constant * record.luminance[w].astype(np.float64)
+    out = np.multiply(record.luminance[w], constant, dtype=dtype)
     for _, coefficient, j, b in terms:
-        out += (coefficient * record.phasors[w, j, b]).real
+        # Re(a R) = (Re R, Im R) · (Re a, −Im a): one matrix-vector product over the pixels
+        pairs = record.phasors[w, j, b].view(np.float32).reshape(-1, 2)
+        out += (pairs @ np.array([coefficient.real, -coefficient.imag], dtype)).reshape(out.shape)
     return out
 
 
@@ -527,8 +530,8 @@ def evaluate(record: Record, sensor):
         cameras, sensor = list(sensor), None
     else:
         raise ValueError(f"evaluate: 'sensor' must be a dopplertof.Sensor or a list of dopplertof.Camera, got {sensor!r}")
-    measurements = np.stack([measure(record, c, f"camera {i} ({c.label()})") for i, c in enumerate(cameras)])
-    maps = dict(record.maps, measurements=measurements.astype(np.float32))
+    measurements = np.stack([measure(record, c, f"camera {i} ({c.label()})", np.float32) for i, c in enumerate(cameras)])
+    maps = dict(record.maps, measurements=measurements)
     if sensor is not None:
         maps["raw"] = sensor.raw(measurements)
     settings = record.settings.replace(cameras=tuple(cameras))
