@@ -199,13 +199,14 @@ class Sensor:
 
         ``clip=False``: the linear map itself, in float64 and unclipped (applied to the
         derivatives of the measurements it gives the electrons' derivatives)."""
-        m = np.asarray(measurements, dtype=np.float64)
+        # clipped electrons are float32: computing them so halves the memory traffic
+        m = np.asarray(measurements, dtype=np.float32 if clip else np.float64)
         n_frames, windows = len(self.frames), self._windows()
         expected = self.frame_cameras + len(windows)
         if m.ndim < 1 or m.shape[0] != expected:
             raise ValueError(f"Sensor.raw: expected the {expected} measurements of Sensor.cameras(), got shape {m.shape}")
         mean_luminance = m[self.frame_cameras:]
-        raw = np.empty((n_frames, self.taps, *m.shape[1:]))
+        raw = np.empty((n_frames, self.taps, *m.shape[1:]), m.dtype)
         for index, frame in enumerate(self.frames):
             kappa_t = self.noise.electrons_per_unit_s * frame.exposure
             contrast = self.noise.contrast(frame.modulation_frequency)
@@ -220,7 +221,7 @@ class Sensor:
         if not clip:
             return raw
         # A noisy render can make |M| exceed D where little light arrives: no charge is negative.
-        return np.maximum(raw, 0.0).astype(np.float32)
+        return np.maximum(raw, 0.0, out=raw)
 
     # ------------------------------------------------------------------ read-out
     def expected_electrons(self, raw) -> np.ndarray:

@@ -130,7 +130,7 @@ def scatter_pixels(values, lanes_per_pixel: int, n_pixels: int):
     k = len(values)
     target = dr.zeros(mi.Float64, n_pixels * k)
     base = dr.arange(mi.UInt32, n_pixels * lanes_per_pixel) // lanes_per_pixel * k
-    for c, value in enumerate(values):
+    for c, value in enumerate(values):  # Local: a pixel's lanes are consecutive, so a SIMD packet adds up in registers first
         dr.scatter_reduce(dr.ReduceOp.Add, target, mi.Float64(value), base + c, mode=dr.ReduceMode.Local)
     return target
 
