@@ -155,6 +155,21 @@ def test_a_record_is_rendered_locally_without_checkpoints(cornell, tmp_path):
         dt.render(cornell, spp=2, record=True, checkpoint=tmp_path / "c.npz")
 
 
+def test_square_waves_through_a_finite_bandwidth_read_out_as_their_direct_renders(cornell):
+    """The MLX75027 drives square waves: with the source's bandwidth (harmonics 1 and 3 at
+    30 MHz, within the record's band) its preset accepts them and the record reads them out."""
+    from dopplertof.sensors import preset
+
+    exposure = 0.5e-3  # the chip integrates less than 1 ms per raw frame
+    record = dt.render(cornell, cameras=[dt.Camera(exposure=exposure, exposure_start=0.0)], record=dict(band_hz=(10e6, 120e6), beats=(0.0,)), **RENDER).record
+    frames = [RawFrame(modulation_frequency=30e6, phase=k * math.pi / 2, exposure=exposure, exposure_start=0.0, waveform="rectangular", light_bandwidth=100e6) for k in range(4)]
+    sensor = preset("mlx75027", frames, radiance_unit=1e-3)
+    direct = dt.render(cornell, sensor=sensor, **RENDER)
+    np.testing.assert_allclose(evaluate(record, sensor).raw, direct.raw, rtol=0, atol=1e-4 * np.abs(direct.raw).max())
+    with pytest.raises(ValueError, match="rectangular waveform has unbounded harmonics; give it the source's light_bandwidth"):
+        evaluate(record, preset("mlx75027", [dataclasses.replace(f, light_bandwidth=None, light_code=None, sensor_code=None) for f in frames]))
+
+
 def test_a_record_wider_than_one_kernel_traces_the_same_paths_for_every_run_of_frequencies(cornell):
     from dopplertof.design.record import FREQUENCIES_PER_KERNEL
 

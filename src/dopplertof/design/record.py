@@ -25,8 +25,9 @@ wherever it applies, and refuses everything else (:func:`evaluate`):
 * a beat m h not among ``beats``;
 * an exposure window that was not recorded;
 * weights with unbounded harmonics: the full-waveform model, the named rectangular,
-  triangular and trapezoidal waveforms, sampled codes without ``light_bandwidth`` (give
-  the source's bandwidth, at most the band's top, to make them band-limited).
+  triangular and trapezoidal waveforms and sampled codes without ``light_bandwidth`` (give
+  the rectangular and trapezoidal waveforms and codes the source's bandwidth, at most the
+  band's top, and they are band-limited and exact).
 
 Size: 8 bytes per (F, ν) pair and pixel plus 4 for Ī, per window
 (:meth:`RecordSpec.bytes_per_pixel`): a 256² record of 10–300 MHz at 1 MHz with beats
@@ -42,6 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..codes import NAMED_CODES
 from ..modulation import MAX_HETERODYNE, MAX_MODULATION_FREQUENCY_HZ, Camera
 from ..validation import checked
 
@@ -470,7 +472,8 @@ def harmonics(camera: Camera, where: str) -> tuple[float, list[tuple[int, comple
         terms = [(m, complex(camera.g1 * k[m])) for m in range(1, k.size) if abs(k[m]) > NEGLIGIBLE_HARMONIC * scale]
         return float(camera.g1 * k[0].real + camera.g0 * camera.sensor_mean), terms
     if camera.waveform != "sinusoidal":
-        raise ValueError(f"{where}: the {camera.waveform} waveform has unbounded harmonics; use the sinusoid or a band-limited code (light_bandwidth)")
+        hint = "give it the source's light_bandwidth (within the record's band)" if camera.waveform in NAMED_CODES else "use the sinusoid or a band-limited code (light_bandwidth)"
+        raise ValueError(f"{where}: the {camera.waveform} waveform has unbounded harmonics; {hint}")
     return 0.0, [(1, complex(0.5 * camera.g1))]
 
 
