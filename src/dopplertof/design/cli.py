@@ -127,7 +127,9 @@ def _write_csv(path, rows) -> str:
 
 
 def _plots(output, rows, keys, objective, unit) -> list[str]:
-    """The objective against each swept key, the other keys at their best point's values."""
+    """The objective (the mean bound over the moving pixels) and the median bound against
+    each swept key, the other keys at their best point's values: a few pixels with little
+    modulated light dominate the mean, the median shows the typical pixel."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -137,13 +139,15 @@ def _plots(output, rows, keys, objective, unit) -> list[str]:
     top = min(good, key=lambda r: r["objective"])
     written = []
     for key in keys:
-        line = sorted((r[key], r["objective"]) for r in good if all(r[k] == top[k] for k in keys if k != key))
+        line = sorted((r[key], r["objective"], r[f"{objective}_median"]) for r in good if all(r[k] == top[k] for k in keys if k != key))
         figure = Figure(figsize=(5, 3.5))
         FigureCanvasAgg(figure)
         axes = figure.add_subplot()
-        axes.plot([x for x, _ in line], [y for _, y in line], "o-")
+        axes.plot([x for x, _, _ in line], [y for _, y, _ in line], "o-", label="mean")
+        axes.plot([x for x, _, _ in line], [y for _, _, y in line], "s--", label="median")
         axes.set_xlabel(f"{key} ({KEY_UNITS[key]})")
-        axes.set_ylabel(f"mean {objective} ({unit})")
+        axes.set_ylabel(f"{objective} ({unit})")
+        axes.legend()
         axes.set_yscale("log")
         axes.grid(True, alpha=0.3)
         figure.tight_layout()
