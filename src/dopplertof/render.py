@@ -437,14 +437,14 @@ def render(
         if sensor is None or not until_noise > 0:
             raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...) and a ratio > 0")
     if record is not None and record is not False:
-        from .design.record import as_spec, by_probes, kernel_grids
+        from .design.record import as_spec, by_probes, first_grid
         from .design.record import check_memory as check_record_memory
 
         record = as_spec(record)
         if executor != "local" or checkpoint is not None:
             raise ValueError("record: a response record is rendered locally and without checkpoints (executor='local', checkpoint=None)")
         check_record_memory(record, *scene.resolution, len(settings.windows), by_probes(settings))
-        grid = None if by_probes(settings) else kernel_grids(record)[0]  # the render's own passes accumulate the first
+        grid = first_grid(record, settings)  # the render's own passes accumulate it
     else:
         record = grid = None
 

@@ -69,8 +69,14 @@ SLOPE_FREQUENCY_STEP_HZ = 1e5
 # more frequencies traces the paths again for every further run of them.
 FREQUENCIES_PER_KERNEL = 32
 # What a record may hold beside R: the first moments R₁ (``doppler``), the slopes ∂R/∂F
-# (``slopes``) and ∂R₁/∂F (both).
-DERIVED = ("moments", "slopes", "moment_slopes")
+# (``slopes``) and ∂R₁/∂F (both), and the derivatives of R and R₁ with respect to the
+# window's exposure T and start (``window_slopes``).
+DERIVED = ("moments", "slopes", "moment_slopes", "exposure_slopes", "start_slopes", "exposure_moment_slopes", "start_moment_slopes")
+# Step of the central differences that give the window slopes, as a fraction of the
+# window's exposure: at 10 m/s and 1 ms it moves a path by 0.1 mm (a phase step of 4e-4 rad
+# at 100 MHz, against the lanes' float32 rounding of 1e-7), with a truncation error of
+# (δ/T)² ≈ 1e-4 of the second derivative's share.
+WINDOW_STEP = 1e-2
 
 
 @dataclass(frozen=True)
@@ -95,6 +101,12 @@ class RecordSpec:
         derivative of every measurement with respect to the modulation frequency, which
         frequency gradients need (:func:`dopplertof.design.gradient`); they triple the
         probes again and double the size again. Default False.
+    window_slopes : bool. Also record the derivatives of Ī, R (and, with ``doppler``, R₁)
+        with respect to each window's exposure T and start (1/s): central differences of
+        the window traced again at T ± δ and start ± δ with its own seed (same random
+        numbers, δ = :data:`WINDOW_STEP` × T), which exposure and start gradients need.
+        Four more traces of every window; not with the paired tracers (probe cameras).
+        Default False.
     """
 
     band_hz: tuple = (10e6, 300e6)
@@ -103,6 +115,7 @@ class RecordSpec:
     cameras_per_render: int = 32
     doppler: bool = False
     slopes: bool = False
+    window_slopes: bool = False
 
     def __post_init__(self):
         band = self.band_hz
@@ -137,6 +150,7 @@ class RecordSpec:
         object.__setattr__(self, "cameras_per_render", per)
         object.__setattr__(self, "doppler", checked("doppler", self.doppler, "bool", "record"))
         object.__setattr__(self, "slopes", checked("slopes", self.slopes, "bool", "record"))
+        object.__setattr__(self, "window_slopes", checked("window_slopes", self.window_slopes, "bool", "record"))
 
     @property
     def frequencies_hz(self) -> np.ndarray:
@@ -149,12 +163,12 @@ class RecordSpec:
     def bytes_per_pixel(self, n_windows: int = 1) -> int:
         """Record size per pixel (bytes): complex64 R(F, ν) (and R₁ with ``doppler``, their
         slopes with ``slopes``) and float32 Ī per window."""
-        arrays = (2 if self.doppler else 1) * (2 if self.slopes else 1)
-        return n_windows * (8 * arrays * self.frequencies_hz.size * len(self.beats) + 4)
+        arrays = len(_derived_of(self)) + 1
+        return n_windows * (8 * arrays * self.frequencies_hz.size * len(self.beats) + 4 * (3 if self.window_slopes else 1))
 
     def as_dict(self) -> dict:
         """The spec as a JSON-friendly dict (``RecordSpec(**spec.as_dict())`` is the same spec)."""
-        return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler, "slopes": self.slopes}
+        return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler, "slopes": self.slopes, "window_slopes": self.window_slopes}
 
 
 def as_spec(value) -> RecordSpec:
@@ -167,7 +181,7 @@ def as_spec(value) -> RecordSpec:
     if isinstance(value, dict):
         unknown = sorted(set(value) - {f.name for f in dataclasses.fields(RecordSpec)})
         if unknown:
-            raise ValueError(f"record: unknown key(s) {unknown}; use band_hz, step_hz, beats, cameras_per_render, doppler, slopes")
+            raise ValueError(f"record: unknown key(s) {unknown}; use {', '.join(f.name for f in dataclasses.fields(RecordSpec))}")
         return RecordSpec(**value)
     raise ValueError(f"record must be True, a dict of RecordSpec fields or a dopplertof.design.RecordSpec, got {value!r}")
 
@@ -183,6 +197,11 @@ class Record:
     moments : complex64 like ``phasors``, or None. R₁(F, ν) (``spec.doppler``).
     slopes, moment_slopes : complex64 like ``phasors``, or None. ∂R/∂F and ∂R₁/∂F (1/Hz;
         ``spec.slopes``, the second also ``spec.doppler``).
+    exposure_slopes, start_slopes, exposure_moment_slopes, start_moment_slopes : complex64
+        like ``phasors``, or None. ∂R/∂T, ∂R/∂start, ∂R₁/∂T, ∂R₁/∂start of each window
+        (1/s; ``spec.window_slopes``, the moments' also ``spec.doppler``).
+    luminance_slopes : float32 (2, windows, H, W) or None. ∂Ī/∂T and ∂Ī/∂start (1/s;
+        ``spec.window_slopes``).
     spec : :class:`RecordSpec`.
     windows : tuple of (start_s, exposure_s). The recorded exposure windows, in render order.
     settings : RenderSettings of the render (its cameras dropped; the windows are above).
@@ -201,6 +220,11 @@ class Record:
     moments: np.ndarray | None = None
     slopes: np.ndarray | None = None
     moment_slopes: np.ndarray | None = None
+    exposure_slopes: np.ndarray | None = None
+    start_slopes: np.ndarray | None = None
+    exposure_moment_slopes: np.ndarray | None = None
+    start_moment_slopes: np.ndarray | None = None
+    luminance_slopes: np.ndarray | None = None
 
     RECORD_FORMAT = "dopplertof-record-1"
 
@@ -213,7 +237,7 @@ class Record:
         settings.pop("cameras")
         meta = {"format": self.RECORD_FORMAT, "spec": self.spec.as_dict(), "windows": [list(w) for w in self.windows], "settings": settings, "spp": self.spp, "info": self.info}
         arrays = {"phasors": self.phasors, "luminance": self.luminance, "metadata": np.array(json.dumps(meta, default=float))}
-        for name in DERIVED:
+        for name in (*DERIVED, "luminance_slopes"):
             if getattr(self, name) is not None:
                 arrays[name] = getattr(self, name)
         arrays.update({f"map.{name}": value for name, value in self.maps.items()})
@@ -240,6 +264,10 @@ class Record:
             for name, value in derived.items():
                 if value is not None and (value.dtype != np.complex64 or value.shape != phasors.shape):
                     raise ValueError(f"{name} of shape {value.shape} do not match the phasors {phasors.shape}")
+            if spec.window_slopes:
+                derived["luminance_slopes"] = np.asarray(arrays["luminance_slopes"])
+                if derived["luminance_slopes"].shape != (2, *luminance.shape):
+                    raise ValueError(f"luminance_slopes of shape {derived['luminance_slopes'].shape} do not match the luminance {luminance.shape}")
             settings = RenderSettings.build(meta["settings"])
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{where}: not a dopplertof response record ({exc})") from None
@@ -249,7 +277,7 @@ class Record:
     @property
     def nbytes(self) -> int:
         """Memory the record's arrays take, in bytes."""
-        return int(self.phasors.nbytes + self.luminance.nbytes + sum(getattr(self, n).nbytes for n in DERIVED if getattr(self, n) is not None))
+        return int(self.phasors.nbytes + self.luminance.nbytes + sum(getattr(self, n).nbytes for n in (*DERIVED, "luminance_slopes") if getattr(self, n) is not None))
 
     def window_index(self, camera: Camera, where: str) -> int:
         """Index of ``camera``'s exposure window in :attr:`windows`; a ValueError starting with
@@ -297,7 +325,9 @@ def _sides(spec: RecordSpec) -> list[tuple[int, int]]:
 
 def _derived_of(spec: RecordSpec) -> tuple[str, ...]:
     """The names of :data:`DERIVED` a record of ``spec`` holds."""
-    return tuple(n for n, held in zip(DERIVED, (spec.doppler, spec.slopes, spec.doppler and spec.slopes)) if held)
+    window, both = spec.window_slopes, spec.window_slopes and spec.doppler
+    held = (spec.doppler, spec.slopes, spec.doppler and spec.slopes, window, window, both, both)
+    return tuple(n for n, h in zip(DERIVED, held) if h)
 
 
 def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
@@ -359,6 +389,17 @@ def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int, prob
         )  # fmt: skip
 
 
+def first_grid(spec: RecordSpec, settings):
+    """The :class:`~dopplertof.tracing.sink.PhasorGrid` a render with ``settings`` accumulates
+    in its own passes (the first of :func:`kernel_grids`); None where it records through
+    probe cameras (:func:`by_probes`). ValueError for what probe cameras cannot record."""
+    if not by_probes(settings):
+        return kernel_grids(spec)[0]
+    if spec.window_slopes:
+        raise ValueError("record: window_slopes needs the single-path tracer; the paired tracers (correlation reconnection or adaptive, analytic time sampling) record through probe cameras")
+    return None
+
+
 def record_scene(scene, settings, spec: RecordSpec, rendered) -> Record:
     """The record of ``scene`` for the windows of ``settings`` (same seed, same paths).
 
@@ -366,40 +407,68 @@ def record_scene(scene, settings, spec: RecordSpec, rendered) -> Record:
     window (the Float64 sums of the first of :func:`kernel_grids`
     (:attr:`~dopplertof.passes.Accumulator.record_sum`), the samples per pixel, the passes
     done), the passes, the result's maps). Each further grid traces the windows' finished
-    passes again. Renders that :func:`by_probes` record
-    through probe cameras instead (:func:`_record_by_probes`). A Ctrl-C raises
-    KeyboardInterrupt: there is no partial record.
+    passes again, and ``window_slopes`` four variants of each window. Renders that
+    :func:`by_probes` record through probe cameras instead (:func:`_record_by_probes`). A
+    Ctrl-C raises KeyboardInterrupt: there is no partial record.
     """
-    from ..passes import PassTracer
-
     if by_probes(settings):
         return _record_by_probes(scene, settings, spec)
     window_settings, recorded, passes, maps = rendered
     width, height = scene.resolution
-    n_windows, n_beats = len(window_settings), len(spec.beats)
     grids = kernel_grids(spec)
-    arrays = {name: np.zeros((n_windows, spec.frequencies_hz.size, n_beats, height, width), np.complex64) for name in grids[0].quantities}
-    luminance = np.zeros((n_windows, height, width), np.float32)
+    shape = (len(window_settings), spec.frequencies_hz.size, len(spec.beats), height, width)
+    arrays = {name: np.zeros(shape, np.complex64) for name in ("phasors", *_derived_of(spec))}
+    luminance = np.zeros(shape[:1] + shape[3:], np.float32)
+    luminance_slopes = np.zeros((2, *luminance.shape), np.float32) if spec.window_slopes else None
     for w, (window, (first_sums, samples, done)) in enumerate(zip(window_settings, recorded)):
         j0 = 0
         for g, grid in enumerate(grids):
-            if g == 0:
-                sums = first_sums
-            else:
-                tracer, sums = PassTracer(scene, window, grid), np.zeros((grid.channels, height * width))
-                for p in passes[:done]:
-                    sums[:, p.pixel_start : p.pixel_start + p.n_pixels] += tracer(p)["record"]
-            means = sums / samples
-            luminance[w] = means[0].reshape(height, width)
-            parts = means[1:].reshape(len(grid.quantities), grid.count, n_beats, 2, height, width)
-            for q, name in enumerate(grid.quantities):
-                arrays[name][w, j0 : j0 + grid.count] = parts[q, :, :, 0] + 1j * parts[q, :, :, 1]
+            luminance[w], parts = _unpack(grid, first_sums if g == 0 else _traced_sums(scene, window, grid, passes[:done]), samples, (height, width))
+            for name, part in parts.items():
+                arrays[name][w, j0 : j0 + grid.count] = part
+            if spec.window_slopes:
+                step = WINDOW_STEP * window.exposure_s
+                start, exposure = window.exposure_start, window.exposure_s
+                for k, kind in enumerate(("exposure", "start")):
+                    moved = [_moved(window, exposure + d, start) if kind == "exposure" else _moved(window, exposure, start + d) for d in (step, -step)]
+                    ends = [_unpack(grid, _traced_sums(scene, m, grid, passes[:done]), samples, (height, width)) for m in moved]
+                    luminance_slopes[k, w] = (ends[0][0].astype(np.float64) - ends[1][0]) / (2 * step)
+                    for name in ("phasors", "moments")[: 2 if spec.doppler else 1]:
+                        target = f"{kind}_slopes" if name == "phasors" else f"{kind}_moment_slopes"
+                        arrays[target][w, j0 : j0 + grid.count] = (ends[0][1][name].astype(np.complex128) - ends[1][1][name]) / (2 * step)
             j0 += grid.count
     maps = {k: v for k, v in maps.items() if not k.startswith("measurement") and k != "raw"}
     windows = tuple((w.start_s, w.exposure_s) for w in settings.windows)
     info = {"kernels": len(grids), "frequencies_per_kernel": FREQUENCIES_PER_KERNEL}
     spp = int(min(samples.min() for _, samples, _ in recorded))
-    return Record(arrays.pop("phasors"), luminance, spec, windows, settings.replace(cameras=()), maps, spp, info, **arrays)
+    return Record(arrays.pop("phasors"), luminance, spec, windows, settings.replace(cameras=()), maps, spp, info, luminance_slopes=luminance_slopes, **arrays)
+
+
+def _traced_sums(scene, window, grid, passes) -> np.ndarray:
+    """(channels, pixels) sums of ``grid``'s per-lane values over ``passes`` of ``window``
+    (its settings: cameras, start, seed) traced again."""
+    from ..passes import PassTracer
+
+    width, height = scene.resolution
+    tracer, sums = PassTracer(scene, window, grid), np.zeros((grid.channels, width * height))
+    for p in passes:
+        sums[:, p.pixel_start : p.pixel_start + p.n_pixels] += tracer(p)["record"]
+    return sums
+
+
+def _unpack(grid, sums, samples, shape):
+    """(Ī (H, W) float32, {quantity: complex64 (count, beats, H, W)}) of ``grid``'s sums over
+    ``samples`` lanes per pixel (:meth:`~dopplertof.tracing.sink.PhasorGrid.lane_values`)."""
+    means = sums / samples
+    parts = means[1:].reshape(len(grid.quantities), grid.count, len(grid.beats), 2, *shape)
+    return means[0].reshape(shape).astype(np.float32), {name: (parts[q, :, :, 0] + 1j * parts[q, :, :, 1]).astype(np.complex64) for q, name in enumerate(grid.quantities)}
+
+
+def _moved(window, exposure_s, start_s):
+    """``window``'s settings (same seed: same random numbers) with its exposure window moved
+    to [``start_s``, ``start_s`` + ``exposure_s``] (s)."""
+    cameras = tuple(dataclasses.replace(c, exposure=exposure_s, exposure_start=start_s) for c in window.cameras)
+    return dataclasses.replace(window, cameras=cameras, exposure_start=start_s)
 
 
 def _record_by_probes(scene, settings, spec: RecordSpec) -> Record:
