@@ -39,6 +39,30 @@ def test_design_sweeps_optimises_and_writes_a_sensor_that_render_reads(tmp_path)
     assert (tmp_path / "render" / "raw_electrons.npy").exists()
 
 
+def test_design_over_several_scenes_averages_their_objectives(tmp_path):
+    sweep = ("--sweep", "f=20e6:60e6:3")
+    both = _run("design", "cornell-box", "rotating", "--sensor", "dtof-prototype", *sweep, "--optimize", "phase", "-o", str(tmp_path / "both"), *FAST)
+    assert both.returncode == 0, both.stderr
+    assert "best sensor on cornell-box:" in both.stdout and "best sensor on rotating:" in both.stdout
+    for name in ("record_0.npz", "record_1.npz", "velocity_crb_0.exr", "depth_crb_1.exr", "sweep.csv", "optimize.csv", "best_sensor.toml"):
+        assert (tmp_path / "both" / name).exists(), name
+
+    def objectives(folder):
+        with open(folder / "sweep.csv", newline="") as f:
+            return [float(r["objective"]) for r in csv.DictReader(f)]
+
+    # each scene alone, from its own record: the two-scene objective is their mean
+    alone = []
+    for index, scene in enumerate(("cornell-box", "rotating")):
+        done = _run("design", scene, "--sensor", "dtof-prototype", *sweep, "--record", str(tmp_path / "both" / f"record_{index}.npz"), "-o", str(tmp_path / scene))
+        assert done.returncode == 0, done.stderr
+        alone.append(objectives(tmp_path / scene))
+    assert alone[0] != alone[1]
+    assert objectives(tmp_path / "both") == pytest.approx([(a + b) / 2 for a, b in zip(*alone)], rel=1e-6)
+    refused = _run("design", "cornell-box", "rotating", "--sensor", "dtof-prototype", *sweep, "--record", str(tmp_path / "both" / "record_0.npz"), "-o", str(tmp_path / "o"))
+    assert refused.returncode == 2 and refused.stderr.strip() == "error: --record: give one per scene (2 scene(s), 1 record(s))"
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
