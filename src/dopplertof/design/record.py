@@ -14,11 +14,12 @@ with ⟨·⟩ the estimator's average over the pixel's samples and Ī = ⟨lum�
 luminance. The record holds, per exposure window and pixel, Ī and R(F, ν) on a declared grid:
 every multiple F of ``step_hz`` in ``band_hz`` crossed with the declared ``beats`` ν (beat
 cycles per exposure: the heterodyne ratios h, their multiples m h for codes, integer or
-not). Each R(F, ν) is itself the measurement of a sinusoidal camera (frequency F,
-heterodyne ν, ψ = 0 and −π/2 for its real and imaginary parts), rendered by the same kernel
-with the same seed, so a sensor read out of the record equals the same sensor rendered
-directly (same seed, same windows in the same order) to rounding: the record is *exact*
-wherever it applies, and refuses everything else (:func:`evaluate`):
+not). The tracing kernel accumulates them while it traces the render's own paths
+(:class:`~dopplertof.tracing.sink.PhasorGrid`: per lane, every contribution's phasors over
+the frequency grid, the beats from the lane's time, summed per pixel in Float64), so a
+sensor read out of the record equals the same sensor rendered directly (same seed, same
+windows in the same order) to rounding: the record is *exact* wherever it applies, and
+refuses everything else (:func:`evaluate`):
 
 * a frequency m f (every harmonic m of the camera's correlation with a non-zero
   coefficient) outside ``band_hz`` or not a multiple of ``step_hz``;
@@ -31,8 +32,12 @@ wherever it applies, and refuses everything else (:func:`evaluate`):
 
 Size: 8 bytes per (F, ν) pair and pixel plus 4 for Ī, per window
 (:meth:`RecordSpec.bytes_per_pixel`): a 256² record of 10–300 MHz at 1 MHz with beats
-(0, 1) is 0.3 GB. Cost: the probe cameras are rendered ``cameras_per_render`` at a time,
-each chunk re-tracing the same paths (docs/design.md gives the measured overhead).
+(0, 1) is 0.3 GB. Cost: a kernel holds :data:`FREQUENCIES_PER_KERNEL` frequencies; the first
+run of them rides on the render's own passes (1.4× a plain render for 30 frequencies and 2
+beats, docs/design.md), each further run traces the paths again. The paired tracers
+(:func:`by_probes`) record through probe cameras instead: each R(F, ν) the measurement of
+a sinusoidal camera (frequency F, heterodyne ν, ψ = 0 and −π/2), ``cameras_per_render`` of
+them per kernel, each chunk re-tracing the paths.
 """
 
 from __future__ import annotations
@@ -91,16 +96,19 @@ class RecordSpec:
     beats : sequence of float. The beat cycles per exposure ν recorded (a camera with
         heterodyne h needs m h for each of its harmonics m). Default (0, 1): homodyne and
         the one-beat heterodyne.
-    cameras_per_render : int. Probe cameras traced per kernel (bounds the kernel's state:
+    cameras_per_render : int. Probe cameras traced per kernel where the record is rendered
+        by probe cameras (the paired tracers, :func:`by_probes`; bounds the kernel's state:
         4 bytes per camera and lane). Default 32.
     doppler : bool. Also record the first moments R₁(F, ν) = ⟨lum · u e^{i2πνu} e^{i2πFL/c}⟩,
         the derivative of every measurement with respect to the paths' rate L̇ that
-        precision maps need (:func:`dopplertof.design.crb`); they triple the probes and
-        double the size. Default False.
+        precision maps need (:func:`dopplertof.design.crb`): exact in the kernel (the
+        lane's u times its R; probe cameras: a central difference in ν, tripling the
+        probes). They double the size. Default False.
     slopes : bool. Also record the slopes ∂R/∂F (and, with ``doppler``, ∂R₁/∂F): the
         derivative of every measurement with respect to the modulation frequency, which
-        frequency gradients need (:func:`dopplertof.design.gradient`); they triple the
-        probes again and double the size again. Default False.
+        frequency gradients need (:func:`dopplertof.design.gradient`): exact in the kernel
+        (i2πL/c per contribution; probe cameras: a central difference in F). They double
+        the size again. Default False.
     window_slopes : bool. Also record the derivatives of Ī, R (and, with ``doppler``, R₁)
         with respect to each window's exposure T and start (1/s): central differences of
         the window traced again at T ± δ and start ± δ with its own seed (same random
