@@ -182,8 +182,16 @@ NAMED_CODES = tuple(_NAMED_CHIPS)
 
 
 def named(waveform: str) -> tuple[Code, Code]:
-    """(light, sensor) codes of a named waveform of :data:`NAMED_CODES`: the exact chips
-    of its modulations (the correlation of the pair is the waveform's Λ/2).
+    """The exact chip codes of a named waveform's light and sensor modulations.
+
+    Parameters
+    ----------
+    waveform : str. One of :data:`NAMED_CODES` (``"rectangular"``, ``"trapezoidal"``).
+
+    Returns
+    -------
+    (light, sensor) : two sampled :class:`Code` of 8 chips; their correlation is the
+    waveform's Λ/2.
 
     Raises
     ------

@@ -358,15 +358,35 @@ def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
 
 
 def by_probes(settings) -> bool:
-    """Whether a render with ``settings`` records through probe cameras: the paired tracers
-    give a lane's contributions two times (or integrate them over the exposure), which the
-    kernel's phasor sums (:class:`~dopplertof.tracing.sink.PhasorGrid`) do not model."""
+    """Whether a render records through probe cameras rather than in its kernel.
+
+    The paired tracers give a lane's contributions two times (or integrate them over the
+    exposure), which the kernel's phasor sums (:class:`~dopplertof.tracing.sink.PhasorGrid`)
+    do not model.
+
+    Parameters
+    ----------
+    settings : RenderSettings of the render.
+
+    Returns
+    -------
+    bool: True for the paired tracers (``settings.paired``).
+    """
     return settings.paired
 
 
 def kernel_grids(spec: RecordSpec) -> list:
-    """The :class:`~dopplertof.tracing.sink.PhasorGrid` of each kernel that records ``spec``:
-    its frequencies in runs of at most :data:`FREQUENCIES_PER_KERNEL`."""
+    """The grids of the kernels that record ``spec``.
+
+    Parameters
+    ----------
+    spec : :class:`RecordSpec`.
+
+    Returns
+    -------
+    list of :class:`~dopplertof.tracing.sink.PhasorGrid`: the spec's frequencies in runs of
+    at most :data:`FREQUENCIES_PER_KERNEL`, each with every beat.
+    """
     from ..tracing.sink import PhasorGrid
 
     first = round(spec.frequencies_hz[0] / spec.step_hz)
@@ -378,10 +398,22 @@ def kernel_grids(spec: RecordSpec) -> list:
 
 
 def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int, probes: bool = False) -> None:
-    """ValueError where the record of ``spec`` on a ``width`` × ``height`` film of
-    ``n_windows`` windows needs more than the available memory: its complex64 arrays and,
-    while it is rendered, the Float64 per-pixel sums of one kernel's grid per window
-    (``probes``: every probe side until their differences are taken)."""
+    """Refuse a record that needs more than the available memory.
+
+    Parameters
+    ----------
+    spec : :class:`RecordSpec`.
+    width, height : int, pixels. The film.
+    n_windows : int. Exposure windows recorded.
+    probes : bool. Recorded through probe cameras (:func:`by_probes`). Default False.
+
+    Raises
+    ------
+    ValueError
+        Where the record's complex64 arrays and, while it is rendered, the Float64
+        per-pixel sums of one kernel's grid per window (with ``probes``: every probe side
+        until their differences are taken) exceed the available memory.
+    """
     from ..render import available_memory_bytes
 
     grid = spec.frequencies_hz.size * len(spec.beats)
@@ -398,9 +430,23 @@ def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int, prob
 
 
 def first_grid(spec: RecordSpec, settings):
-    """The :class:`~dopplertof.tracing.sink.PhasorGrid` a render with ``settings`` accumulates
-    in its own passes (the first of :func:`kernel_grids`); None where it records through
-    probe cameras (:func:`by_probes`). ValueError for what probe cameras cannot record."""
+    """The grid a render accumulates in its own passes.
+
+    Parameters
+    ----------
+    spec : :class:`RecordSpec`.
+    settings : RenderSettings of the render.
+
+    Returns
+    -------
+    :class:`~dopplertof.tracing.sink.PhasorGrid` (the first of :func:`kernel_grids`), or
+    None where the render records through probe cameras (:func:`by_probes`).
+
+    Raises
+    ------
+    ValueError
+        For ``window_slopes`` with probe cameras.
+    """
     if not by_probes(settings):
         return kernel_grids(spec)[0]
     if spec.window_slopes:
@@ -411,13 +457,27 @@ def first_grid(spec: RecordSpec, settings):
 def record_scene(scene, settings, spec: RecordSpec, rendered) -> Record:
     """The record of ``scene`` for the windows of ``settings`` (same seed, same paths).
 
-    ``rendered`` is what :func:`dopplertof.render` traced: (settings of each window, per
-    window (the Float64 sums of the first of :func:`kernel_grids`
-    (:attr:`~dopplertof.passes.Accumulator.record_sum`), the samples per pixel, the passes
-    done), the passes, the result's maps). Each further grid traces the windows' finished
-    passes again, and ``window_slopes`` four variants of each window. Renders that
-    :func:`by_probes` record through probe cameras instead (:func:`_record_by_probes`). A
-    Ctrl-C raises KeyboardInterrupt: there is no partial record.
+    Each further grid of :func:`kernel_grids` traces the windows' finished passes again,
+    and ``window_slopes`` four variants of each window. Renders that :func:`by_probes`
+    record through probe cameras instead (:func:`_record_by_probes`).
+
+    Parameters
+    ----------
+    scene : DynamicScene, the render's.
+    settings : RenderSettings, the render's.
+    spec : :class:`RecordSpec`.
+    rendered : what :func:`dopplertof.render` traced: (settings of each window, per window
+        (the Float64 sums of the first grid, :attr:`~dopplertof.passes.Accumulator.record_sum`;
+        the samples per pixel; the passes done), the passes, the result's maps).
+
+    Returns
+    -------
+    :class:`Record`.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        A Ctrl-C: there is no partial record.
     """
     if by_probes(settings):
         return _record_by_probes(scene, settings, spec)
@@ -568,8 +628,24 @@ def readout_terms(record: Record, camera: Camera, where: str = "camera") -> tupl
 
 
 def measure(record: Record, camera: Camera, where: str = "camera", dtype=np.float64) -> np.ndarray:
-    """The measurement (H, W) of ``camera`` read out of ``record`` (module docstring), in
-    ``dtype`` (float64, or float32 as a render gives it)."""
+    """The measurement of ``camera`` read out of ``record`` (module docstring).
+
+    Parameters
+    ----------
+    record : :class:`Record`.
+    camera : :class:`~dopplertof.Camera`.
+    where : str. What error messages name. Default ``"camera"``.
+    dtype : numpy dtype. float64 (default), or float32 as a render gives it.
+
+    Returns
+    -------
+    ndarray (H, W) of ``dtype``.
+
+    Raises
+    ------
+    ValueError
+        Naming ``where``, for what the record does not hold.
+    """
     w, constant, terms = readout_terms(record, camera, where)
     out = np.multiply(record.luminance[w], constant, dtype=dtype)
     for _, coefficient, j, b in terms:

@@ -120,8 +120,21 @@ def _check_size(sweeps):
 
 
 def as_records(records) -> list:
-    """``records`` (a :class:`~dopplertof.design.Record`, or several: the scenes of a
-    design) as a non-empty list."""
+    """The records of a design as a list.
+
+    Parameters
+    ----------
+    records : :class:`~dopplertof.design.Record`, or a list or tuple of them (the scenes).
+
+    Returns
+    -------
+    list of Record, not empty.
+
+    Raises
+    ------
+    ValueError
+        For an empty list.
+    """
     records = list(records) if isinstance(records, (list, tuple)) else [records]
     if not records:
         raise ValueError("design: no record (give at least one scene)")
@@ -129,9 +142,20 @@ def as_records(records) -> list:
 
 
 def summary(records, sensor) -> dict:
-    """The bounds' summary (:meth:`~dopplertof.design.precision.Precision.summary`) averaged
-    over the scenes of ``records``: each scene's mean and median over its moving pixels,
-    averaged (every scene weighs the same); ``moving_pixels`` summed."""
+    """The bounds' summary averaged over the scenes of a design.
+
+    Parameters
+    ----------
+    records : Record or list of Record (:func:`as_records`).
+    sensor : :class:`dopplertof.Sensor`.
+
+    Returns
+    -------
+    dict: ``velocity_crb_mean``, ``velocity_crb_median`` (m/s), ``depth_crb_mean``,
+    ``depth_crb_median`` (m): each scene's (over its moving pixels,
+    :meth:`~dopplertof.design.precision.Precision.summary`) averaged, every scene weighing
+    the same; ``moving_pixels``: their sum.
+    """
     summaries = [crb(r, sensor).summary() for r in as_records(records)]
     out = {k: float(np.mean([x[k] for x in summaries])) for k in summaries[0] if k != "moving_pixels"}
     out["moving_pixels"] = int(sum(x["moving_pixels"] for x in summaries))
@@ -139,17 +163,50 @@ def summary(records, sensor) -> dict:
 
 
 def objective_value(records, sensor, objective: str) -> float:
-    """The mean bound (:data:`OBJECTIVES`) over the moving pixels where it is finite,
-    averaged over the scenes of ``records`` (:func:`summary`)."""
+    """The design's objective for ``sensor``.
+
+    Parameters
+    ----------
+    records : Record or list of Record (:func:`as_records`).
+    sensor : :class:`dopplertof.Sensor`.
+    objective : str. One of :data:`OBJECTIVES`.
+
+    Returns
+    -------
+    float (m/s or m): the mean bound over the moving pixels where it is finite, averaged
+    over the scenes (:func:`summary`).
+
+    Raises
+    ------
+    ValueError
+        For an unknown objective, or what the records cannot read out.
+    """
     if objective not in OBJECTIVES:
         raise ValueError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}")
     return summary(records, sensor)[f"{objective}_mean"]
 
 
 def sweep(records, sensor, sweeps, objective: str = "velocity_crb") -> list[dict]:
-    """One row per combination of the sweeps' values: the values, ``objective`` (NaN and
-    ``status`` = the reason where the chip refuses the variant) and the mean and median
-    bounds, averaged over the scenes of ``records`` (:func:`summary`)."""
+    """The objective on every combination of the sweeps' values.
+
+    Parameters
+    ----------
+    records : Record or list of Record (:func:`as_records`): the scenes.
+    sensor : :class:`dopplertof.Sensor`. The sensor the variants are made of (:func:`variant`).
+    sweeps : list of (key, values) (:func:`parse_sweep`).
+    objective : str. One of :data:`OBJECTIVES`. Default ``"velocity_crb"``.
+
+    Returns
+    -------
+    list of dict, one per combination: the values, ``objective`` (NaN and ``status`` = the
+    reason where the chip refuses the variant, else ``"ok"``) and the mean and median
+    bounds, averaged over the scenes (:func:`summary`).
+
+    Raises
+    ------
+    ValueError
+        For a grid of more than :data:`MAX_SWEEP_POINTS` points.
+    """
     _check_size(sweeps)
     keys = [k for k, _ in sweeps]
     rows = []
@@ -166,10 +223,26 @@ def sweep(records, sensor, sweeps, objective: str = "velocity_crb") -> list[dict
 
 
 def optimize(records, sensor, keys, objective: str = "velocity_crb", *, iterations: int = 50):
-    """Minimise ``objective`` (averaged over the scenes of ``records``, :func:`summary`) over
-    ``keys`` (:data:`OPTIMIZE_KEYS`) from ``sensor``'s values.
+    """Minimise the objective over ``keys`` from ``sensor``'s values.
 
-    Returns (best sensor, history: one dict per step with the values and the objective).
+    Parameters
+    ----------
+    records : Record or list of Record (:func:`as_records`): the scenes; the objective is
+        averaged over them (:func:`summary`), the phase gradient too.
+    sensor : :class:`dopplertof.Sensor`. The start.
+    keys : list of str. Of :data:`OPTIMIZE_KEYS`.
+    objective : str. One of :data:`OBJECTIVES`. Default ``"velocity_crb"``.
+    iterations : int. At most this many steps. Default 50.
+
+    Returns
+    -------
+    (best sensor, history): history holds one dict per step with the values and the
+    objective.
+
+    Raises
+    ------
+    ValueError
+        For unknown keys.
     """
     from .gradient import gradient
 

@@ -63,7 +63,13 @@ class PhasorGrid:
         return 1 + 2 * len(self.quantities) * self.count * len(self.beats)
 
     def empty(self):
-        """Zero sums: S(F) (and ∂S/∂F) as lists of (re, im) Float32 per frequency."""
+        """Zero sums, the loop state :meth:`add` carries.
+
+        Returns
+        -------
+        list of lists of (re, im) Float32 pairs: S(F) per frequency, and with ``slopes``
+        ∂S/∂F per frequency.
+        """
         import mitsuba as mi
 
         sums = [[(mi.Float(0), mi.Float(0)) for _ in range(self.count)]]
@@ -72,8 +78,19 @@ class PhasorGrid:
         return sums
 
     def add(self, sums, lum, length_m, mask):
-        """``sums`` plus a contribution of luminance ``lum`` (Float32) and optical length
-        ``length_m`` (Float64, m) where ``mask``."""
+        """``sums`` plus one contribution, where ``mask``.
+
+        Parameters
+        ----------
+        sums : the loop state of :meth:`empty`.
+        lum : Float32. The contribution's luminance.
+        length_m : Float64, m. Its optical path length.
+        mask : Bool. Lanes where it counts.
+
+        Returns
+        -------
+        The new sums (same layout).
+        """
         import drjit as dr
         import mitsuba as mi
 
@@ -96,8 +113,19 @@ class PhasorGrid:
         return out
 
     def lane_values(self, sums, lum_total, u):
-        """The lane's real values (:attr:`channels`, Float32): its luminance ``lum_total``,
-        then R(F, ν) = S(F) e^{i2πνu} (re, im) for every quantity, F (outer) and ν (inner)."""
+        """The lane's real values, the per-lane record.
+
+        Parameters
+        ----------
+        sums : the loop state after the bounce loop (:meth:`add`).
+        lum_total : Float32. The lane's luminance (its Ī sample).
+        u : Float64. The lane's normalised time in the exposure.
+
+        Returns
+        -------
+        list of :attr:`channels` Float32: ``lum_total``, then R(F, ν) = S(F) e^{i2πνu}
+        (re, im) for every quantity (:attr:`quantities`), F (outer) and ν (inner).
+        """
         import drjit as dr
         import mitsuba as mi
 
@@ -119,11 +147,21 @@ class PhasorGrid:
 
 
 def scatter_pixels(values, lanes_per_pixel: int, n_pixels: int):
-    """Per-pixel Float64 sums (one array of ``n_pixels`` × len(values), pixel-major) of
-    per-lane ``values`` whose lanes are ``lanes_per_pixel`` consecutive lanes per pixel.
+    """Per-pixel Float64 sums of per-lane values.
 
     The scatter joins the kernel that traces the lanes (it is evaluated with the pass's
-    other outputs): the per-lane values never reach memory."""
+    other outputs): the per-lane values never reach memory.
+
+    Parameters
+    ----------
+    values : list of Float32 (lanes). Per-lane values (:meth:`PhasorGrid.lane_values`).
+    lanes_per_pixel : int. Consecutive lanes per pixel.
+    n_pixels : int. Pixels of the pass.
+
+    Returns
+    -------
+    Float64 (n_pixels × len(values)), pixel-major: the sums over each pixel's lanes.
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -210,8 +248,21 @@ class Sink:
         return radiance, out
 
     def outputs(self, state, truth: dict, hits, label, u=None):
-        """Per-lane outputs: estimates, truth sums (value × hit), hit count, label; with a
-        grid, ``"record"``: :meth:`PhasorGrid.lane_values` at the lane's time ``u``."""
+        """Per-lane outputs, laid out under the names of :data:`dopplertof.outputs.OUTPUTS`.
+
+        Parameters
+        ----------
+        state : the loop state (:meth:`empty`, :meth:`add`).
+        truth : dict of per-lane ground truth (value × hit).
+        hits : Float32. 1 where the camera ray hit.
+        label : Float32. The hit's body id.
+        u : Float64, optional. The lane's normalised time; needed with a grid.
+
+        Returns
+        -------
+        dict: ``intensity``, ``measurements``, ``hits``, ``instance_id``, the truth, and
+        with a grid ``record`` (:meth:`PhasorGrid.lane_values`).
+        """
         radiance, measurements, *phasors = state
         out = {"intensity": radiance, "measurements": measurements, "hits": hits, "instance_id": label, **truth}
         if self.grid is not None:
