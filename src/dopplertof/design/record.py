@@ -497,13 +497,14 @@ def record_scene(scene, settings, spec: RecordSpec, rendered) -> Record:
             if spec.window_slopes:
                 step = WINDOW_STEP * window.exposure_s
                 start, exposure = window.exposure_start, window.exposure_s
+                values = dataclasses.replace(grid, slopes=False)  # R and R₁ only
                 for k, kind in enumerate(("exposure", "start")):
                     moved = [_moved(window, exposure + d, start) if kind == "exposure" else _moved(window, exposure, start + d) for d in (step, -step)]
-                    ends = [_unpack(grid, _traced_sums(scene, m, grid, passes[:done]), samples, (height, width)) for m in moved]
-                    luminance_slopes[k, w] = (ends[0][0].astype(np.float64) - ends[1][0]) / (2 * step)
-                    for name in ("phasors", "moments")[: 2 if spec.doppler else 1]:
+                    ends = [_unpack(values, _traced_sums(scene, m, values, passes[:done]), samples, (height, width)) for m in moved]
+                    luminance_slopes[k, w] = (ends[0][0] - ends[1][0]) / (2 * step)
+                    for name in values.quantities:
                         target = f"{kind}_slopes" if name == "phasors" else f"{kind}_moment_slopes"
-                        arrays[target][w, j0 : j0 + grid.count] = (ends[0][1][name].astype(np.complex128) - ends[1][1][name]) / (2 * step)
+                        arrays[target][w, j0 : j0 + grid.count] = (ends[0][1][name] - ends[1][1][name]) / (2 * step)
             j0 += grid.count
     maps = {k: v for k, v in maps.items() if not k.startswith("measurement") and k != "raw"}
     windows = tuple((w.start_s, w.exposure_s) for w in settings.windows)
@@ -525,11 +526,12 @@ def _traced_sums(scene, window, grid, passes) -> np.ndarray:
 
 
 def _unpack(grid, sums, samples, shape):
-    """(Ī (H, W) float32, {quantity: complex64 (count, beats, H, W)}) of ``grid``'s sums over
-    ``samples`` lanes per pixel (:meth:`~dopplertof.tracing.sink.PhasorGrid.lane_values`)."""
+    """(Ī (H, W), {quantity: (count, beats, H, W) complex}) of ``grid``'s sums over
+    ``samples`` lanes per pixel (:meth:`~dopplertof.tracing.sink.PhasorGrid.lane_values`),
+    in Float64: the window slopes difference them before the record rounds them."""
     means = sums / samples
     parts = means[1:].reshape(len(grid.quantities), grid.count, len(grid.beats), 2, *shape)
-    return means[0].reshape(shape).astype(np.float32), {name: (parts[q, :, :, 0] + 1j * parts[q, :, :, 1]).astype(np.complex64) for q, name in enumerate(grid.quantities)}
+    return means[0].reshape(shape), {name: parts[q, :, :, 0] + 1j * parts[q, :, :, 1] for q, name in enumerate(grid.quantities)}
 
 
 def _moved(window, exposure_s, start_s):
