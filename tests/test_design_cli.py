@@ -4,6 +4,7 @@ import csv
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 import dopplertof as dt
@@ -63,6 +64,29 @@ def test_design_over_several_scenes_averages_their_objectives(tmp_path):
     assert refused.returncode == 2 and refused.stderr.strip() == "error: --record: give one per scene (2 scene(s), 1 record(s))"
 
 
+def test_design_over_the_scenes_of_a_dataset_configuration(tmp_path):
+    config = tmp_path / "my.toml"
+    config.write_text("")  # the defaults
+    out = tmp_path / "dataset"
+    done = _run("design", "--dataset", str(config), "--samples", "2", "--dataset-seed", "3", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "-o", str(out), *FAST)
+    assert done.returncode == 0, done.stderr
+    assert "best sensor on sample-00000000:" in done.stdout and "best sensor on sample-00000001:" in done.stdout
+    assert (out / "record_0.npz").exists() and (out / "record_1.npz").exists() and (out / "sweep.csv").exists()
+    # the scenes are the dataset's own: record 1 holds the depth of sample 1 of seed 3, not of sample 0
+    from dopplertof.backend import ensure_variant
+    from dopplertof.dataset.config import load_config
+    from dopplertof.dataset.randomize import build_scene
+    from dopplertof.dataset.sample import make_record
+
+    depth = dt.io.read_record(out / "record_1.npz").maps["depth"]
+    for index, same in ((1, True), (0, False)):
+        scene = build_scene(make_record(load_config(config), 3, index, ensure_variant())["scene"], 8)
+        direct = dt.render(scene, cameras=[dt.Camera(exposure=1.5e-3)], spp=4, max_depth=2).depth
+        assert np.array_equal(direct, depth, equal_nan=True) == same
+    missing = _run("design", "--dataset", str(config), "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "-o", str(tmp_path / "o"))
+    assert missing.returncode == 2 and missing.stderr.strip() == "error: --dataset needs --samples N (how many of its scenes)"
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
@@ -73,6 +97,8 @@ def test_design_over_several_scenes_averages_their_objectives(tmp_path):
         (["--sensor", "nosuchchip", "--sweep", "f=1e7:2e7:2"], "neither a preset"),
         (["--sensor", "dtof-prototype", "--optimize", "gain"], "'gain' is not one of"),
         (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--record", "missing.npz"], "missing.npz"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--dataset", "my.toml", "--samples", "2"], "give SCENE… or --dataset, not both"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--samples", "2"], "--samples applies to --dataset"),
     ],
 )
 def test_design_refuses_bad_input_with_one_error_line(tmp_path, args, message):

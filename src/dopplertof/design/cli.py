@@ -3,7 +3,9 @@
 Renders each scene's response record once (or reads ``--record``, once per scene), then
 evaluates the sensor's precision (:mod:`dopplertof.design.search`) for every point of the
 sweeps and/or optimises it, the objective averaged over the scenes (each scene's mean over
-its moving pixels), and writes into DIR:
+its moving pixels), and writes into DIR (the scenes: built-in names or files, or with
+``--dataset CONFIG --samples N`` the first N scenes of a dataset configuration,
+:mod:`dopplertof.dataset`, drawn as ``dopplertof dataset generate --seed`` would):
 
 * ``record.npz``: the record (``--record`` reuses it);
 * ``sweep.csv`` and ``sweep_<key>.png``: the objective at every grid point (refused
@@ -36,25 +38,27 @@ KEY_UNITS = {"modulation_frequency": "Hz", "exposure": "s", "heterodyne": "beat 
 
 
 @click.command("design")
-@click.argument("scenes", nargs=-1, required=True)
+@click.argument("scenes", nargs=-1)
 @click.option("--sensor", "sensor_spec", required=True, metavar="PRESET|FILE.toml", help="The sensor to design from: a preset or a TOML sensor file.")
 @click.option("--sweep", "sweep_specs", multiple=True, metavar="KEY=LO:HI:N", help="A grid of one parameter: modulation_frequency (f, Hz), heterodyne (h), exposure (T, s). Repeatable: every combination.")
 @click.option("--optimize", "optimize_keys", multiple=True, type=click.Choice(OPTIMIZE_KEYS), help="Minimise the objective over this parameter from the sensor's own value. Repeatable.")
 @click.option("--objective", type=click.Choice(OBJECTIVES), default="velocity_crb", show_default=True, help="Mean Cramér-Rao bound over the moving pixels: velocity (m/s) or depth (m).")
 @click.option("--record", "record_paths", multiple=True, help="Use this record (record.npz of an earlier run) instead of rendering one. Once per SCENE, in their order.")
 @click.option("--rmse-draws", type=click.IntRange(min=0), default=0, show_default=True, help="Also the velocity estimator's per-pixel RMSE (dopplertof.reconstruct.velocity, method auto) for the best sensor over this many noise draws (0: not computed).")
+@click.option("--dataset", "dataset_config", default=None, metavar="CONFIG.toml", help="Design over the scenes of a dataset configuration (dopplertof dataset config) instead of SCENES; with --samples.")
+@click.option("--samples", type=click.IntRange(min=1), default=None, help="With --dataset: its first N scenes.")
+@click.option("--dataset-seed", type=click.IntRange(min=0), default=0, show_default=True, help="With --dataset: the dataset seed the scenes are drawn with.")
 @click.option("-o", "--output", required=True, help="Output folder.")
 @click.option("--overwrite", is_flag=True, help="Replace the files of an earlier design run in the output folder.")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file. Repeatable.")
 @settings_options(exclude=("exposure",))
-def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, record_paths, rmse_draws, output, overwrite, resolution, defines, **options):
-    """Sweep and optimise SENSOR's parameters on SCENES (one or more, the objective averaged
-    over them) from one render of each (its response record)."""
+def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, record_paths, rmse_draws, dataset_config, samples, dataset_seed, output, overwrite, resolution, defines, **options):
+    """Sweep and optimise SENSOR's parameters on SCENES (one or more, or a dataset's: the
+    objective averaged over them) from one render of each (its response record)."""
     from ..io import read_record, write_exr, write_record
     from ..render import render
     from ..scene import SceneError
-    from ..scenes import open_scene
     from ..sensors.files import load_sensor, sensor_toml
     from ..settings import RenderSettings, scene_layer
     from .precision import achieved_rmse, crb
@@ -63,6 +67,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     try:
         if not sweep_specs and not optimize_keys:
             raise ValueError("give --sweep KEY=LO:HI:N and/or --optimize KEY")
+        scenes = _scene_sources(scenes, dataset_config, samples, dataset_seed, resolution, defines)
         sensor = load_sensor(sensor_spec)
         sweeps = [parse_sweep(s) for s in sweep_specs]
         if len({k for k, _ in sweeps}) != len(sweeps):
@@ -87,8 +92,8 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
         else:
             spec, cameras = record_spec(sensor, sweeps, optimize=optimize_keys)
             records = []
-            for index, scene in enumerate(scenes):
-                dyn = open_scene(scene, resolution, defines)
+            for index, (scene, load) in enumerate(scenes):
+                dyn = load()
                 settings = RenderSettings.build(scene_layer(dyn, scene), {**given_settings(options), "cameras": cameras}, where=scene)
                 click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp", err=True)
                 records.append(render(dyn, settings=settings, record=spec).record)
@@ -117,7 +122,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
             precision = crb(record, best)
             written += [str(write_exr(os.path.join(output, named(f"{name}.exr", index)), getattr(precision, name))) for name in ("velocity_crb", "depth_crb")]
             values = precision.summary()
-            line = f"best sensor{'' if len(records) == 1 else f' on {scenes[index]}'}: velocity_crb {values['velocity_crb_median']:.4g} m/s, depth_crb {values['depth_crb_median']:.4g} m (medians over {values['moving_pixels']} moving pixels)"
+            line = f"best sensor{'' if len(records) == 1 else f' on {scenes[index][0]}'}: velocity_crb {values['velocity_crb_median']:.4g} m/s, depth_crb {values['depth_crb_median']:.4g} m (medians over {values['moving_pixels']} moving pixels)"
             if rmse_draws:
                 rmse = achieved_rmse(record, best, draws=rmse_draws)
                 written.append(str(write_exr(os.path.join(output, named("velocity_rmse.exr", index)), rmse)))
@@ -133,6 +138,39 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     for path in written:
         click.echo(f"  {path}")
     sys.stdout.flush()
+
+
+def _scene_sources(scenes, dataset_config, samples, dataset_seed, resolution, defines) -> list:
+    """[(name, load)] of the design's scenes: SCENES (built-in names or files) or the first
+    ``samples`` scenes of a dataset configuration, ``load()`` building each; ValueError for
+    a contradictory choice."""
+    from ..scenes import open_scene, parse_resolution
+
+    if dataset_config is None:
+        if samples is not None:
+            raise ValueError("--samples applies to --dataset")
+        if not scenes:
+            raise ValueError("give SCENE (one or more) or --dataset CONFIG.toml --samples N")
+        return [(scene, lambda scene=scene: open_scene(scene, resolution, defines)) for scene in scenes]
+    from ..backend import ensure_variant
+    from ..dataset.config import load_config
+    from ..dataset.randomize import build_scene
+    from ..dataset.sample import make_record
+
+    if scenes or defines:
+        raise ValueError("give SCENE… or --dataset, not both (-D applies to scene files)")
+    if samples is None:
+        raise ValueError("--dataset needs --samples N (how many of its scenes)")
+    config = load_config(dataset_config)
+    size = parse_resolution(resolution)
+    if isinstance(size, tuple) and size[0] != size[1]:
+        raise ValueError(f"--resolution {resolution!r}: dataset scenes are square; give one number")
+    size = config["render"]["resolution"] if size is None else (size if isinstance(size, int) else size[0])
+    variant, out = ensure_variant(), []
+    for index in range(samples):
+        record = make_record(config, dataset_seed, index, variant)  # the scene of sample i, as the dataset draws it
+        out.append((record["key"], lambda scene=record["scene"]: build_scene(scene, size)))
+    return out
 
 
 def _write_csv(path, rows) -> str:
