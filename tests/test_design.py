@@ -188,6 +188,17 @@ def test_a_record_wider_than_one_kernel_traces_the_same_paths_for_every_run_of_f
     np.testing.assert_allclose(record.slopes[0, record.frequency_index(390e6, "test"), 0], difference, rtol=0, atol=1e-3 * np.abs(difference).max())
 
 
+def test_a_record_does_not_depend_on_how_the_film_and_spp_are_split_into_passes():
+    scene = dt.scenes.cornell_box(resolution=40, exposure=T)
+    spec = RecordSpec(band_hz=(10e6, 60e6), step_hz=10e6, beats=(0.0, 1.0), doppler=True)
+    whole = dt.render(scene, cameras=[dt.Camera(exposure=T)], record=spec, spp=8, max_depth=3, seed=4).record
+    # 1024 lanes per pass: tiles of 512 pixels and 2 samples, 16 passes
+    split = dt.render(scene, cameras=[dt.Camera(exposure=T)], record=spec, spp=8, max_depth=3, seed=4, lanes_per_pass=1024).record
+    for name in ("phasors", "moments", "luminance"):
+        a, b = getattr(whole, name), getattr(split, name)
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-6 * np.abs(a).max(), err_msg=name)
+
+
 def test_a_paired_tracer_records_through_probe_cameras(cornell):
     spec = RecordSpec(band_hz=(10e6, 60e6), step_hz=10e6, beats=(0.0, 1.0))
     render = dict(spp=4, max_depth=3, seed=3, correlation="reconnection")
@@ -411,7 +422,7 @@ def _joined(base, moved):
 
 
 @pytest.mark.parametrize("objective", ["raw", "velocity_crb", "depth_crb"])
-def test_exposure_and_start_gradients_match_central_differences(objective):
+def test_exposure_and_start_gradients_match_central_differences(objective, tmp_path):
     """Each frame's exposure and start against the objective with that frame's window moved
     by ± δ, traced with the same random numbers (the other frames keep theirs). δ is the
     record's own step: where a moving edge crosses a pixel, the common-random-number
@@ -430,6 +441,11 @@ def test_exposure_and_start_gradients_match_central_differences(objective):
         return dt.render(scene, cameras=[dt.Camera(exposure=t_s, exposure_start=start_s)], record=spec, spp=16, max_depth=2, seed=1).record
 
     base = window_record(0.0, exposure_s, window_slopes=True)
+    if objective == "raw":  # the window slopes are written and read whole
+        back = dt.io.read_record(dt.io.write_record(tmp_path / "slopes.npz", base))
+        for name in ("exposure_slopes", "start_slopes", "exposure_moment_slopes", "start_moment_slopes", "luminance_slopes"):
+            np.testing.assert_array_equal(getattr(back, name), getattr(base, name), err_msg=name)
+        assert back.nbytes == base.nbytes == 6 * 6 * base.spec.bytes_per_pixel()
     frames = [RawFrame(modulation_frequency=PLANE_F, heterodyne=h, phase=p, exposure=exposure_s, exposure_start=0.0) for h, p in ((0.0, 0.0), (1.0, 0.3), (1.0, 1.9))]
     sensor = Sensor(frames=frames, noise=PLANE_SILICON)
     parameters = [(kind, frame) for kind in ("exposure", "exposure_start") for frame in range(3)]
