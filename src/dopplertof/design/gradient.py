@@ -78,10 +78,17 @@ def gradient(record_or_result, sensor, objective: str = "velocity_crb", paramete
     objective : str. ``"raw"``: the noiseless raw electrons; ``"velocity_crb"`` (m/s) or
         ``"depth_crb"`` (m): the mean bound over the moving pixels where it is finite
         (:func:`~dopplertof.design.crb`). Default ``"velocity_crb"``.
-    parameters : list of (kind, frame index), optional. Kinds of :data:`PARAMETER_KINDS`;
-        default every phase, and the codes of coded frames (and, for ``"raw"``, every
-        heterodyne).
-    reference_time_s : float, optional. As for :func:`~dopplertof.design.crb`.
+    parameters : list of (kind, frame index), optional. Kinds of :data:`PARAMETER_KINDS`
+        (``exposure`` and ``exposure_start`` in s, ``modulation_frequency`` in Hz, phases
+        in rad); default every phase, and the codes of coded frames (and, for ``"raw"``,
+        every heterodyne). The frequency needs ``slopes=True``, the exposure and start
+        ``window_slopes=True``.
+    reference_time_s : float, s, optional. As for :func:`~dopplertof.design.crb`; the
+        exposure and start gradients hold it fixed.
+
+    Returns
+    -------
+    :class:`Gradient`.
 
     Raises
     ------
