@@ -98,6 +98,13 @@ def test_the_record_keeps_the_truth_and_states_its_size(recorded):
     assert 256 * 256 * RecordSpec(band_hz=(10e6, 300e6), step_hz=1e6).bytes_per_pixel() < 2 * 2**30
 
 
+def test_recording_leaves_the_render_itself_unchanged(cornell, recorded):
+    cameras = [dt.Camera(exposure=T, exposure_start=0.0), dt.Camera(exposure=LATE_T, exposure_start=LATE_START_S)]
+    plain = dt.render(cornell, cameras=cameras, **RENDER)
+    for name in ("intensity", "measurements", "measurement_stderr", "depth", "velocity"):
+        np.testing.assert_array_equal(recorded.maps[name], plain.maps[name], err_msg=name)
+
+
 def test_a_record_written_and_read_gives_the_same_readout(recorded, tmp_path):
     path = dt.io.write_record(tmp_path / "scene.record.npz", recorded.record)
     back = dt.io.read_record(path)
