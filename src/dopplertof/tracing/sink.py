@@ -131,6 +131,9 @@ class PhasorGrid:
 
         turns = []
         for beat in self.beats:
+            if beat == 0.0:  # homodyne: e^{i0} = 1, no work
+                turns.append(None)
+                continue
             cycles = u * mi.Float64(beat)
             sin_b, cos_b = (mi.Float(x) for x in dr.sincos(modulation.TWO_PI * (cycles - dr.floor(cycles))))
             turns.append((cos_b, sin_b))
@@ -140,8 +143,8 @@ class PhasorGrid:
             source = sums[1] if "slopes" in quantity else sums[0]
             weight = u32 if quantity.startswith("moment") else None
             for re, im in source:
-                for cos_b, sin_b in turns:
-                    r, i = re * cos_b - im * sin_b, re * sin_b + im * cos_b
+                for turn in turns:
+                    r, i = (re, im) if turn is None else (re * turn[0] - im * turn[1], re * turn[1] + im * turn[0])
                     values += [r, i] if weight is None else [r * weight, i * weight]
         return values
 
