@@ -133,9 +133,9 @@ def test_design_interrupted_writes_nothing_and_says_so(tmp_path):
     import time
 
     out = tmp_path / "o"
-    # a record long enough to be interrupted while it renders
+    # a record long enough to be interrupted while it renders (16 M paths: several passes)
     process = subprocess.Popen(
-        [sys.executable, "-m", "dopplertof.cli", "design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:10", "--resolution", "64", "--spp", "256", "-o", str(out)],
+        [sys.executable, "-m", "dopplertof.cli", "design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:10", "--resolution", "64", "--spp", "4096", "-o", str(out)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     deadline = time.time() + 120

@@ -96,7 +96,10 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                 dyn = load()
                 settings = RenderSettings.build(scene_layer(dyn, scene), {**given_settings(options), "cameras": cameras}, where=scene)
                 click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp", err=True)
-                records.append(render(dyn, settings=settings, record=spec).record)
+                record = render(dyn, settings=settings, record=spec).record
+                if record is None:  # a render stopped early (Ctrl-C) keeps no record
+                    raise KeyboardInterrupt
+                records.append(record)
                 written.append(str(write_record(os.path.join(output, named("record.npz", index)), records[-1])))
         unit = "m/s" if objective == "velocity_crb" else "m"
         best = sensor
