@@ -215,6 +215,8 @@ class Record:
     settings : RenderSettings of the render (its cameras dropped; the windows are above).
     maps : dict. The render's intensity and ground truth (reference window).
     spp : int. Paths per pixel.
+    info : dict, default {}. ``kernels`` and ``frequencies_per_kernel`` (recorded in the kernel), or
+        ``render_seconds`` (s), ``renders`` and ``probe_cameras`` (recorded through probe cameras).
     """
 
     phasors: np.ndarray
