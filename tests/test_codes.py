@@ -7,7 +7,7 @@ import pytest
 
 import dopplertof as dt
 from dopplertof import codes
-from dopplertof.modulation import Camera, full_weight, weight
+from dopplertof.modulation import Camera, full_weight, lowpass_weight, weight
 
 TWO_PI = 2 * math.pi
 
@@ -134,6 +134,8 @@ def test_lowpass_code_weight_is_the_dc_part_of_the_full_product(heterodyne, phas
         (dict(light_code=_square(), sensor_code=_square(), waveform="rectangular"), "exclude each other"),
         (dict(waveform="code"), "give light_code and sensor_code"),
         (dict(light_bandwidth=1e9), "light_bandwidth applies to cameras with light_code"),
+        (dict(waveform="triangular", light_bandwidth=1e9), "not the triangular one"),
+        (dict(waveform="rectangular", light_bandwidth=3e8, light_code=_pulse(), sensor_code=_square(8)), "exclude each other"),
         (dict(light_code=_square(), sensor_code=_square(), light_bandwidth=1e6), "below the modulation frequency"),
     ],
 )
@@ -178,3 +180,27 @@ def test_coded_cameras_round_trip_through_json():
     assert Camera(**raw.as_dict()) == Camera(heterodyne=0.4, exposure=1e-3)
     with pytest.raises(ValueError, match="one key, 'samples' or 'fourier'"):
         Camera(light_code={"chips": [1] * 8}, sensor_code=_square())
+
+
+@pytest.mark.parametrize("waveform", codes.NAMED_CODES)
+def test_a_named_waveform_through_a_finite_bandwidth_is_its_chips_band_limited(waveform):
+    """The rectangular and trapezoidal waveforms with light_bandwidth keep their name (a
+    chip's limits accept them) and weigh as their chip codes with the harmonics above the
+    bandwidth removed: the named waveform's own Fourier series, truncated."""
+    f = 30e6
+    ph = np.linspace(-math.pi, math.pi, 181)
+    named = Camera(modulation_frequency=f, waveform=waveform, heterodyne=0.0)
+    third = Camera(modulation_frequency=f, waveform=waveform, heterodyne=0.0, light_bandwidth=3.5 * f)
+    assert third.waveform == waveform and third.coded and third.light_mean == named.light_mean
+    assert Camera(**third.as_dict()) == third  # written and read back
+    # Λ/2 of the named waveform, numerically: its Fourier series up to the third harmonic
+    dense = np.linspace(0, 2 * math.pi, 1 << 14, endpoint=False)
+    lam = lowpass_weight(named, dense) / (0.5 * named.g1)
+    series = np.fft.rfft(lam) / dense.size
+    expected = 0.5 * named.g1 * (series[0].real + 2 * sum((series[m] * np.exp(1j * m * ph)).real for m in (1, 2, 3)))
+    np.testing.assert_allclose(lowpass_weight(third, ph), expected, atol=1e-6)
+    # a wide band approaches the named waveform: the tail Σ_{odd m > M} 8/(π² m²) ≈ 4/(π² M)
+    wide = Camera(modulation_frequency=f, waveform=waveform, heterodyne=0.0, light_bandwidth=2001 * f)
+    scale = 2.0 if waveform == "trapezoidal" else 1.0  # the trapezoid's Λ has the pulse's weight
+    np.testing.assert_allclose(lowpass_weight(wide, ph), lowpass_weight(named, ph), atol=scale * named.g1 * 4 / (math.pi**2 * 2001))
+    assert not np.allclose(lowpass_weight(third, ph), lowpass_weight(named, ph), atol=1e-3)

@@ -4,6 +4,7 @@ import csv
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 import dopplertof as dt
@@ -39,6 +40,53 @@ def test_design_sweeps_optimises_and_writes_a_sensor_that_render_reads(tmp_path)
     assert (tmp_path / "render" / "raw_electrons.npy").exists()
 
 
+def test_design_over_several_scenes_averages_their_objectives(tmp_path):
+    sweep = ("--sweep", "f=20e6:60e6:3")
+    both = _run("design", "cornell-box", "rotating", "--sensor", "dtof-prototype", *sweep, "--optimize", "phase", "-o", str(tmp_path / "both"), *FAST)
+    assert both.returncode == 0, both.stderr
+    assert "best sensor on cornell-box:" in both.stdout and "best sensor on rotating:" in both.stdout
+    for name in ("record_0.npz", "record_1.npz", "velocity_crb_0.exr", "depth_crb_1.exr", "sweep.csv", "optimize.csv", "best_sensor.toml"):
+        assert (tmp_path / "both" / name).exists(), name
+
+    def objectives(folder):
+        with open(folder / "sweep.csv", newline="") as f:
+            return [float(r["objective"]) for r in csv.DictReader(f)]
+
+    # each scene alone, from its own record: the two-scene objective is their mean
+    alone = []
+    for index, scene in enumerate(("cornell-box", "rotating")):
+        done = _run("design", scene, "--sensor", "dtof-prototype", *sweep, "--record", str(tmp_path / "both" / f"record_{index}.npz"), "-o", str(tmp_path / scene))
+        assert done.returncode == 0, done.stderr
+        alone.append(objectives(tmp_path / scene))
+    assert alone[0] != alone[1]
+    assert objectives(tmp_path / "both") == pytest.approx([(a + b) / 2 for a, b in zip(*alone)], rel=1e-6)
+    refused = _run("design", "cornell-box", "rotating", "--sensor", "dtof-prototype", *sweep, "--record", str(tmp_path / "both" / "record_0.npz"), "-o", str(tmp_path / "o"))
+    assert refused.returncode == 2 and refused.stderr.strip() == "error: --record: give one per scene (2 scene(s), 1 record(s))"
+
+
+def test_design_over_the_scenes_of_a_dataset_configuration(tmp_path):
+    config = tmp_path / "my.toml"
+    config.write_text("")  # the defaults
+    out = tmp_path / "dataset"
+    done = _run("design", "--dataset", str(config), "--samples", "2", "--dataset-seed", "3", "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "-o", str(out), *FAST)
+    assert done.returncode == 0, done.stderr
+    assert "best sensor on sample-00000000:" in done.stdout and "best sensor on sample-00000001:" in done.stdout
+    assert (out / "record_0.npz").exists() and (out / "record_1.npz").exists() and (out / "sweep.csv").exists()
+    # the scenes are the dataset's own: record 1 holds the depth of sample 1 of seed 3, not of sample 0
+    from dopplertof.backend import ensure_variant
+    from dopplertof.dataset.config import load_config
+    from dopplertof.dataset.randomize import build_scene
+    from dopplertof.dataset.sample import make_record
+
+    depth = dt.io.read_record(out / "record_1.npz").maps["depth"]
+    for index, same in ((1, True), (0, False)):
+        scene = build_scene(make_record(load_config(config), 3, index, ensure_variant())["scene"], 8)
+        direct = dt.render(scene, cameras=[dt.Camera(exposure=1.5e-3)], spp=4, max_depth=2).depth
+        assert np.array_equal(direct, depth, equal_nan=True) == same
+    missing = _run("design", "--dataset", str(config), "--sensor", "dtof-prototype", "--sweep", "f=20e6:60e6:3", "-o", str(tmp_path / "o"))
+    assert missing.returncode == 2 and missing.stderr.strip() == "error: --dataset needs --samples N (how many of its scenes)"
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
@@ -49,6 +97,8 @@ def test_design_sweeps_optimises_and_writes_a_sensor_that_render_reads(tmp_path)
         (["--sensor", "nosuchchip", "--sweep", "f=1e7:2e7:2"], "neither a preset"),
         (["--sensor", "dtof-prototype", "--optimize", "gain"], "'gain' is not one of"),
         (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--record", "missing.npz"], "missing.npz"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--dataset", "my.toml", "--samples", "2"], "give SCENE… or --dataset, not both"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--samples", "2"], "--samples applies to --dataset"),
     ],
 )
 def test_design_refuses_bad_input_with_one_error_line(tmp_path, args, message):
@@ -83,9 +133,9 @@ def test_design_interrupted_writes_nothing_and_says_so(tmp_path):
     import time
 
     out = tmp_path / "o"
-    # a record long enough to be interrupted while it renders
+    # a record long enough to be interrupted while it renders (16 M paths: several passes)
     process = subprocess.Popen(
-        [sys.executable, "-m", "dopplertof.cli", "design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:10", "--resolution", "64", "--spp", "256", "-o", str(out)],
+        [sys.executable, "-m", "dopplertof.cli", "design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:10", "--resolution", "64", "--spp", "4096", "-o", str(out)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     deadline = time.time() + 120

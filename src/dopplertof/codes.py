@@ -237,6 +237,40 @@ def fourier(coefficients) -> Code:
     return Code(fourier=coefficients)
 
 
+# The named waveforms of :mod:`dopplertof.modulation` whose light and sensor modulations are
+# chips with edges on the 8-chip grid (exact codes): sign(cos θ), and the trapezoid's light
+# pulse 4·[θ within π/4 of 0]. (light, sensor) samples.
+_NAMED_CHIPS = {
+    "rectangular": ((1, 1, -1, -1, -1, -1, 1, 1), (1, 1, -1, -1, -1, -1, 1, 1)),
+    "trapezoidal": ((4, 0, 0, 0, 0, 0, 0, 4), (1, 1, -1, -1, -1, -1, 1, 1)),
+}
+NAMED_CODES = tuple(_NAMED_CHIPS)
+
+
+def named(waveform: str) -> tuple[Code, Code]:
+    """The exact chip codes of a named waveform's light and sensor modulations.
+
+    Parameters
+    ----------
+    waveform : str. One of :data:`NAMED_CODES` (``"rectangular"``, ``"trapezoidal"``).
+
+    Returns
+    -------
+    (light, sensor) : two sampled :class:`Code` of 8 chips; their correlation is the
+    waveform's Λ/2.
+
+    Raises
+    ------
+    ValueError
+        For a waveform that is not one of :data:`NAMED_CODES` (the sinusoid is a single
+        harmonic; the triangle is not a chip sequence).
+    """
+    if waveform not in _NAMED_CHIPS:
+        raise ValueError(f"named: the {waveform!r} waveform has no exact chip code; choose one of {', '.join(NAMED_CODES)}")
+    light, sensor = _NAMED_CHIPS[waveform]
+    return sampled(tuple(map(float, light))), sampled(tuple(map(float, sensor)))
+
+
 def as_code(value, name: str) -> Code:
     """``value`` as a :class:`Code`.
 

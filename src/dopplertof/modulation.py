@@ -91,8 +91,10 @@ class Camera:
         chips (1-D, N >= 8 samples, binary or not) or Fourier coefficients
         (:func:`dopplertof.codes.fourier`); both or neither. With them ``waveform`` is
         ``"code"`` (module docstring).
-    light_bandwidth : float or None, Hz. Only with codes: the source's modulation bandwidth,
-        harmonics of the light code above it removed. None: unlimited.
+    light_bandwidth : float or None, Hz. The source's modulation bandwidth, harmonics of
+        the light code above it removed; for codes and for the rectangular and trapezoidal
+        waveforms, which it turns into their exact chip codes
+        (:func:`dopplertof.codes.named`; ``waveform`` keeps its name). None: unlimited.
     exposure_start : float or None, s of scene time. When this configuration's exposure
         opens; None: the render's ``exposure_start``. Its window is
         [exposure_start, exposure_start + exposure]: configurations with the same window
@@ -153,7 +155,10 @@ class Camera:
         if self.light_bandwidth is not None:
             object.__setattr__(self, "light_bandwidth", checked("light_bandwidth", self.light_bandwidth, "float", "Camera"))
             if not self.coded:
-                raise ValueError("Camera: light_bandwidth applies to cameras with light_code and sensor_code")
+                raise ValueError(
+                    f"Camera: light_bandwidth applies to cameras with light_code and sensor_code and to the {' and '.join(_codes.NAMED_CODES)} "
+                    f"waveforms, not the {self.waveform} one"
+                )  # fmt: skip
             if self.light_bandwidth < self.modulation_frequency:
                 raise ValueError(f"Camera: light_bandwidth={self.light_bandwidth!r} Hz is below the modulation frequency {self.modulation_frequency!r} Hz: no modulation reaches the scene")
             if self.light_bandwidth // self.modulation_frequency > _codes.MAX_HARMONICS:
@@ -161,14 +166,21 @@ class Camera:
 
     def _check_codes(self):
         given = [n for n in ("light_code", "sensor_code") if getattr(self, n) is not None]
+        band_limited_named = self.light_bandwidth is not None and self.waveform in _codes.NAMED_CODES
         if not given:
+            if band_limited_named:  # a named waveform through a source of finite bandwidth: its exact chips, band-limited
+                light, sensor = _codes.named(self.waveform)
+                object.__setattr__(self, "light_code", light)
+                object.__setattr__(self, "sensor_code", sensor)
             return
         if len(given) == 1:
             raise ValueError(f"Camera: give both light_code and sensor_code, or neither (got only {given[0]})")
-        if self.waveform not in ("sinusoidal", CODE_WAVEFORM):  # "sinusoidal" is the default
-            raise ValueError(f"Camera: waveform={self.waveform!r} and light_code/sensor_code exclude each other")
         for name in given:
             object.__setattr__(self, name, _codes.as_code(getattr(self, name), name))
+        if band_limited_named and (self.light_code, self.sensor_code) == _codes.named(self.waveform):
+            return  # the codes it was given above (as_dict of such a camera)
+        if self.waveform not in ("sinusoidal", CODE_WAVEFORM):  # "sinusoidal" is the default
+            raise ValueError(f"Camera: waveform={self.waveform!r} and light_code/sensor_code exclude each other")
         object.__setattr__(self, "waveform", CODE_WAVEFORM)
 
     def as_dict(self) -> dict:

@@ -104,7 +104,12 @@ class Reducer:
         intensity = out["intensity"]
         channels = [intensity[c] for c in range(self.color_channels)] + list(out["measurements"])
         truth = [x for o in TRUTH for x in _components(out[o.name], o.channels)] + [out["hits"]]
-        dr.eval(channels, truth, out["instance_id"])  # one kernel traces every output (DESIGN §3.3)
+        record = None
+        if "record" in out:  # a response record's phasors, summed per pixel in the tracing kernel
+            from .tracing.sink import scatter_pixels
+
+            record = scatter_pixels(out["record"], lanes_per_pixel, p.n_pixels)
+        dr.eval(channels, truth, out["instance_id"], record)  # one kernel traces every output (DESIGN §3.3)
 
         g0, g1 = self.groups(p)
         segments = self.segments(p)
@@ -142,6 +147,8 @@ class Reducer:
         inc["hits"] = np.rint(truth_sums[-1]).astype(np.int32)  # counts of hits: whole numbers
         if p.first_sample == 0:  # the label of the pixel's first sample
             inc["instance_id"] = np.asarray(out["instance_id"].numpy()).reshape(p.n_pixels, lanes_per_pixel)[:, 0].astype(np.int32)
+        if record is not None:  # (channels, pixels) sums over the pass's lanes
+            inc["record"] = np.asarray(record.numpy()).reshape(p.n_pixels, -1).T
         return inc
 
     def whole(self, segments) -> bool:
@@ -159,6 +166,9 @@ class Accumulator(Reducer):
     """
 
     applying = False
+    # (channels, pixels) Float64 sums over lanes of a response record's phasors
+    # (:class:`~dopplertof.tracing.sink.PhasorGrid`), once a pass brought some; no checkpoint holds them
+    record_sum = None
 
     def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates):
         super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates)
@@ -200,6 +210,10 @@ class Accumulator(Reducer):
         s["truth_sum"][:, pix] += inc["truth_sum"]
         s["hits"][pix] += inc["hits"]
         s["samples"][pix] += p.samples
+        if "record" in inc:
+            if self.record_sum is None:
+                self.record_sum = np.zeros((inc["record"].shape[0], s["samples"].size))
+            self.record_sum[:, pix] += inc["record"]
         if "instance_id" in inc:
             s["instance_id"][pix] = inc["instance_id"]
         s["passes_done"][0] += 1
@@ -279,14 +293,16 @@ class PassTracer:
     ========  ================  ============================================
     scene     DynamicScene      the scene, its film the render's
     settings  RenderSettings    the render's settings (built, not overrides)
+    grid      PhasorGrid|None   a response record's phasors to accumulate too
+                                (:class:`~dopplertof.tracing.sink.PhasorGrid`)
     ========  ================  ============================================
     """
 
-    def __init__(self, scene, settings: RenderSettings):
+    def __init__(self, scene, settings: RenderSettings, grid=None):
         from .tracing.materials import MaterialTables
 
         scene.set_time_window(settings.exposure_start, settings.exposure_start + settings.exposure_s)
-        self.scene, self.settings = scene, settings
+        self.scene, self.settings, self.grid = scene, settings, grid
         self.tables = MaterialTables.of(scene)
         self.reducer = Reducer(*Reducer.layout(settings))
 
@@ -299,6 +315,6 @@ class PassTracer:
         setup = LaneSetup(
             width=width, height=height, pixel_start=p.pixel_start, n_pixels=p.n_pixels, first_sample=p.first_sample,
             samples=p.samples, spp_total=s.spp, n_times=s.group_size, replicates=s.replicates,
-            exposure_start_s=float(s.exposure_start), exposure_s=float(s.exposure_s), seed=s.seed,
+            exposure_start_s=float(s.exposure_start), exposure_s=float(s.exposure_s), seed=s.seed, grid=self.grid,
         )  # fmt: skip
         return self.reducer.reduce(p, trace_pass(self.scene, s, setup, self.tables))

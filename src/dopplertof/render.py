@@ -324,8 +324,8 @@ def _noise_ratio_reached(acc, window, sensor, shape) -> float | None:
 EXECUTORS = ("local", "ray")
 
 
-def _traced_locally(scene, settings, passes):
-    tracer = PassTracer(scene, settings)
+def _traced_locally(scene, settings, passes, grid=None):
+    tracer = PassTracer(scene, settings, grid)
     for p in passes:
         yield tracer(p)
 
@@ -455,15 +455,16 @@ def render(
         if sensor is None or not until_noise > 0:
             raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...) and a ratio > 0")
     if record is not None and record is not False:
-        from .design.record import as_spec
+        from .design.record import as_spec, by_probes, first_grid
         from .design.record import check_memory as check_record_memory
 
         record = as_spec(record)
         if executor != "local" or checkpoint is not None:
             raise ValueError("record: a response record is rendered locally and without checkpoints (executor='local', checkpoint=None)")
-        check_record_memory(record, *scene.resolution, len(settings.windows))
+        check_record_memory(record, *scene.resolution, len(settings.windows), by_probes(settings))
+        grid = first_grid(record, settings)  # the render's own passes accumulate it
     else:
-        record = None
+        record = grid = None
 
     width, height = scene.resolution
     n_pixels = width * height
@@ -520,7 +521,7 @@ def render(
 
                 traced = traced_on_ray(scene, window_settings[index], passes[done:], address=address, workers=workers)
             else:
-                traced = _traced_locally(scene, window_settings[index], passes[done:])
+                traced = _traced_locally(scene, window_settings[index], passes[done:], grid)
             try:
                 for p in passes[done:]:
                     if stop is not None and stop():
@@ -558,6 +559,8 @@ def render(
     if until_noise is not None:
         info["until_noise"] = {"ratio": until_noise, "reached": [reached[k][-1][1] if k in reached else float("inf") for k in range(len(windows))],
                                "spp": [int(acc.state["samples"].min()) for acc in accs], "history": [reached.get(k, []) for k in range(len(windows))]}  # fmt: skip
+    # finish consumes the sums: what the record needs of each window is taken first
+    recorded = [(acc.record_sum, acc.state["samples"].copy(), int(acc.state["passes_done"][0])) for acc in accs]
     finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
     maps = _merge_windows(finished, windows, len(settings.cameras), (height, width))
     if sensor is not None:
@@ -566,6 +569,6 @@ def render(
     if record is not None and not interrupted:  # an interrupted render returns what it has, without a record
         from .design.record import record_scene
 
-        result.record = record_scene(scene, settings, record)
+        result.record = record_scene(scene, settings, record, (window_settings, recorded, passes, maps))
     return result
 

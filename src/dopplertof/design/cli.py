@@ -1,8 +1,11 @@
-"""``dopplertof design SCENE --sensor S --sweep KEY=LO:HI:N … --optimize KEY … -o DIR``.
+"""``dopplertof design SCENE… --sensor S --sweep KEY=LO:HI:N … --optimize KEY … -o DIR``.
 
-Renders the scene's response record once (or reads ``--record``), then evaluates the
-sensor's precision (:mod:`dopplertof.design.search`) for every point of the sweeps and/or
-optimises it, and writes into DIR:
+Renders each scene's response record once (or reads ``--record``, once per scene), then
+evaluates the sensor's precision (:mod:`dopplertof.design.search`) for every point of the
+sweeps and/or optimises it, the objective averaged over the scenes (each scene's mean over
+its moving pixels), and writes into DIR (the scenes: built-in names or files, or with
+``--dataset CONFIG --samples N`` the first N scenes of a dataset configuration,
+:mod:`dopplertof.dataset`, drawn as ``dopplertof dataset generate --seed`` would):
 
 * ``record.npz``: the record (``--record`` reuses it);
 * ``sweep.csv`` and ``sweep_<key>.png``: the objective at every grid point (refused
@@ -12,6 +15,9 @@ optimises it, and writes into DIR:
 * ``velocity_crb.exr``, ``depth_crb.exr`` (m/s, m): its per-pixel bounds, and with
   ``--rmse-draws N`` ``velocity_rmse.exr``: what the velocity estimator reaches over N noise
   draws (:func:`~dopplertof.design.achieved_rmse`), side by side.
+
+With several scenes the per-scene files carry the scene's index: ``record_0.npz``,
+``velocity_crb_1.exr``, …
 """
 
 from __future__ import annotations
@@ -32,24 +38,27 @@ KEY_UNITS = {"modulation_frequency": "Hz", "exposure": "s", "heterodyne": "beat 
 
 
 @click.command("design")
-@click.argument("scene")
+@click.argument("scenes", nargs=-1)
 @click.option("--sensor", "sensor_spec", required=True, metavar="PRESET|FILE.toml", help="The sensor to design from: a preset or a TOML sensor file.")
 @click.option("--sweep", "sweep_specs", multiple=True, metavar="KEY=LO:HI:N", help="A grid of one parameter: modulation_frequency (f, Hz), heterodyne (h), exposure (T, s). Repeatable: every combination.")
 @click.option("--optimize", "optimize_keys", multiple=True, type=click.Choice(OPTIMIZE_KEYS), help="Minimise the objective over this parameter from the sensor's own value. Repeatable.")
 @click.option("--objective", type=click.Choice(OBJECTIVES), default="velocity_crb", show_default=True, help="Mean Cramér-Rao bound over the moving pixels: velocity (m/s) or depth (m).")
-@click.option("--record", "record_path", default=None, help="Use this record (record.npz of an earlier run) instead of rendering one.")
+@click.option("--record", "record_paths", multiple=True, help="Use this record (record.npz of an earlier run) instead of rendering one. Once per SCENE, in their order.")
 @click.option("--rmse-draws", type=click.IntRange(min=0), default=0, show_default=True, help="Also the velocity estimator's per-pixel RMSE (dopplertof.reconstruct.velocity, method auto) for the best sensor over this many noise draws (0: not computed).")
+@click.option("--dataset", "dataset_config", default=None, metavar="CONFIG.toml", help="Design over the scenes of a dataset configuration (dopplertof dataset config) instead of SCENES; with --samples.")
+@click.option("--samples", type=click.IntRange(min=1), default=None, help="With --dataset: its first N scenes.")
+@click.option("--dataset-seed", type=click.IntRange(min=0), default=0, show_default=True, help="With --dataset: the dataset seed the scenes are drawn with.")
 @click.option("-o", "--output", required=True, help="Output folder.")
 @click.option("--overwrite", is_flag=True, help="Replace the files of an earlier design run in the output folder.")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file. Repeatable.")
 @settings_options(exclude=("exposure",))
-def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, record_path, rmse_draws, output, overwrite, resolution, defines, **options):
-    """Sweep and optimise SENSOR's parameters on SCENE from one render (its response record)."""
+def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, record_paths, rmse_draws, dataset_config, samples, dataset_seed, output, overwrite, resolution, defines, **options):
+    """Sweep and optimise SENSOR's parameters on SCENES (one or more, or a dataset's: the
+    objective averaged over them) from one render of each (its response record)."""
     from ..io import read_record, write_exr, write_record
     from ..render import render
     from ..scene import SceneError
-    from ..scenes import open_scene
     from ..sensors.files import load_sensor, sensor_toml
     from ..settings import RenderSettings, scene_layer
     from .precision import achieved_rmse, crb
@@ -58,28 +67,44 @@ def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, re
     try:
         if not sweep_specs and not optimize_keys:
             raise ValueError("give --sweep KEY=LO:HI:N and/or --optimize KEY")
+        scenes = _scene_sources(scenes, dataset_config, samples, dataset_seed, resolution, defines)
         sensor = load_sensor(sensor_spec)
         sweeps = [parse_sweep(s) for s in sweep_specs]
         if len({k for k, _ in sweeps}) != len(sweeps):
             raise ValueError("--sweep: each key once")
-        earlier = [name for name in OUTPUTS if os.path.exists(os.path.join(output, name))]
+        if record_paths and len(record_paths) != len(scenes):
+            raise ValueError(f"--record: give one per scene ({len(scenes)} scene(s), {len(record_paths)} record(s))")
+
+        def named(name, index):  # record.npz, or record_<index>.npz for several scenes
+            stem, ext = os.path.splitext(name)
+            return name if len(scenes) == 1 else f"{stem}_{index}{ext}"
+
+        per_scene = ("record.npz", "velocity_crb.exr", "depth_crb.exr", "velocity_rmse.exr")
+        names = [named(n, i) if n in per_scene else n for n in OUTPUTS for i in (range(len(scenes)) if n in per_scene else (0,))]
+        earlier = [name for name in names if os.path.exists(os.path.join(output, name))]
         earlier += sorted(os.path.basename(p) for p in glob.glob(os.path.join(glob.escape(output), "sweep_*.png")))
         if earlier and not overwrite:
             raise ValueError(f"{output!r} holds an earlier design run ({', '.join(earlier)}); choose another folder or --overwrite")
         os.makedirs(output, exist_ok=True)  # before the render: an unwritable folder fails first
-        if record_path is not None:
-            record = read_record(record_path)
+        written = []
+        if record_paths:
+            records = [read_record(path) for path in record_paths]
         else:
             spec, cameras = record_spec(sensor, sweeps, optimize=optimize_keys)
-            dyn = open_scene(scene, resolution, defines)
-            settings = RenderSettings.build(scene_layer(dyn, scene), {**given_settings(options), "cameras": cameras}, where=scene)
-            click.echo(f"rendering the record: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp", err=True)
-            record = render(dyn, settings=settings, record=spec).record
-        written = [] if record_path is not None else [str(write_record(os.path.join(output, "record.npz"), record))]
+            records = []
+            for index, (scene, load) in enumerate(scenes):
+                dyn = load()
+                settings = RenderSettings.build(scene_layer(dyn, scene), {**given_settings(options), "cameras": cameras}, where=scene)
+                click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp", err=True)
+                record = render(dyn, settings=settings, record=spec).record
+                if record is None:  # a render stopped early (Ctrl-C) keeps no record
+                    raise KeyboardInterrupt
+                records.append(record)
+                written.append(str(write_record(os.path.join(output, named("record.npz", index)), records[-1])))
         unit = "m/s" if objective == "velocity_crb" else "m"
         best = sensor
         if sweeps:
-            rows = sweep(record, sensor, sweeps, objective)
+            rows = sweep(records, sensor, sweeps, objective)
             written.append(_write_csv(os.path.join(output, "sweep.csv"), rows))
             written += _plots(output, rows, [k for k, _ in sweeps], objective, unit)
             good = [r for r in rows if r["status"] == "ok" and r["objective"] == r["objective"]]
@@ -89,22 +114,23 @@ def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, re
             best = variant(sensor, {k: top[k] for k, _ in sweeps})
             click.echo("best of the sweep: " + ", ".join(f"{k}={top[k]:g}" for k, _ in sweeps) + f": {objective} {top['objective']:.4g} {unit}")
         if optimize_keys:
-            best, history = optimize(record, best, optimize_keys, objective)
+            best, history = optimize(records, best, optimize_keys, objective)
             written.append(_write_csv(os.path.join(output, "optimize.csv"), [{**h, "phases": " ".join(f"{p:.6g}" for p in h["phases"])} for h in history]))
             click.echo(f"optimised ({', '.join(optimize_keys)}): {objective} {history[0]['objective']:.4g} -> {history[-1]['objective']:.4g} {unit} in {len(history) - 1} step(s); modulation_frequency={best.frames[0].modulation_frequency:g} Hz")
         path = os.path.join(output, "best_sensor.toml")
         with open(path, "w", encoding="utf-8") as f:
             f.write(sensor_toml(best))
         written.append(path)
-        precision = crb(record, best)
-        written += [str(write_exr(os.path.join(output, f"{name}.exr"), getattr(precision, name))) for name in ("velocity_crb", "depth_crb")]
-        summary = precision.summary()
-        line = f"best sensor: velocity_crb {summary['velocity_crb_median']:.4g} m/s, depth_crb {summary['depth_crb_median']:.4g} m (medians over {summary['moving_pixels']} moving pixels)"
-        if rmse_draws:
-            rmse = achieved_rmse(record, best, draws=rmse_draws)
-            written.append(str(write_exr(os.path.join(output, "velocity_rmse.exr"), rmse)))
-            line += f"; estimator RMSE {float(np.nanmedian(rmse[precision.moving])):.4g} m/s over {rmse_draws} draws"
-        click.echo(line)
+        for index, record in enumerate(records):
+            precision = crb(record, best)
+            written += [str(write_exr(os.path.join(output, named(f"{name}.exr", index)), getattr(precision, name))) for name in ("velocity_crb", "depth_crb")]
+            values = precision.summary()
+            line = f"best sensor{'' if len(records) == 1 else f' on {scenes[index][0]}'}: velocity_crb {values['velocity_crb_median']:.4g} m/s, depth_crb {values['depth_crb_median']:.4g} m (medians over {values['moving_pixels']} moving pixels)"
+            if rmse_draws:
+                rmse = achieved_rmse(record, best, draws=rmse_draws)
+                written.append(str(write_exr(os.path.join(output, named("velocity_rmse.exr", index)), rmse)))
+                line += f"; estimator RMSE {float(np.nanmedian(rmse[precision.moving])):.4g} m/s over {rmse_draws} draws"
+            click.echo(line)
     except KeyboardInterrupt:
         click.echo("error: interrupted before the record was finished; nothing written", err=True)
         sys.exit(130)
@@ -117,6 +143,39 @@ def design_command(scene, sensor_spec, sweep_specs, optimize_keys, objective, re
     sys.stdout.flush()
 
 
+def _scene_sources(scenes, dataset_config, samples, dataset_seed, resolution, defines) -> list:
+    """[(name, load)] of the design's scenes: SCENES (built-in names or files) or the first
+    ``samples`` scenes of a dataset configuration, ``load()`` building each; ValueError for
+    a contradictory choice."""
+    from ..scenes import open_scene, parse_resolution
+
+    if dataset_config is None:
+        if samples is not None:
+            raise ValueError("--samples applies to --dataset")
+        if not scenes:
+            raise ValueError("give SCENE (one or more) or --dataset CONFIG.toml --samples N")
+        return [(scene, lambda scene=scene: open_scene(scene, resolution, defines)) for scene in scenes]
+    from ..backend import ensure_variant
+    from ..dataset.config import load_config
+    from ..dataset.randomize import build_scene
+    from ..dataset.sample import make_record
+
+    if scenes or defines:
+        raise ValueError("give SCENE… or --dataset, not both (-D applies to scene files)")
+    if samples is None:
+        raise ValueError("--dataset needs --samples N (how many of its scenes)")
+    config = load_config(dataset_config)
+    size = parse_resolution(resolution)
+    if isinstance(size, tuple) and size[0] != size[1]:
+        raise ValueError(f"--resolution {resolution!r}: dataset scenes are square; give one number")
+    size = config["render"]["resolution"] if size is None else (size if isinstance(size, int) else size[0])
+    variant, out = ensure_variant(), []
+    for index in range(samples):
+        record = make_record(config, dataset_seed, index, variant)  # the scene of sample i, as the dataset draws it
+        out.append((record["key"], lambda scene=record["scene"]: build_scene(scene, size)))
+    return out
+
+
 def _write_csv(path, rows) -> str:
     names = list(dict.fromkeys(k for r in rows for k in r))
     with open(path, "w", newline="", encoding="utf-8") as f:
@@ -127,7 +186,9 @@ def _write_csv(path, rows) -> str:
 
 
 def _plots(output, rows, keys, objective, unit) -> list[str]:
-    """The objective against each swept key, the other keys at their best point's values."""
+    """The objective (the mean bound over the moving pixels) and the median bound against
+    each swept key, the other keys at their best point's values: a few pixels with little
+    modulated light dominate the mean, the median shows the typical pixel."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -137,13 +198,15 @@ def _plots(output, rows, keys, objective, unit) -> list[str]:
     top = min(good, key=lambda r: r["objective"])
     written = []
     for key in keys:
-        line = sorted((r[key], r["objective"]) for r in good if all(r[k] == top[k] for k in keys if k != key))
+        line = sorted((r[key], r["objective"], r[f"{objective}_median"]) for r in good if all(r[k] == top[k] for k in keys if k != key))
         figure = Figure(figsize=(5, 3.5))
         FigureCanvasAgg(figure)
         axes = figure.add_subplot()
-        axes.plot([x for x, _ in line], [y for _, y in line], "o-")
+        axes.plot([x for x, _, _ in line], [y for _, y, _ in line], "o-", label="mean")
+        axes.plot([x for x, _, _ in line], [y for _, _, y in line], "s--", label="median")
         axes.set_xlabel(f"{key} ({KEY_UNITS[key]})")
-        axes.set_ylabel(f"mean {objective} ({unit})")
+        axes.set_ylabel(f"{objective} ({unit})")
+        axes.legend()
         axes.set_yscale("log")
         axes.grid(True, alpha=0.3)
         figure.tight_layout()

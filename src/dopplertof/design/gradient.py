@@ -16,6 +16,10 @@ parameter              ∂M                                               needs
 ``heterodyne`` h       Re Σ a_m e^{imψ} 2πi m R₁(mf, mh)                first moments
 f (Hz), the            Re Σ a_m e^{imψ} m ∂R/∂F(mf, mh), and the        slopes (and for
 modulation frequency   silicon's contrast slope c'(f)/c × M             bounds, ∂R₁/∂F)
+``exposure`` T (s),    c₀ ∂Ī/∂θ + Re Σ a_m e^{imψ} ∂R/∂θ(mf, mh) of      window slopes
+``exposure_start``     the frame's window; T also scales the frame's    (``window_slopes``;
+(s)                    electrons, signal, ambient and dark current      for bounds, with
+                       (∝ T)                                            ``doppler``)
 =====================  ===============================================  ==================
 
 and so are those of ∂M/∂L and ∂M/∂L̇ (:mod:`dopplertof.design.precision`), so the Fisher
@@ -23,9 +27,10 @@ information and the bounds are differentiated in forward mode (dF from the deriv
 the taps' means and variances, d(F⁻¹) = −F⁻¹ dF F⁻¹). The code gradients are with respect
 to the harmonics n ≥ 1 of Fourier codes (the code's mean also sets the mean light and the
 taps' shares: not differentiated here); the frequency's ignores the jumps of a band-limited
-light code's harmonic count. Not available, and refused by name: the heterodyne gradient of
-a bound (it needs second moments), the exposure and the exposure start (their readouts leave
-the record's windows).
+light code's harmonic count. An exposure or a start moves one frame's window: frames that
+share the window keep theirs (the derivative is of the frame's own taps), and the heterodyne
+stays h beat cycles per exposure (its offset in Hz follows 1/T). Not available, and refused
+by name: the heterodyne gradient of a bound (it needs second moments).
 """
 
 from __future__ import annotations
@@ -38,12 +43,9 @@ import numpy as np
 from .precision import contract, fisher_from_taps, inverse_fisher, moving_pixels, record_of, reference_time, sensor_derivatives, tap_terms
 from .record import Record, measure, readout_terms
 
-PARAMETER_KINDS = ("phase", "heterodyne", "modulation_frequency", "sensor_code", "light_code")
+PARAMETER_KINDS = ("phase", "heterodyne", "modulation_frequency", "sensor_code", "light_code", "exposure", "exposure_start")
+WINDOW_KINDS = ("exposure", "exposure_start")
 OBJECTIVES = ("raw", "velocity_crb", "depth_crb")
-_REFUSED = {
-    "exposure": "another exposure is another window, which the record does not hold",
-    "exposure_start": "another start is another window, which the record does not hold",
-}
 
 
 @dataclass
@@ -76,10 +78,13 @@ def gradient(record_or_result, sensor, objective: str = "velocity_crb", paramete
     objective : str. ``"raw"``: the noiseless raw electrons; ``"velocity_crb"`` (m/s) or
         ``"depth_crb"`` (m): the mean bound over the moving pixels where it is finite
         (:func:`~dopplertof.design.crb`). Default ``"velocity_crb"``.
-    parameters : list of (kind, frame index), optional. Kinds of :data:`PARAMETER_KINDS`;
-        default every phase, and the codes of coded frames (and, for ``"raw"``, every
-        heterodyne).
-    reference_time_s : float, optional. As for :func:`~dopplertof.design.crb`.
+    parameters : list of (kind, frame index), optional. Kinds of :data:`PARAMETER_KINDS`
+        (``exposure`` and ``exposure_start`` in s, ``modulation_frequency`` in Hz, phases
+        in rad); default every phase, and the codes of coded frames (and, for ``"raw"``,
+        every heterodyne). The frequency needs ``slopes=True``, the exposure and start
+        ``window_slopes=True``.
+    reference_time_s : float, s, optional. As for :func:`~dopplertof.design.crb`; the
+        exposure and start gradients hold it fixed.
 
     Returns
     -------
@@ -107,11 +112,15 @@ def gradient(record_or_result, sensor, objective: str = "velocity_crb", paramete
         out = {}
         for kind, frame in parameters:
             tangents = _tangents(record, sensor, kind, frame, t_ref, need_rate=False)
-            # raw is linear in the measurements; a tangent leaves the mean light (Ī) alone
-            out[(kind, frame)] = _stack([sensor.raw(t[0], clip=False) for t in tangents], kind)
+            # raw is linear in the measurements; a tangent leaves the mean light (Ī) alone,
+            # but for a window's (then only the frame's own taps change)
+            columns = [sensor.raw(t[0], clip=False) for t in tangents]
+            if kind in WINDOW_KINDS:
+                columns = [_frame_only(c, frame, value if kind == "exposure" else None, sensor) for c in columns]
+            out[(kind, frame)] = _stack(columns, kind)
         return Gradient(objective, value, out)
     m, d_length, d_rate = sensor_derivatives(record, sensor, t_ref, "gradient")
-    jac, weight, _ = tap_terms(sensor, m, [m, d_length, d_rate])
+    jac, weight, mean_e = tap_terms(sensor, m, [m, d_length, d_rate])
     fisher = fisher_from_taps(jac, weight)
     index = 2 if objective == "velocity_crb" else 1
     covariance, ok = inverse_fisher(fisher)
@@ -125,7 +134,12 @@ def gradient(record_or_result, sensor, objective: str = "velocity_crb", paramete
         columns = []
         for t_m, t_length, t_rate in _tangents(record, sensor, kind, frame, t_ref, need_rate=True):
             d_jac = tap_terms(sensor, m, [t_m, t_length, t_rate])[0]
-            d_weight = -(weight**2) * shot * d_jac[0]  # σ² = μ + read² + q²/12: dσ² = dμ
+            d_mean = d_jac[0]
+            if kind in WINDOW_KINDS:  # the frame's own taps; T also scales its charge, all ∝ T
+                explicit = kind == "exposure"
+                d_mean = _frame_only(d_mean, frame, mean_e if explicit else None, sensor)
+                d_jac = np.stack([_frame_only(d_jac[p], frame, jac[p] if explicit else None, sensor) for p in range(3)])
+            d_weight = -(weight**2) * shot * d_mean  # σ² = μ + read² + q²/12: dσ² = dμ
             cross = np.einsum("aftyx,bftyx,ftyx->yxab", d_jac, jac, weight)
             d_fisher = cross + np.swapaxes(cross, -1, -2) + fisher_from_taps(jac, d_weight)
             d_cov = -np.einsum("...ij,...jk,...kl->...il", covariance, d_fisher, covariance)[..., index, index]
@@ -155,8 +169,6 @@ def _parameters(sensor, objective, parameters):
         if not (isinstance(item, (tuple, list)) and len(item) == 2):
             raise ValueError(f"gradient: a parameter is (kind, frame index), got {item!r}")
         kind, frame = item
-        if kind in _REFUSED:
-            raise ValueError(f"gradient: parameter {kind!r}: {_REFUSED[kind]}")
         if kind not in PARAMETER_KINDS:
             raise ValueError(f"gradient: unknown parameter {kind!r}; choose one of {', '.join(PARAMETER_KINDS)}")
         if isinstance(frame, bool) or not isinstance(frame, int) or not 0 <= frame < len(sensor.frames):
@@ -169,6 +181,17 @@ def _parameters(sensor, objective, parameters):
                 raise ValueError(f"gradient: parameter ({kind!r}, {frame}): code gradients are with respect to Fourier coefficients; give the frame's codes with dopplertof.codes.fourier")
         checked.append((kind, frame))
     return checked
+
+
+def _frame_only(d, frame, scaled, sensor):
+    """``d`` (frames, taps, …) with every frame but ``frame`` zeroed, plus, where ``scaled``
+    is given (a quantity ∝ the frame's exposure T, like ``d``), its frame's part / T: the
+    explicit derivative with respect to T."""
+    out = np.zeros_like(d)
+    out[frame] = d[frame]
+    if scaled is not None:
+        out[frame] += scaled[frame] / sensor.frames[frame].exposure
+    return out
 
 
 def _frame_cameras(sensor, frame):
@@ -201,6 +224,14 @@ def _tangents(record: Record, sensor, kind, frame, t_ref, need_rate):
             derivative = _heterodyne_tangent(record, w, camera, terms)
             out[0][0][index], out[0][1][index] = derivative
             continue
+        elif kind in WINDOW_KINDS:
+            t = _window_tangent(record, w, camera, terms, kind, t_ref, need_rate, where)
+            for part in range(3):
+                out[0][part][index] = t[part]
+            # the mean light of the frame's window moves with it (only the frame's taps see it: _frame_only)
+            windows = sensor._windows()
+            out[0][0][len(cameras) - len(windows) + windows.index((camera.exposure_start, camera.exposure))] = _window_luminance(record, w, kind, where)
+            continue
         else:
             tangent_terms = _code_tangent_terms(record, camera, kind, where)
         for direction, located in enumerate(tangent_terms):
@@ -210,6 +241,42 @@ def _tangents(record: Record, sensor, kind, frame, t_ref, need_rate):
             for part in range(3):
                 out[direction][part][index] = t[part]
     return out
+
+
+def _window_luminance(record, w, kind, where):
+    """∂Ī/∂θ (H, W) of window ``w``, θ its exposure or start; ValueError without window slopes."""
+    if record.luminance_slopes is None:
+        raise ValueError(f"{where}: the record holds no window slopes; render it with record=dict(window_slopes=True, ...)")
+    return record.luminance_slopes[WINDOW_KINDS.index(kind), w].astype(np.float64)
+
+
+def _window_tangent(record, w, camera, terms, kind, t_ref, need_rate, where):
+    """∂/∂θ of (M, ∂M/∂L, ∂M/∂L̇) of ``camera`` (module docstring), θ its window's exposure
+    or start: the window slopes of Ī, R and R₁, and, in ∂M/∂L̇ = Re Σ i m k a x with
+    x = (start − t_ref) R + T R₁ (:func:`~dopplertof.design.precision.contract`), the
+    explicit dependence of x on the start and T."""
+    from .record import harmonics
+
+    name = "exposure" if kind == "exposure" else "start"
+    slopes = getattr(record, f"{name}_slopes")
+    moment_slopes = getattr(record, f"{name}_moment_slopes")
+    if slopes is None or (need_rate and moment_slopes is None):
+        need = "window_slopes=True, doppler=True" if need_rate else "window_slopes=True"
+        raise ValueError(f"{where}: the record holds no window slopes; render it with record=dict({need}, ...)")
+    start_s, exposure_s = record.windows[w]
+    d_m = harmonics(camera, where)[0] * _window_luminance(record, w, kind, where)
+    d_length, d_rate = np.zeros_like(d_m), np.zeros_like(d_m)
+    for order, coefficient, j, b in terms:
+        ik = 1j * order * camera.wavenumber * coefficient
+        r_theta = slopes[w, j, b].astype(np.complex128)
+        d_m += (coefficient * r_theta).real
+        d_length += (ik * r_theta).real
+        if need_rate:
+            r, r1 = record.phasors[w, j, b].astype(np.complex128), record.moments[w, j, b].astype(np.complex128)
+            r1_theta = moment_slopes[w, j, b].astype(np.complex128)
+            x_theta = (start_s - t_ref) * r_theta + exposure_s * r1_theta + (r1 if kind == "exposure" else r)
+            d_rate += (ik * x_theta).real
+    return d_m, d_length, d_rate
 
 
 def _without_rate(record, w, located, wavenumber):

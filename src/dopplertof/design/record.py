@@ -14,24 +14,30 @@ with ⟨·⟩ the estimator's average over the pixel's samples and Ī = ⟨lum�
 luminance. The record holds, per exposure window and pixel, Ī and R(F, ν) on a declared grid:
 every multiple F of ``step_hz`` in ``band_hz`` crossed with the declared ``beats`` ν (beat
 cycles per exposure: the heterodyne ratios h, their multiples m h for codes, integer or
-not). Each R(F, ν) is itself the measurement of a sinusoidal camera (frequency F,
-heterodyne ν, ψ = 0 and −π/2 for its real and imaginary parts), rendered by the same kernel
-with the same seed, so a sensor read out of the record equals the same sensor rendered
-directly (same seed, same windows in the same order) to rounding: the record is *exact*
-wherever it applies, and refuses everything else (:func:`evaluate`):
+not). The tracing kernel accumulates them while it traces the render's own paths
+(:class:`~dopplertof.tracing.sink.PhasorGrid`: per lane, every contribution's phasors over
+the frequency grid, the beats from the lane's time, summed per pixel in Float64), so a
+sensor read out of the record equals the same sensor rendered directly (same seed, same
+windows in the same order) to rounding: the record is *exact* wherever it applies, and
+refuses everything else (:func:`evaluate`):
 
 * a frequency m f (every harmonic m of the camera's correlation with a non-zero
   coefficient) outside ``band_hz`` or not a multiple of ``step_hz``;
 * a beat m h not among ``beats``;
 * an exposure window that was not recorded;
 * weights with unbounded harmonics: the full-waveform model, the named rectangular,
-  triangular and trapezoidal waveforms, sampled codes without ``light_bandwidth`` (give
-  the source's bandwidth, at most the band's top, to make them band-limited).
+  triangular and trapezoidal waveforms and sampled codes without ``light_bandwidth`` (give
+  the rectangular and trapezoidal waveforms and codes the source's bandwidth, at most the
+  band's top, and they are band-limited and exact).
 
 Size: 8 bytes per (F, ν) pair and pixel plus 4 for Ī, per window
 (:meth:`RecordSpec.bytes_per_pixel`): a 256² record of 10–300 MHz at 1 MHz with beats
-(0, 1) is 0.3 GB. Cost: the probe cameras are rendered ``cameras_per_render`` at a time,
-each chunk re-tracing the same paths (docs/design.md gives the measured overhead).
+(0, 1) is 0.3 GB. Cost: a kernel holds :data:`FREQUENCIES_PER_KERNEL` frequencies; the first
+run of them rides on the render's own passes (1.4× a plain render for 30 frequencies and 2
+beats, docs/design.md), each further run traces the paths again. The paired tracers
+(:func:`by_probes`) record through probe cameras instead: each R(F, ν) the measurement of
+a sinusoidal camera (frequency F, heterodyne ν, ψ = 0 and −π/2), ``cameras_per_render`` of
+them per kernel, each chunk re-tracing the paths.
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..codes import NAMED_CODES
 from ..modulation import MAX_HETERODYNE, MAX_MODULATION_FREQUENCY_HZ, Camera
 from ..validation import checked
 
@@ -62,9 +69,19 @@ MOMENT_BEAT_STEP = 1e-3
 # 2π δF L / c of 1e-2 rad at 5 m (truncation 2e-5 relative), large enough that the Float32
 # rounding of the mixed difference ∂R₁/∂F stays near 1e-3 relative.
 SLOPE_FREQUENCY_STEP_HZ = 1e5
+# Frequencies one tracing kernel accumulates (:class:`~dopplertof.tracing.sink.PhasorGrid`):
+# their sums are per-lane loop state (8 bytes each, twice with ``slopes``), and a record of
+# more frequencies traces the paths again for every further run of them.
+FREQUENCIES_PER_KERNEL = 32
 # What a record may hold beside R: the first moments R₁ (``doppler``), the slopes ∂R/∂F
-# (``slopes``) and ∂R₁/∂F (both).
-DERIVED = ("moments", "slopes", "moment_slopes")
+# (``slopes``) and ∂R₁/∂F (both), and the derivatives of R and R₁ with respect to the
+# window's exposure T and start (``window_slopes``).
+DERIVED = ("moments", "slopes", "moment_slopes", "exposure_slopes", "start_slopes", "exposure_moment_slopes", "start_moment_slopes")
+# Step of the central differences that give the window slopes, as a fraction of the
+# window's exposure: at 10 m/s and 1 ms it moves a path by 0.1 mm (a phase step of 4e-4 rad
+# at 100 MHz, against the lanes' float32 rounding of 1e-7), with a truncation error of
+# (δ/T)² ≈ 1e-4 of the second derivative's share.
+WINDOW_STEP = 1e-2
 
 
 @dataclass(frozen=True)
@@ -79,16 +96,25 @@ class RecordSpec:
     beats : sequence of float. The beat cycles per exposure ν recorded (a camera with
         heterodyne h needs m h for each of its harmonics m). Default (0, 1): homodyne and
         the one-beat heterodyne.
-    cameras_per_render : int. Probe cameras traced per kernel (bounds the kernel's state:
+    cameras_per_render : int. Probe cameras traced per kernel where the record is rendered
+        by probe cameras (the paired tracers, :func:`by_probes`; bounds the kernel's state:
         4 bytes per camera and lane). Default 32.
     doppler : bool. Also record the first moments R₁(F, ν) = ⟨lum · u e^{i2πνu} e^{i2πFL/c}⟩,
         the derivative of every measurement with respect to the paths' rate L̇ that
-        precision maps need (:func:`dopplertof.design.crb`); they triple the probes and
-        double the size. Default False.
+        precision maps need (:func:`dopplertof.design.crb`): exact in the kernel (the
+        lane's u times its R; probe cameras: a central difference in ν, tripling the
+        probes). They double the size. Default False.
     slopes : bool. Also record the slopes ∂R/∂F (and, with ``doppler``, ∂R₁/∂F): the
         derivative of every measurement with respect to the modulation frequency, which
-        frequency gradients need (:func:`dopplertof.design.gradient`); they triple the
-        probes again and double the size again. Default False.
+        frequency gradients need (:func:`dopplertof.design.gradient`): exact in the kernel
+        (i2πL/c per contribution; probe cameras: a central difference in F). They double
+        the size again. Default False.
+    window_slopes : bool. Also record the derivatives of Ī, R (and, with ``doppler``, R₁)
+        with respect to each window's exposure T and start (1/s): central differences of
+        the window traced again at T ± δ and start ± δ with its own seed (same random
+        numbers, δ = :data:`WINDOW_STEP` × T), which exposure and start gradients need.
+        Four more traces of every window; not with the paired tracers (probe cameras).
+        Default False.
     """
 
     band_hz: tuple = (10e6, 300e6)
@@ -97,6 +123,7 @@ class RecordSpec:
     cameras_per_render: int = 32
     doppler: bool = False
     slopes: bool = False
+    window_slopes: bool = False
 
     def __post_init__(self):
         band = self.band_hz
@@ -131,6 +158,7 @@ class RecordSpec:
         object.__setattr__(self, "cameras_per_render", per)
         object.__setattr__(self, "doppler", checked("doppler", self.doppler, "bool", "record"))
         object.__setattr__(self, "slopes", checked("slopes", self.slopes, "bool", "record"))
+        object.__setattr__(self, "window_slopes", checked("window_slopes", self.window_slopes, "bool", "record"))
 
     @property
     def frequencies_hz(self) -> np.ndarray:
@@ -146,16 +174,16 @@ class RecordSpec:
 
         Parameters
         ----------
-        n_windows : int, default 1
-            Exposure windows recorded.
+        n_windows : int
+            Exposure windows recorded; default 1.
 
         Returns
         -------
         int
-            Bytes.
+            Bytes per pixel.
         """
-        arrays = (2 if self.doppler else 1) * (2 if self.slopes else 1)
-        return n_windows * (8 * arrays * self.frequencies_hz.size * len(self.beats) + 4)
+        arrays = len(_derived_of(self)) + 1
+        return n_windows * (8 * arrays * self.frequencies_hz.size * len(self.beats) + 4 * (3 if self.window_slopes else 1))
 
     def as_dict(self) -> dict:
         """The spec as a JSON-friendly dict (``RecordSpec(**spec.as_dict())`` is the same spec).
@@ -164,7 +192,7 @@ class RecordSpec:
         -------
         dict
         """
-        return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler, "slopes": self.slopes}
+        return {"band_hz": list(self.band_hz), "step_hz": self.step_hz, "beats": list(self.beats), "cameras_per_render": self.cameras_per_render, "doppler": self.doppler, "slopes": self.slopes, "window_slopes": self.window_slopes}
 
 
 def as_spec(value) -> RecordSpec:
@@ -191,7 +219,7 @@ def as_spec(value) -> RecordSpec:
     if isinstance(value, dict):
         unknown = sorted(set(value) - {f.name for f in dataclasses.fields(RecordSpec)})
         if unknown:
-            raise ValueError(f"record: unknown key(s) {unknown}; use band_hz, step_hz, beats, cameras_per_render, doppler, slopes")
+            raise ValueError(f"record: unknown key(s) {unknown}; use {', '.join(f.name for f in dataclasses.fields(RecordSpec))}")
         return RecordSpec(**value)
     raise ValueError(f"record must be True, a dict of RecordSpec fields or a dopplertof.design.RecordSpec, got {value!r}")
 
@@ -207,12 +235,18 @@ class Record:
     moments : complex64 like ``phasors``, or None. R₁(F, ν) (``spec.doppler``).
     slopes, moment_slopes : complex64 like ``phasors``, or None. ∂R/∂F and ∂R₁/∂F (1/Hz;
         ``spec.slopes``, the second also ``spec.doppler``).
+    exposure_slopes, start_slopes, exposure_moment_slopes, start_moment_slopes : complex64
+        like ``phasors``, or None. ∂R/∂T, ∂R/∂start, ∂R₁/∂T, ∂R₁/∂start of each window
+        (1/s; ``spec.window_slopes``, the moments' also ``spec.doppler``).
+    luminance_slopes : float32 (2, windows, H, W) or None. ∂Ī/∂T and ∂Ī/∂start (1/s;
+        ``spec.window_slopes``).
     spec : :class:`RecordSpec`.
     windows : tuple of (start_s, exposure_s). The recorded exposure windows, in render order.
     settings : RenderSettings of the render (its cameras dropped; the windows are above).
     maps : dict. The render's intensity and ground truth (reference window).
     spp : int. Paths per pixel.
-    info : dict, default {}. ``render_seconds`` (s), ``renders`` and ``probe_cameras``.
+    info : dict, default {}. ``kernels`` and ``frequencies_per_kernel`` (recorded in the kernel), or
+        ``render_seconds`` (s), ``renders`` and ``probe_cameras`` (recorded through probe cameras).
     """
 
     phasors: np.ndarray
@@ -226,6 +260,11 @@ class Record:
     moments: np.ndarray | None = None
     slopes: np.ndarray | None = None
     moment_slopes: np.ndarray | None = None
+    exposure_slopes: np.ndarray | None = None
+    start_slopes: np.ndarray | None = None
+    exposure_moment_slopes: np.ndarray | None = None
+    start_moment_slopes: np.ndarray | None = None
+    luminance_slopes: np.ndarray | None = None
 
     RECORD_FORMAT = "dopplertof-record-1"
 
@@ -243,7 +282,7 @@ class Record:
         settings.pop("cameras")
         meta = {"format": self.RECORD_FORMAT, "spec": self.spec.as_dict(), "windows": [list(w) for w in self.windows], "settings": settings, "spp": self.spp, "info": self.info}
         arrays = {"phasors": self.phasors, "luminance": self.luminance, "metadata": np.array(json.dumps(meta, default=float))}
-        for name in DERIVED:
+        for name in (*DERIVED, "luminance_slopes"):
             if getattr(self, name) is not None:
                 arrays[name] = getattr(self, name)
         arrays.update({f"map.{name}": value for name, value in self.maps.items()})
@@ -287,6 +326,10 @@ class Record:
             for name, value in derived.items():
                 if value is not None and (value.dtype != np.complex64 or value.shape != phasors.shape):
                     raise ValueError(f"{name} of shape {value.shape} do not match the phasors {phasors.shape}")
+            if spec.window_slopes:
+                derived["luminance_slopes"] = np.asarray(arrays["luminance_slopes"])
+                if derived["luminance_slopes"].shape != (2, *luminance.shape):
+                    raise ValueError(f"luminance_slopes of shape {derived['luminance_slopes'].shape} do not match the luminance {luminance.shape}")
             settings = RenderSettings.build(meta["settings"])
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{where}: not a dopplertof response record ({exc})") from None
@@ -296,7 +339,7 @@ class Record:
     @property
     def nbytes(self) -> int:
         """Memory the record's arrays take, in bytes."""
-        return int(self.phasors.nbytes + self.luminance.nbytes + sum(getattr(self, n).nbytes for n in DERIVED if getattr(self, n) is not None))
+        return int(self.phasors.nbytes + self.luminance.nbytes + sum(getattr(self, n).nbytes for n in (*DERIVED, "luminance_slopes") if getattr(self, n) is not None))
 
     def window_index(self, camera: Camera, where: str) -> int:
         """Index of ``camera``'s exposure window in :attr:`windows`; a ValueError starting with
@@ -392,7 +435,9 @@ def _sides(spec: RecordSpec) -> list[tuple[int, int]]:
 
 def _derived_of(spec: RecordSpec) -> tuple[str, ...]:
     """The names of :data:`DERIVED` a record of ``spec`` holds."""
-    return tuple(n for n, held in zip(DERIVED, (spec.doppler, spec.slopes, spec.doppler and spec.slopes)) if held)
+    window, both = spec.window_slopes, spec.window_slopes and spec.doppler
+    held = (spec.doppler, spec.slopes, spec.doppler and spec.slopes, window, window, both, both)
+    return tuple(n for n, h in zip(DERIVED, held) if h)
 
 
 def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
@@ -414,28 +459,70 @@ def _probes(spec: RecordSpec, start_s: float, exposure_s: float) -> list[tuple]:
     return out
 
 
-def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int) -> None:
-    """ValueError where the record of ``spec`` on a ``width`` × ``height`` film of
-    ``n_windows`` windows (and the probes' sides until their differences are taken) needs
-    more than the available memory.
+def by_probes(settings) -> bool:
+    """Whether a render records through probe cameras rather than in its kernel.
+
+    The paired tracers give a lane's contributions two times (or integrate them over the
+    exposure), which the kernel's phasor sums (:class:`~dopplertof.tracing.sink.PhasorGrid`)
+    do not model.
 
     Parameters
     ----------
-    spec : RecordSpec
-    width, height : int
-        Film size in pixels.
-    n_windows : int
-        Exposure windows recorded.
+    settings : RenderSettings of the render.
+
+    Returns
+    -------
+    bool: True for the paired tracers (``settings.paired``).
+    """
+    return settings.paired
+
+
+def kernel_grids(spec: RecordSpec) -> list:
+    """The grids of the kernels that record ``spec``.
+
+    Parameters
+    ----------
+    spec : :class:`RecordSpec`.
+
+    Returns
+    -------
+    list of :class:`~dopplertof.tracing.sink.PhasorGrid`: the spec's frequencies in runs of
+    at most :data:`FREQUENCIES_PER_KERNEL`, each with every beat.
+    """
+    from ..tracing.sink import PhasorGrid
+
+    first = round(spec.frequencies_hz[0] / spec.step_hz)
+    n = spec.frequencies_hz.size
+    return [
+        PhasorGrid(first + j, min(FREQUENCIES_PER_KERNEL, n - j), spec.step_hz, spec.beats, spec.doppler, spec.slopes)
+        for j in range(0, n, FREQUENCIES_PER_KERNEL)
+    ]  # fmt: skip
+
+
+def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int, probes: bool = False) -> None:
+    """Refuse a record that needs more than the available memory.
+
+    Parameters
+    ----------
+    spec : :class:`RecordSpec`.
+    width, height : int, pixels. The film.
+    n_windows : int. Exposure windows recorded.
+    probes : bool. Recorded through probe cameras (:func:`by_probes`). Default False.
 
     Raises
     ------
     ValueError
-        The record does not fit in the available memory.
+        Where the record's complex64 arrays and, while it is rendered, the Float64
+        per-pixel sums of one kernel's grid per window (with ``probes``: every probe side
+        until their differences are taken) exceed the available memory.
     """
     from ..render import available_memory_bytes
 
-    arrays = len(_sides(spec)) + len(_derived_of(spec))  # every side is held until the derived arrays are made
-    need = width * height * n_windows * (8 * arrays * spec.frequencies_hz.size * len(spec.beats) + 4)
+    grid = spec.frequencies_hz.size * len(spec.beats)
+    if probes:
+        need = width * height * n_windows * (8 * (len(_sides(spec)) + len(_derived_of(spec))) * grid + 4)
+    else:
+        need = width * height * n_windows * (spec.bytes_per_pixel() + 8 * kernel_grids(spec)[0].channels)
     available = available_memory_bytes()
     if available is not None and need > available:
         raise ValueError(
@@ -444,38 +531,130 @@ def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int) -> N
         )  # fmt: skip
 
 
-def record_scene(scene, settings, spec: RecordSpec) -> Record:
-    """Render the record of ``scene`` for the windows of ``settings`` (same seed, same paths).
-
-    The probe cameras of every window are traced in chunks of ``spec.cameras_per_render``;
-    each chunk holds the same number of every window's probes, in the windows' order, so
-    each window keeps its seed (:func:`dopplertof.tracing.lanes.window_seed`). A Ctrl-C
-    raises KeyboardInterrupt: there is no partial record.
+def first_grid(spec: RecordSpec, settings):
+    """The grid a render accumulates in its own passes.
 
     Parameters
     ----------
-    scene : DynamicScene
-    settings : RenderSettings
-        Its windows, seed and spp.
-    spec : RecordSpec
+    spec : :class:`RecordSpec`.
+    settings : RenderSettings of the render.
 
     Returns
     -------
-    Record
+    :class:`~dopplertof.tracing.sink.PhasorGrid` (the first of :func:`kernel_grids`), or
+    None where the render records through probe cameras (:func:`by_probes`).
 
     Raises
     ------
     ValueError
-        The record does not fit in memory.
+        For ``window_slopes`` with probe cameras.
+    """
+    if not by_probes(settings):
+        return kernel_grids(spec)[0]
+    if spec.window_slopes:
+        raise ValueError("record: window_slopes needs the single-path tracer; the paired tracers (correlation reconnection or adaptive, analytic time sampling) record through probe cameras")
+    return None
+
+
+def record_scene(scene, settings, spec: RecordSpec, rendered) -> Record:
+    """The record of ``scene`` for the windows of ``settings`` (same seed, same paths).
+
+    Each further grid of :func:`kernel_grids` traces the windows' finished passes again,
+    and ``window_slopes`` four variants of each window. Renders that :func:`by_probes`
+    record through probe cameras instead (:func:`_record_by_probes`).
+
+    Parameters
+    ----------
+    scene : DynamicScene, the render's.
+    settings : RenderSettings, the render's.
+    spec : :class:`RecordSpec`.
+    rendered : what :func:`dopplertof.render` traced: (settings of each window, per window
+        (the Float64 sums of the first grid, :attr:`~dopplertof.passes.Accumulator.record_sum`;
+        the samples per pixel; the passes done), the passes, the result's maps).
+
+    Returns
+    -------
+    :class:`Record`.
+
+    Raises
+    ------
     KeyboardInterrupt
-        On Ctrl-C.
+        A Ctrl-C: there is no partial record.
+    """
+    if by_probes(settings):
+        return _record_by_probes(scene, settings, spec)
+    window_settings, recorded, passes, maps = rendered
+    width, height = scene.resolution
+    grids = kernel_grids(spec)
+    shape = (len(window_settings), spec.frequencies_hz.size, len(spec.beats), height, width)
+    arrays = {name: np.zeros(shape, np.complex64) for name in ("phasors", *_derived_of(spec))}
+    luminance = np.zeros(shape[:1] + shape[3:], np.float32)
+    luminance_slopes = np.zeros((2, *luminance.shape), np.float32) if spec.window_slopes else None
+    for w, (window, (first_sums, samples, done)) in enumerate(zip(window_settings, recorded)):
+        j0 = 0
+        for g, grid in enumerate(grids):
+            luminance[w], parts = _unpack(grid, first_sums if g == 0 else _traced_sums(scene, window, grid, passes[:done]), samples, (height, width))
+            for name, part in parts.items():
+                arrays[name][w, j0 : j0 + grid.count] = part
+            if spec.window_slopes:
+                step = WINDOW_STEP * window.exposure_s
+                start, exposure = window.exposure_start, window.exposure_s
+                values = dataclasses.replace(grid, slopes=False)  # R and R₁ only
+                for k, kind in enumerate(("exposure", "start")):
+                    moved = [_moved(window, exposure + d, start) if kind == "exposure" else _moved(window, exposure, start + d) for d in (step, -step)]
+                    ends = [_unpack(values, _traced_sums(scene, m, values, passes[:done]), samples, (height, width)) for m in moved]
+                    luminance_slopes[k, w] = (ends[0][0] - ends[1][0]) / (2 * step)
+                    for name in values.quantities:
+                        target = f"{kind}_slopes" if name == "phasors" else f"{kind}_moment_slopes"
+                        arrays[target][w, j0 : j0 + grid.count] = (ends[0][1][name] - ends[1][1][name]) / (2 * step)
+            j0 += grid.count
+    maps = {k: v for k, v in maps.items() if not k.startswith("measurement") and k != "raw"}
+    windows = tuple((w.start_s, w.exposure_s) for w in settings.windows)
+    info = {"kernels": len(grids), "frequencies_per_kernel": FREQUENCIES_PER_KERNEL}
+    spp = int(min(samples.min() for _, samples, _ in recorded))
+    return Record(arrays.pop("phasors"), luminance, spec, windows, settings.replace(cameras=()), maps, spp, info, luminance_slopes=luminance_slopes, **arrays)
+
+
+def _traced_sums(scene, window, grid, passes) -> np.ndarray:
+    """(channels, pixels) sums of ``grid``'s per-lane values over ``passes`` of ``window``
+    (its settings: cameras, start, seed) traced again."""
+    from ..passes import PassTracer
+
+    width, height = scene.resolution
+    tracer, sums = PassTracer(scene, window, grid), np.zeros((grid.channels, width * height))
+    for p in passes:
+        sums[:, p.pixel_start : p.pixel_start + p.n_pixels] += tracer(p)["record"]
+    return sums
+
+
+def _unpack(grid, sums, samples, shape):
+    """(Ī (H, W), {quantity: (count, beats, H, W) complex}) of ``grid``'s sums over
+    ``samples`` lanes per pixel (:meth:`~dopplertof.tracing.sink.PhasorGrid.lane_values`),
+    in Float64: the window slopes difference them before the record rounds them."""
+    means = sums / samples
+    parts = means[1:].reshape(len(grid.quantities), grid.count, len(grid.beats), 2, *shape)
+    return means[0].reshape(shape), {name: parts[q, :, :, 0] + 1j * parts[q, :, :, 1] for q, name in enumerate(grid.quantities)}
+
+
+def _moved(window, exposure_s, start_s):
+    """``window``'s settings (same seed: same random numbers) with its exposure window moved
+    to [``start_s``, ``start_s`` + ``exposure_s``] (s)."""
+    cameras = tuple(dataclasses.replace(c, exposure=exposure_s, exposure_start=start_s) for c in window.cameras)
+    return dataclasses.replace(window, cameras=cameras, exposure_start=start_s)
+
+
+def _record_by_probes(scene, settings, spec: RecordSpec) -> Record:
+    """The record rendered as probe cameras (for the paired tracers, :func:`by_probes`).
+
+    The probe cameras of every window are traced in chunks of ``spec.cameras_per_render``;
+    each chunk holds the same number of every window's probes, in the windows' order, so
+    each window keeps its seed (:func:`dopplertof.tracing.lanes.window_seed`).
     """
     from ..render import render
 
     windows = [(w.start_s, w.exposure_s) for w in settings.windows]
     width, height = scene.resolution
     n_freq, n_beats = spec.frequencies_hz.size, len(spec.beats)
-    check_memory(spec, width, height, len(windows))
     phasors = np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64)
     # complex64 holds the float32 maps exactly; their difference is exact (Sterbenz) where they are close
     sides = {side: np.zeros((len(windows), n_freq, n_beats, height, width), np.complex64) for side in _sides(spec) if side != (0, 0)}
@@ -550,7 +729,8 @@ def harmonics(camera: Camera, where: str) -> tuple[float, list[tuple[int, comple
         terms = [(m, complex(camera.g1 * k[m])) for m in range(1, k.size) if abs(k[m]) > NEGLIGIBLE_HARMONIC * scale]
         return float(camera.g1 * k[0].real + camera.g0 * camera.sensor_mean), terms
     if camera.waveform != "sinusoidal":
-        raise ValueError(f"{where}: the {camera.waveform} waveform has unbounded harmonics; use the sinusoid or a band-limited code (light_bandwidth)")
+        hint = "give it the source's light_bandwidth (within the record's band)" if camera.waveform in NAMED_CODES else "use the sinusoid or a band-limited code (light_bandwidth)"
+        raise ValueError(f"{where}: the {camera.waveform} waveform has unbounded harmonics; {hint}")
     return 0.0, [(1, complex(0.5 * camera.g1))]
 
 
@@ -584,30 +764,31 @@ def readout_terms(record: Record, camera: Camera, where: str = "camera") -> tupl
     return w, constant, located
 
 
-def measure(record: Record, camera: Camera, where: str = "camera") -> np.ndarray:
-    """The measurement (H, W) of ``camera`` read out of ``record`` (module docstring).
+def measure(record: Record, camera: Camera, where: str = "camera", dtype=np.float64) -> np.ndarray:
+    """The measurement of ``camera`` read out of ``record`` (module docstring).
 
     Parameters
     ----------
-    record : Record
-    camera : Camera
-    where : str, default ``"camera"``
-        Named in errors.
+    record : :class:`Record`.
+    camera : :class:`~dopplertof.Camera`.
+    where : str. What error messages name. Default ``"camera"``.
+    dtype : numpy dtype. float64 (default), or float32 as a render gives it.
 
     Returns
     -------
-    ndarray
-        (H, W) float64, in the units of ``RenderResult.measurements``.
+    ndarray (H, W) of ``dtype``.
 
     Raises
     ------
     ValueError
-        The record does not hold the camera's window, frequency or beat.
+        Naming ``where``, for what the record does not hold.
     """
     w, constant, terms = readout_terms(record, camera, where)
-    out = constant * record.luminance[w].astype(np.float64)
+    out = np.multiply(record.luminance[w], constant, dtype=dtype)
     for _, coefficient, j, b in terms:
-        out += (coefficient * record.phasors[w, j, b]).real
+        # Re(a R) = (Re R, Im R) · (Re a, −Im a): one matrix-vector product over the pixels
+        pairs = record.phasors[w, j, b].view(np.float32).reshape(-1, 2)
+        out += (pairs @ np.array([coefficient.real, -coefficient.imag], dtype)).reshape(out.shape)
     return out
 
 
@@ -642,8 +823,8 @@ def evaluate(record: Record, sensor):
         cameras, sensor = list(sensor), None
     else:
         raise ValueError(f"evaluate: 'sensor' must be a dopplertof.Sensor or a list of dopplertof.Camera, got {sensor!r}")
-    measurements = np.stack([measure(record, c, f"camera {i} ({c.label()})") for i, c in enumerate(cameras)])
-    maps = dict(record.maps, measurements=measurements.astype(np.float32))
+    measurements = np.stack([measure(record, c, f"camera {i} ({c.label()})", np.float32) for i, c in enumerate(cameras)])
+    maps = dict(record.maps, measurements=measurements)
     if sensor is not None:
         maps["raw"] = sensor.raw(measurements)
     settings = record.settings.replace(cameras=tuple(cameras))

@@ -172,52 +172,93 @@ def _check_size(sweeps):
         raise ValueError(f"the sweep has {total} points, more than {MAX_SWEEP_POINTS}; use fewer values")
 
 
-def objective_value(record, sensor, objective: str) -> float:
-    """The mean bound (:data:`OBJECTIVES`) over the moving pixels where it is finite.
+def as_records(records) -> list:
+    """The records of a design as a list.
 
     Parameters
     ----------
-    record : Record
-    sensor : Sensor
-    objective : str
-        One of :data:`OBJECTIVES`.
+    records : :class:`~dopplertof.design.Record`, or a list or tuple of them (the scenes).
 
     Returns
     -------
-    float
+    list of Record, not empty.
 
     Raises
     ------
     ValueError
-        An unknown objective.
+        For an empty list.
+    """
+    records = list(records) if isinstance(records, (list, tuple)) else [records]
+    if not records:
+        raise ValueError("design: no record (give at least one scene)")
+    return records
+
+
+def summary(records, sensor) -> dict:
+    """The bounds' summary averaged over the scenes of a design.
+
+    Parameters
+    ----------
+    records : Record or list of Record (:func:`as_records`).
+    sensor : :class:`dopplertof.Sensor`.
+
+    Returns
+    -------
+    dict: ``velocity_crb_mean``, ``velocity_crb_median`` (m/s), ``depth_crb_mean``,
+    ``depth_crb_median`` (m): each scene's (over its moving pixels,
+    :meth:`~dopplertof.design.precision.Precision.summary`) averaged, every scene weighing
+    the same; ``moving_pixels``: their sum.
+    """
+    summaries = [crb(r, sensor).summary() for r in as_records(records)]
+    out = {k: float(np.mean([x[k] for x in summaries])) for k in summaries[0] if k != "moving_pixels"}
+    out["moving_pixels"] = int(sum(x["moving_pixels"] for x in summaries))
+    return out
+
+
+def objective_value(records, sensor, objective: str) -> float:
+    """The design's objective for ``sensor``.
+
+    Parameters
+    ----------
+    records : Record or list of Record (:func:`as_records`).
+    sensor : :class:`dopplertof.Sensor`.
+    objective : str. One of :data:`OBJECTIVES`.
+
+    Returns
+    -------
+    float (m/s or m): the mean bound over the moving pixels where it is finite, averaged
+    over the scenes (:func:`summary`).
+
+    Raises
+    ------
+    ValueError
+        For an unknown objective, or what the records cannot read out.
     """
     if objective not in OBJECTIVES:
         raise ValueError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}")
-    return crb(record, sensor).summary()[f"{objective}_mean"]
+    return summary(records, sensor)[f"{objective}_mean"]
 
 
-def sweep(record, sensor, sweeps, objective: str = "velocity_crb") -> list[dict]:
-    """One row per combination of the sweeps' values: the values, ``objective`` (NaN and
-    ``status`` = the reason where the chip refuses the variant) and the mean and median
-    bounds.
+def sweep(records, sensor, sweeps, objective: str = "velocity_crb") -> list[dict]:
+    """The objective on every combination of the sweeps' values.
 
     Parameters
     ----------
-    record : Record
-    sensor : Sensor
-    sweeps : list of tuple of (str, ndarray)
-        As :func:`parse_sweep` gives them.
-    objective : str, default ``"velocity_crb"``
-        One of :data:`OBJECTIVES`.
+    records : Record or list of Record (:func:`as_records`): the scenes.
+    sensor : :class:`dopplertof.Sensor`. The sensor the variants are made of (:func:`variant`).
+    sweeps : list of (key, values) (:func:`parse_sweep`).
+    objective : str. One of :data:`OBJECTIVES`. Default ``"velocity_crb"``.
 
     Returns
     -------
-    list of dict
+    list of dict, one per combination: the values, ``objective`` (NaN and ``status`` = the
+    reason where the chip refuses the variant, else ``"ok"``) and the mean and median
+    bounds, averaged over the scenes (:func:`summary`).
 
     Raises
     ------
     ValueError
-        Too many sweep points, or an unknown objective.
+        For a grid of more than :data:`MAX_SWEEP_POINTS` points.
     """
     _check_size(sweeps)
     keys = [k for k, _ in sweeps]
@@ -229,52 +270,48 @@ def sweep(record, sensor, sweeps, objective: str = "velocity_crb") -> list[dict]
         except ValueError as exc:
             rows.append({**row, "objective": float("nan"), "status": f"refused: {exc}"})
             continue
-        summary = crb(record, candidate).summary()
-        rows.append({**row, "objective": summary[f"{objective}_mean"], **summary, "status": "ok"})
+        values = summary(records, candidate)
+        rows.append({**row, "objective": values[f"{objective}_mean"], **values, "status": "ok"})
     return rows
 
 
-def optimize(record, sensor, keys, objective: str = "velocity_crb", *, iterations: int = 50):
-    """Minimise ``objective`` over ``keys`` (:data:`OPTIMIZE_KEYS`) from ``sensor``'s values.
+def optimize(records, sensor, keys, objective: str = "velocity_crb", *, iterations: int = 50):
+    """Minimise the objective over ``keys`` from ``sensor``'s values.
 
     Parameters
     ----------
-    record : Record
-    sensor : Sensor
-        The starting point.
-    keys : sequence of str
-        Keys of :data:`OPTIMIZE_KEYS`.
-    objective : str, default ``"velocity_crb"``
-        One of :data:`OBJECTIVES`.
-    iterations : int, default 50
-        Steps at most.
+    records : Record or list of Record (:func:`as_records`): the scenes; the objective is
+        averaged over them (:func:`summary`), the phase gradient too.
+    sensor : :class:`dopplertof.Sensor`. The start.
+    keys : list of str. Of :data:`OPTIMIZE_KEYS`.
+    objective : str. One of :data:`OBJECTIVES`. Default ``"velocity_crb"``.
+    iterations : int. At most this many steps. Default 50.
 
     Returns
     -------
-    tuple of (Sensor, list of dict)
-        The best sensor, and the history: one dict per step with the values and the
-        objective.
+    (best sensor, history): history holds one dict per step with the values and the
+    objective.
 
     Raises
     ------
     ValueError
-        Keys outside :data:`OPTIMIZE_KEYS`, or an unknown objective.
+        For unknown keys.
     """
     from .gradient import gradient
 
     unknown = [k for k in keys if k not in OPTIMIZE_KEYS]
     if unknown or not keys:
         raise ValueError(f"--optimize: choose keys among {', '.join(OPTIMIZE_KEYS)}, got {list(keys)!r}")
-    best, best_value = sensor, objective_value(record, sensor, objective)
+    best, best_value = sensor, objective_value(records, sensor, objective)
     history = [_state(best, best_value)]
     for _ in range(iterations):
         improved = False
         if "modulation_frequency" in keys:
-            candidate, value = _frequency_step(record, best, best_value, objective)
+            candidate, value = _frequency_step(records, best, best_value, objective)
             if value < best_value:
                 best, best_value, improved = candidate, value, True
         if "phase" in keys:
-            candidate, value = _phase_step(record, best, best_value, objective, gradient)
+            candidate, value = _phase_step(records, best, best_value, objective, gradient)
             if value < best_value * (1 - 1e-9):
                 best, best_value, improved = candidate, value, True
         history.append(_state(best, best_value))
@@ -287,10 +324,10 @@ def _state(sensor, value):
     return {"objective": value, "modulation_frequency": sensor.frames[0].modulation_frequency, "phases": [f.phase for f in sensor.frames]}
 
 
-def _frequency_step(record, sensor, value, objective):
+def _frequency_step(records, sensor, value, objective):
     """The best of the grid frequencies at ±1, ±2, ±4, … grid steps from the current one
-    (within the record and the chip's range), or the current one."""
-    grid = record.spec.frequencies_hz
+    (within the records, which share one grid, and the chip's range), or the current one."""
+    grid = as_records(records)[0].spec.frequencies_hz
     f0 = sensor.frames[0].modulation_frequency
     here = int(np.argmin(np.abs(grid - f0)))
     best, best_value = sensor, value
@@ -300,7 +337,7 @@ def _frequency_step(record, sensor, value, objective):
             if 0 <= index < grid.size:
                 try:
                     candidate = variant(sensor, {"modulation_frequency": grid[index]})
-                    v = objective_value(record, candidate, objective)
+                    v = objective_value(records, candidate, objective)
                 except ValueError:
                     continue  # outside the chip's range, or a harmonic beyond the record
                 if v < best_value:
@@ -309,10 +346,12 @@ def _frequency_step(record, sensor, value, objective):
     return best, best_value
 
 
-def _phase_step(record, sensor, value, objective, gradient):
-    """One gradient step on the frames' phases with a backtracking line search."""
-    g = gradient(record, sensor, objective, [("phase", i) for i in range(len(sensor.frames))])
-    direction = np.array([g.by_parameter[("phase", i)] for i in range(len(sensor.frames))])
+def _phase_step(records, sensor, value, objective, gradient):
+    """One gradient step on the frames' phases (the gradient averaged over the scenes) with
+    a backtracking line search."""
+    phases = [("phase", i) for i in range(len(sensor.frames))]
+    by_scene = [gradient(r, sensor, objective, phases).by_parameter for r in as_records(records)]
+    direction = np.array([np.mean([g[p] for g in by_scene]) for p in phases])
     norm = np.linalg.norm(direction)
     if norm == 0:
         return sensor, value
@@ -321,7 +360,7 @@ def _phase_step(record, sensor, value, objective, gradient):
         frames = [dataclasses.replace(f, phase=f.phase - step * d) for f, d in zip(sensor.frames, direction)]
         try:
             candidate = dataclasses.replace(sensor, frames=frames)
-            v = objective_value(record, candidate, objective)
+            v = objective_value(records, candidate, objective)
         except ValueError:
             v = math.inf
         if v < value:

@@ -261,13 +261,14 @@ class Sensor:
         ValueError
             ``measurements`` of another shape.
         """
-        m = np.asarray(measurements, dtype=np.float64)
+        # clipped electrons are float32: computing them so halves the memory traffic
+        m = np.asarray(measurements, dtype=np.float32 if clip else np.float64)
         n_frames, windows = len(self.frames), self._windows()
         expected = self.frame_cameras + len(windows)
         if m.ndim < 1 or m.shape[0] != expected:
             raise ValueError(f"Sensor.raw: expected the {expected} measurements of Sensor.cameras(), got shape {m.shape}")
         mean_luminance = m[self.frame_cameras:]
-        raw = np.empty((n_frames, self.taps, *m.shape[1:]))
+        raw = np.empty((n_frames, self.taps, *m.shape[1:]), m.dtype)
         for index, frame in enumerate(self.frames):
             kappa_t = self.noise.electrons_per_unit_s * frame.exposure
             contrast = self.noise.contrast(frame.modulation_frequency)
@@ -277,7 +278,7 @@ class Sensor:
         if not clip:
             return raw
         # A noisy render can make |M| exceed D where little light arrives: no charge is negative.
-        return np.maximum(raw, 0.0).astype(np.float32)
+        return np.maximum(raw, 0.0, out=raw)
 
     def with_signal(self, measurements, electrons: float, percentile: float = 99.0) -> "Sensor":
         """This sensor with its silicon's radiance scale (``radiance_unit``) set so that all

@@ -58,6 +58,9 @@ class LaneSetup:
         The exposure window.
     seed : int
         The window's seed, in [0, 2³²).
+    grid : PhasorGrid or None
+        A response record's frequencies (:class:`dopplertof.tracing.sink.PhasorGrid`) the pass
+        accumulates; default None.
     """
 
     width: int
@@ -72,6 +75,7 @@ class LaneSetup:
     exposure_start_s: float
     exposure_s: float
     seed: int
+    grid: object = None  # a response record's PhasorGrid (tracing.sink) the pass accumulates, or None
 
     @property
     def n_groups(self) -> int:

@@ -303,4 +303,4 @@ def trace_pair(scene, settings, setup, tables):
         active2 = next2
         tracing = active1 | active2 if analytic else active1
 
-    return Sink.outputs(state, truth, hits, label)
+    return sink.outputs(state, truth, hits, label)

@@ -75,7 +75,7 @@ def trace(scene, settings, setup, tables):
     )  # fmt: skip
     ray, x0 = place_camera_ray(scene, ray, x0, time_s)
     hit = first_hit(scene, ray, time_s, poses, settings.hide_emitters)
-    sink = Sink(settings.cameras)
+    sink = Sink(settings.cameras, setup.grid)
     bank = sink.bank(u)
     precise = sink.needs_length
     length, x, depth_m = extend(scene, poses64, hit, x0, ray.d, mi.Float64(0), mi.Float(1), True, precise)
@@ -145,4 +145,4 @@ def trace(scene, settings, setup, tables):
         depth += 1
         active = go_on
 
-    return Sink.outputs(state, truth, dr.select(hit_mask, mi.Float(1), 0.0), label)
+    return sink.outputs(state, truth, dr.select(hit_mask, mi.Float(1), 0.0), label, u)
