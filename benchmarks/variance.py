@@ -16,9 +16,9 @@ Definitions:
 * time sampling: every method draws *pairs* of times (``n_times=2``; the render defaults
   otherwise: antithetic shift ½, mirror shift 0, per-interval stratification on), so
   ``uniform`` x ``replay`` means two independent times that replay the same path;
-  ``uniform`` x ``none`` is plain independent sampling. Renders use the default
-  replicates, whose interleaved strata stratify each interval over all of a pixel's
-  groups (``dopplertof.timesampling``);
+  ``uniform`` x ``none`` is plain independent sampling. Renders use 2 replicates per pixel
+  (``dopplertof.experiments.common.SWEEP_REPLICATES``, as the ``experiment`` sweeps), so
+  each interval is stratified over half a pixel's groups rather than over 1/16 of them;
 * reference: one render with antithetic + replay at ``--ref-spp`` and a seed no test
   render uses. Its own variance (mean of its squared standard errors over the region) is
   **subtracted** from the raw mean squared difference, so that MSE estimates the error
@@ -60,6 +60,7 @@ import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets th
 
 import _common
 from _common import CAMERA_GRID, diffuse, paired_times, transform
+from dopplertof.experiments.common import SWEEP_REPLICATES
 
 SCENE_NAMES = ("cornell-box", "rotating")
 HETERODYNES = (0.0, 0.5, 1.0)
@@ -117,7 +118,7 @@ def moving_mask(reference):
 
 def render_config(scene, cameras, method, correlation, spp, seed, max_depth):
     return dopplertof.render(
-        scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth,
+        scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth, replicates=SWEEP_REPLICATES,
         correlation=correlation, **paired_times(method),
     )
 
@@ -331,7 +332,7 @@ def main(argv=None):
     settings = (
         f"settings: {args.resolution}x{args.resolution}, {args.spp} spp x {args.repeats} seeds per configuration, "
         f"reference {REFERENCE[0]} + {REFERENCE[1]} {args.ref_spp} spp (seed {REFERENCE_SEED}, variance subtracted), "
-        f"max_depth {args.max_depth}, pairs of times (shifts 0.5 / mirror 0, stratified intervals)"
+        f"max_depth {args.max_depth}, pairs of times (shifts 0.5 / mirror 0, stratified intervals, {SWEEP_REPLICATES} replicates)"
     )
     run = _common.Run("variance", args, argv, settings, f"correlation MODES: {', '.join(MODES)}")
     rows = [row for name in args.scenes for row in bench_scene(name, args, run.log)]

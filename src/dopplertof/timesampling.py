@@ -3,28 +3,24 @@
 Samples of a pixel come in groups of ``N`` correlated times (an antithetic pair is N = 2);
 ``spp`` counts paths, so a pixel has ``G = spp / N`` groups. Sample ``s`` is member
 ``m = s mod N`` of group ``g = s // N``. The groups form R independent *replicates*
-(contiguous runs of groups, :mod:`dopplertof.tracing.lanes`) whose means' spread gives
-the standard errors. Per-interval stratification spreads an interval over all G strata of
-the pixel, the replicates *interleaved*: the j-th group of replicate ρ takes stratum
-j·R + ρ, so each replicate holds every R-th stratum (its own jitter, independent of the
-others') and the pixel's whole sample set is stratified however many replicates it has.
-Each strategy is a function of
+(contiguous runs of groups, :mod:`dopplertof.tracing.lanes`), each stratified on its own,
+so that the spread of the replicate means gives honest standard errors. Each strategy is
+a function of
 
 * ``r_shared``: a uniform number shared by the whole group,
 * ``r_own``: a uniform number of this sample alone,
-* the group's index j in its replicate ρ (of R), ``m``, ``N``, and a per-(pixel, member,
-  replicate) rotation.
+* ``g``, ``m``, ``G``, ``N`` and a per-(pixel, member) permutation key.
 
 =====================  ==============================================================
 name                   times of the members of a group
 =====================  ==============================================================
 ``uniform``            independent: u = r_own
-``stratified``         u = (m + r)/N; with ``stratify_intervals``
-                       r = (π_m(j)·R + ρ + r_own)/G, a per-interval stratification over
-                       the pixel's G groups (π_m a random cyclic permutation of the
-                       replicate's groups per pixel, interval and replicate), else r = r_own
+``stratified``         u = (m + r)/N; with ``stratify_intervals`` r = (π_m(j) + r_own)/S,
+                       a per-interval stratification over the S groups of the lane's
+                       replicate (j the group's index there, π_m a random cyclic
+                       permutation per pixel, interval and replicate), else r = r_own
 ``antithetic``         u_m = frac(r + m·a) for N = 2 (shift ``a``, default ½), or
-                       frac(r + m/N) for N > 2; r = (j·R + ρ + r_shared)/G with
+                       frac(r + m/N) for N > 2; r = (j + r_shared)/S with
                        ``stratify_intervals`` else r_shared
 ``antithetic_mirror``  N = 2: u_0 = r, u_1 = frac(1 − r + a)
 ``analytic``           N = 2: u_0 = 0, u_1 = 1, integrated in closed form between them
@@ -47,18 +43,16 @@ def _frac(x):
     return x - dr.floor(x)
 
 
-def sample_times(method, r_shared, r_own, stratum, n_strata, member, n_times, shift, stratify_intervals, rotation, replicate, n_replicates, n_groups):
+def sample_times(method, r_shared, r_own, stratum, n_strata, member, n_times, shift, stratify_intervals, rotation):
     """Normalised times (``mi.Float64``) for each lane; see the module table.
 
     ``r_shared``/``r_own`` are ``mi.Float`` uniforms; ``stratum`` (``mi.UInt32``) is the
-    group's index j among the ``n_strata`` groups (per-lane ``mi.UInt32``) of its
-    replicate ρ (``replicate``, ``mi.UInt32``) of ``n_replicates`` R; ``n_groups`` G the
-    pixel's groups, whose strata the replicates interleave (module docstring); ``member``
-    (``mi.UInt32``) its index in the group; ``rotation`` a uniform per (pixel, member,
-    replicate) that rotates the strata of a member's interval within the replicate (a
-    random cyclic permutation: each interval stays stratified while the members' strata
-    decorrelate). Counts and shifts are opaque data, so another spp or shift reuses the
-    kernel.
+    group's index among the ``n_strata`` groups (per-lane ``mi.UInt32``) of its replicate,
+    which are stratified together; ``member`` (``mi.UInt32``) its index in the group;
+    ``rotation`` a uniform per (pixel, member, replicate) that rotates the strata of a
+    member's interval (a random cyclic permutation: each interval stays stratified while
+    the members' strata decorrelate). Counts and shifts are opaque data, so another spp
+    or shift reuses the kernel.
     """
     import drjit as dr
     import mitsuba as mi
@@ -66,23 +60,18 @@ def sample_times(method, r_shared, r_own, stratum, n_strata, member, n_times, sh
     F = mi.Float64
     m = F(member)
     strata = F(n_strata)
-
-    def interleaved(j, jitter):
-        """Stratum j·R + ρ of the pixel's G, jittered: replicate ρ holds every R-th stratum."""
-        return (j * F(n_replicates) + F(replicate) + F(jitter)) / F(n_groups)
-
     if method == "uniform":
         u = F(r_own)
     elif method == "stratified":
         if stratify_intervals:
             rotated = F(stratum) + dr.floor(F(rotation) * strata)
             rotated = dr.select(rotated >= strata, rotated - strata, rotated)
-            r = interleaved(rotated, r_own)
+            r = (rotated + F(r_own)) / strata
         else:
             r = F(r_own)
         u = (m + r) / n_times
     else:
-        r = interleaved(F(stratum), r_shared) if stratify_intervals else F(r_shared)
+        r = (F(stratum) + F(r_shared)) / strata if stratify_intervals else F(r_shared)
         step = F(shift if n_times == 2 else 1.0 / n_times)
         dr.make_opaque(step)
         if method == "antithetic":

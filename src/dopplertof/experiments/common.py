@@ -45,6 +45,15 @@ SWEEP_CAMERA_LANES = 1 << 27
 render of many cameras (220 for four waveforms × 11 h × 5 ψ) at the default 2 M lanes per
 pass took 3.4× as long and 2.5× the memory as at 0.5 M (64², 512 spp, measured)."""
 
+SWEEP_REPLICATES = 2
+"""Replicates per pixel of the sweeps' renders (the render default is 16). Per-interval
+stratification spreads a pixel's times over the groups of one replicate
+(:mod:`dopplertof.tracing.lanes`), so 16 replicates of a 64-spp render stratify each
+interval in only 2 strata, too few for mirrored sampling, whose pair mean at h = 1 varies
+as cos 2πt, to gain anything. The original scripts stratify over all spp/2 groups of a
+render; 2 replicates stratify over half of them and still give an unbiased image-average
+standard error (``stderr_rms``), which is all the sweeps use."""
+
 _DEFAULT_SHIFT = {"antithetic": 0.5, "antithetic_mirror": 0.0}
 """The original scripts' antithetic shift per method (a = T/2, and the plain mirror 1 − t)."""
 

@@ -30,11 +30,11 @@ from typing import Sequence
 import numpy as np
 
 from .. import io, viz
-from ..settings import FIELDS
 from .common import (
     Echo,
     Estimator,
     ExperimentScene,
+    SWEEP_REPLICATES,
     ReferenceCache,
     camera_grid,
     check_spp,
@@ -83,9 +83,7 @@ class SweepSettings:
     max_depth : int
         Path depth.
     replicates : int
-        Replicates per pixel of every render (default: the render default). They take
-        interleaved strata of one stratification (:mod:`dopplertof.timesampling`), so
-        their number does not change how well a pixel's times are stratified.
+        Replicates per pixel of every render (default :data:`~.common.SWEEP_REPLICATES`).
     waveforms : tuple of str
         The cameras' waveforms, all in the same renders (default: the scene's camera's).
     """
@@ -96,7 +94,7 @@ class SweepSettings:
     reference_spp: int
     seed: int
     max_depth: int
-    replicates: int = FIELDS["replicates"].default
+    replicates: int = SWEEP_REPLICATES
     waveforms: tuple = ()
 
     def __post_init__(self):

@@ -17,11 +17,9 @@ traced with seeds of their own (:func:`window_seed`), so their estimates are ind
 the first window keeps the render's seed.
 
 Replicates: the G = spp / N groups of a pixel are split into R contiguous runs of nearly
-equal size (:func:`replicate_layout`); with per-interval stratification the runs take
-interleaved strata of the pixel's one stratification (run ρ every R-th stratum, from ρ:
-:mod:`dopplertof.timesampling`), each with jitters of its own, so the R run means are
-independent and their spread is the standard error, while the pixel's whole sample set is
-stratified.
+equal size (:func:`replicate_layout`); each run is stratified over its own groups
+(:mod:`dopplertof.timesampling`), so the R run means are independent and their spread
+is an honest standard error even where stratification makes groups dependent.
 """
 
 from __future__ import annotations
@@ -175,7 +173,7 @@ def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared
     rotation = seeded_pcg(seed, STREAM_ROTATION, pixel, replicate * setup.n_times + member).next_float32()
     return sample_times(
         settings.time_sampling, r_shared, r_own, index, n_strata, mi.UInt32(member), setup.n_times,
-        settings.shift, settings.stratify_intervals, rotation, replicate, opaque_u32(setup.layout[0]), opaque_u32(setup.n_groups),
+        settings.shift, settings.stratify_intervals, rotation,
     )  # fmt: skip
 
 
