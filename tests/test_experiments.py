@@ -392,10 +392,10 @@ def test_full_correlation_costs_about_root_two_at_h_0(cache_dir):
     counts as one sample (RMSE × √2 against independent paths at equal paths and time; the
     paper: 1.3-1.6×), at ω_r = 1 the static part cancels. This is the cost that no
     correlation policy measured in ``benchmarks/correlation_policy.py`` removes without
-    losing more at ω_r = 1 (docs/estimators.md, "Correlation at ω_r = 0").
+    losing more at ω_r = 1 (docs/estimators.md, "Measured: path correlation for homodyne cameras").
 
-    Measured over seeds 0-5 (mean ± std of one seed): replay ÷ none 1.43 ± 0.096 at
-    ω_r = 0 and 0.127 ± 0.010 at ω_r = 1. The test averages seeds 0 and 1 (± 0.068 at
+    Measured over seeds 0-5 (mean ± std of one seed): replay ÷ none 1.43 ± 0.092 at
+    ω_r = 0 and 0.136 ± 0.013 at ω_r = 1. The test averages seeds 0 and 1 (± 0.065 at
     ω_r = 0): each bound is at least 4 standard deviations away."""
     ratios = np.mean([_correlation_ratios(seed, ReferenceCache(cache_dir)) for seed in (0, 1)], axis=0)
     assert 1.15 < ratios[0] < 1.75, ratios
