@@ -10,7 +10,7 @@ measures, with the paper-fig12 protocol (every camera h ∈ linspace(0, 1, 11) �
 against the cached 131 072-spp reference, averaged over ψ), the policies that could avoid
 that loss with all cameras in one render::
 
-    python benchmarks/correlation_policy.py            # cornell-box and rotating, 32², 1024 spp, 3 timed repeats (~10 min, 2 cores)
+    python benchmarks/correlation_policy.py            # cornell-box and rotating, 32², 1024 spp, 3 timed repeats (1 min; 10 min more if the references are not cached)
     python benchmarks/correlation_policy.py --quick    # 16², 64 spp, reference 4096 spp, 3 ω_r (< 1 min)
 
 ========================  ================================================================

@@ -373,7 +373,6 @@ def test_estimators_stratify_their_intervals_by_the_settings_default():
     assert off.render_settings()["stratify_intervals"] is False and off.label.endswith("no further stratification")
 
 
-
 def _correlation_ratios(seed, cache):
     """RMSE of antithetic/replay ÷ antithetic/none at ω_r = 0 and 1 (mean over 4 ψ), 32²
     Cornell box, 64 spp, reference 4096 spp, as the time-sampling sweep renders them."""
