@@ -371,3 +371,31 @@ def test_estimators_stratify_their_intervals_by_the_settings_default():
         assert "stratify_intervals" not in estimator.render_settings() and estimator.stratified
     off = Estimator("antithetic", "replay", stratify_intervals=False)
     assert off.render_settings()["stratify_intervals"] is False and off.label.endswith("no further stratification")
+
+
+def _correlation_ratios(seed, cache):
+    """RMSE of antithetic/replay ÷ antithetic/none at ω_r = 0 and 1 (mean over 4 ψ), 32²
+    Cornell box, 64 spp, reference 4096 spp, as the time-sampling sweep renders them."""
+    scene = open_scene("cornell-box", 32)
+    estimators = [Estimator("antithetic", c) for c in ("none", "replay")]
+    settings = sweeps.SweepSettings((0.0, 1.0), sweeps.phase_offsets(4), 64, 4096, seed, 4)
+    rows, _ = sweeps._sweep(scene, estimators, settings, cache, lambda line: None)
+    summary = common.mean_over(rows, sweeps.SUMMARY_GROUP, sweeps.METRICS)
+    rmse = {(row["correlation"], row["h"]): row["rmse_mean"] for row in summary}
+    return rmse[("replay", 0.0)] / rmse[("none", 0.0)], rmse[("replay", 1.0)] / rmse[("none", 1.0)]
+
+
+@pytest.mark.slow
+def test_full_correlation_costs_about_root_two_at_h_0(cache_dir):
+    """Replayed paths make an antithetic pair one path at two times: at ω_r = 0 the pair
+    counts as one sample (RMSE × √2 against independent paths at equal paths and time; the
+    paper: 1.3-1.6×), at ω_r = 1 the static part cancels. This is the cost that no
+    correlation policy measured in ``benchmarks/correlation_policy.py`` removes without
+    losing more at ω_r = 1 (docs/estimators.md, "Measured: path correlation for homodyne cameras").
+
+    Measured over seeds 0-5 (mean ± std of one seed): replay ÷ none 1.43 ± 0.092 at
+    ω_r = 0 and 0.136 ± 0.013 at ω_r = 1. The test averages seeds 0 and 1 (± 0.065 at
+    ω_r = 0): each bound is at least 4 standard deviations away."""
+    ratios = np.mean([_correlation_ratios(seed, ReferenceCache(cache_dir)) for seed in (0, 1)], axis=0)
+    assert 1.15 < ratios[0] < 1.75, ratios
+    assert ratios[1] < 0.3, ratios
