@@ -128,7 +128,27 @@ def test_render_until_noise_refuses_bad_input(tmp_path, args, message):
     assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], done.stderr
 
 
-def test_design_interrupted_writes_nothing_and_says_so(tmp_path):
+STATIC_SCENE = """<scene version="3.0.0">
+    <sensor type="perspective"> <float name="fov" value="40"/>
+        <transform name="to_world"> <lookat origin="0 0 4" target="0 0 0" up="0 1 0"/> </transform>
+        <film type="hdrfilm"> <integer name="width" value="8"/> <integer name="height" value="8"/> </film>
+    </sensor>
+    <emitter type="point"> <point name="position" value="0 0 4"/> <rgb name="intensity" value="10"/> </emitter>
+    <shape type="rectangle"> <bsdf type="diffuse"/> </shape>
+</scene>
+"""
+
+
+@pytest.mark.parametrize("objective", ["velocity_crb", "depth_crb"])
+def test_design_of_a_scene_where_nothing_moves_says_so(tmp_path, objective):
+    (tmp_path / "static.xml").write_text(STATIC_SCENE)
+    done = _run("design", "static.xml", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:2", "--objective", objective, "-o", "d", *FAST, cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip().splitlines()[-1] == "error: static.xml: no moving pixel (the ground-truth velocity is zero everywhere in the exposure); the design's objective is the mean bound over the moving pixels"
+
+
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_design_interrupted_writes_nothing_and_says_so(tmp_path, signame):
     import signal
     import time
 
@@ -142,8 +162,8 @@ def test_design_interrupted_writes_nothing_and_says_so(tmp_path):
     while time.time() < deadline and "rendering the record" not in process.stderr.readline():
         pass
     time.sleep(1.0)
-    process.send_signal(signal.SIGINT)
+    process.send_signal(getattr(signal, signame))
     _, stderr = process.communicate(timeout=120)
-    assert process.returncode == 130, stderr
+    assert process.returncode == 128 + getattr(signal, signame), stderr
     assert stderr.strip().splitlines()[-1] == "error: interrupted before the record was finished; nothing written"
     assert not (out / "record.npz").exists() and not (out / "sweep.csv").exists()
