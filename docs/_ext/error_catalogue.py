@@ -275,7 +275,6 @@ TOPICS = [
         ("unknown sensor preset …; choose one of …", "no preset of that name", "one of the names listed"),
         ("…: row … not in the … rows of …", "a code row index outside the code table", "a row that exists"),
         ("…: code table … not found (…)", "a `{ table = …, row = … }` code names a file that does not exist (relative to the sensor file)", "give the table's path relative to the sensor file"),
-        ("--sensor …: no such file", "`--sensor` names a `.toml` file that does not exist", "check the path"),
         ("sensor_toml: cannot write … as TOML", "a sensor setting has no TOML form", "use numbers, strings and lists"),
         ("…unknown key …", "a key the sensor file does not take", "the message suggests the closest key"),
         ("…: a code written as a dict has one key, 'samples' or 'fourier', got …", "a code in a sensor file has other keys", "`{samples = [...]}` or `{fourier = [[re, im], ...]}`"),
