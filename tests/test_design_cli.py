@@ -120,7 +120,12 @@ def test_render_until_noise_reports_the_spp_it_took(tmp_path):
     assert 0 < spp < 1024 and f"rendered cornell-box at {spp} spp" in done.stdout
 
 
-@pytest.mark.parametrize("args, message", [(["--until-noise", "0.5"], "give --sensor"), (["--sensor", "dtof-prototype", "--until-noise", "-1"], "ratio > 0")])
+def test_render_help_writes_the_until_noise_quantile_as_a_percentage():
+    done = _run("render", "--help")
+    assert done.returncode == 0 and "95% of the pixels" in " ".join(done.stdout.split()) and "%%" not in done.stdout
+
+
+@pytest.mark.parametrize("args, message", [(["--until-noise", "0.5"], "give --sensor"), (["--sensor", "dtof-prototype", "--until-noise", "-1"], "error: until_noise=-1.0: must be > 0")])
 def test_render_until_noise_refuses_bad_input(tmp_path, args, message):
     done = _run("render", "cornell-box", *args, "-o", str(tmp_path / "o"), *FAST)
     assert done.returncode == 2
