@@ -118,6 +118,17 @@ def test_a_record_written_and_read_gives_the_same_readout(recorded, tmp_path):
     np.savez(tmp_path / "arrays.npz", phasors=np.zeros(3))
     with pytest.raises(ValueError, match="not a dopplertof response record"):
         dt.io.read_record(tmp_path / "arrays.npz")
+    with pytest.raises(TypeError, match="write_record: 'record' must be a dopplertof.design.Record .*got RenderResult"):
+        dt.io.write_record(tmp_path / "result.npz", recorded)  # the result, not its .record
+    assert not (tmp_path / "result.npz").exists()
+
+
+def test_a_record_band_below_100_khz_is_honoured_with_a_warning():
+    from dopplertof.design import RecordSpec
+
+    with pytest.warns(UserWarning, match=r"record: band_hz=\(10.0, 100.0\) Hz is below 100 kHz; the unit is Hz \(10 MHz is 10e6\)"):
+        spec = RecordSpec(band_hz=(10, 100), step_hz=10)
+    assert spec.band_hz == (10.0, 100.0)
 
 
 @pytest.mark.parametrize(

@@ -379,6 +379,7 @@ TOPICS = [
         ("…: the … waveform has unbounded harmonics", "square-like waveforms cannot be read from a record", "the sinusoid or a band-limited code (`light_bandwidth`)"),
         ("…: two sampled codes correlate to unbounded harmonics", "sampled codes need a band limit", "give the camera a `light_bandwidth` within the record's band"),
         ("evaluate: 'record' must be a dopplertof.design.Record, got …", "`record` of another type", "a `Record`"),
+        ("write_record: 'record' must be a dopplertof.design.Record (dopplertof.render(..., record=...).record), got …", "the render's result (or another object) was given instead of its record", "pass `result.record`"),
         ("evaluate: 'sensor' must be a dopplertof.Sensor or a list of dopplertof.Camera, got …", "`sensor` of another type", "a sensor or cameras"),
         ("format …, expected …", "a record file of another format version", "render the record again"),
         ("arrays of shape … and … do not match the record's grid …", "a damaged record file", "render the record again"),
