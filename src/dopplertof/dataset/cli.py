@@ -48,6 +48,8 @@ def generate_command(output, samples, seed, config_path, resolution, spp, shard_
                           ray=use_ray, address=address, shards_range=shard_range, progress=not quiet)
     except (ValueError, BackendError) as exc:
         _fail(str(exc))
+    except OSError as exc:  # a full disk or a folder that became unwritable while shards are written
+        _fail(f"cannot write {output!r}: {exc.strerror or exc}; the finished shards are kept: fix it, then run the same command again to resume")
     except KeyboardInterrupt as exc:
         from .shards import read_manifest
 
