@@ -345,7 +345,7 @@ def test_default_config_is_printed_and_round_trips():
         ("[sensor]\nmodel = 'mlx9'\n", "'sensor.model': --sensor 'mlx9': neither a preset"),
         ("[sensor]\nmodel = 3\n", "'sensor.model' must be a sensor (preset name or .toml file)"),
         ("[sensor]\nmodel = { mlx75027 = -1.0 }\n", "'sensor.model': weights must be finite numbers ≥ 0"),
-        ("[sensor]\nmodel = ['missing.toml']\n", "No such file or directory: 'missing.toml'"),
+        ("[sensor]\nmodel = ['missing.toml']\n", "config key 'sensor.model': sensor file 'missing.toml' not found"),
     ],
 )
 def test_bad_config_is_one_error_line_and_exit_2(tmp_path, toml, message):

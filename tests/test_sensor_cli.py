@@ -77,7 +77,7 @@ phase = 0.5
         ('preset = "opt8241"\n[silicon]\nf_number = -1.0\n', ["--sensor", "s.toml"], "error: s.toml: Silicon: 'f_number' must be > 0, got -1.0"),
         ('taps = 2\n', ["--sensor", "s.toml"], "error: s.toml: a sensor without a preset needs [[frames]]"),
         ('taps = [', ["--sensor", "s.toml"], "error: s.toml: not valid TOML"),
-        (None, ["--sensor", "missing.toml"], "error: --sensor 'missing.toml': no such file"),
+        (None, ["--sensor", "missing.toml"], "error: sensor file 'missing.toml' not found"),
         ('taps = 2\n[[frames]]\nmodulation_frequency = 30e6\nlight_code = { table = "nosuch.npz", row = 0 }\nsensor_code = [1, 1, 1, 1, 0, 0, 0, 0]\n',
          ["--sensor", "s.toml"], "error: s.toml: frame 0: light_code: code table 'nosuch.npz' not found"),
     ],

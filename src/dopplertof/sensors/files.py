@@ -71,7 +71,7 @@ def load_sensor(spec: str) -> Sensor:
         with open(spec, "rb") as f:
             data = f.read()
     except FileNotFoundError:
-        raise FileNotFoundError(f"--sensor {spec!r}: no such file") from None
+        raise FileNotFoundError(f"sensor file {spec!r} not found") from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
