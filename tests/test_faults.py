@@ -276,7 +276,7 @@ def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_ide
     _assert_same_as_an_uninterrupted_render(tmp_path, out)
 
 
-def test_a_dataset_on_a_full_disk_is_one_error_line_and_keeps_its_finished_shards(small_disk):
+def test_a_dataset_on_a_full_disk_is_one_error_line_and_leaves_no_partial_shard(small_disk):
     free = os.statvfs(small_disk).f_bavail * os.statvfs(small_disk).f_frsize
     with open(small_disk / "filler", "wb") as filler:  # room for the manifest, not for a shard
         filler.write(b"\0" * (free - 256 * 1024))
@@ -284,7 +284,7 @@ def test_a_dataset_on_a_full_disk_is_one_error_line_and_keeps_its_finished_shard
     run = _cli("dataset", "generate", "-o", str(out), "--samples", "2", "--shard-size", "1", "--resolution", "64", "--spp", "4", "--quiet")
     _one_error_line(run, f"cannot write {str(out)!r}: No space left on device")
     assert "run the same command again" in run.stderr
-    assert not [p for p in os.listdir(out) if p.endswith(".tmp")]  # no half-written shard left behind
+    assert not [p for p in os.listdir(out) if ".partial" in p or p.endswith(".tar")]  # no half-written shard left behind
 
 
 @pytest.mark.slow
