@@ -237,7 +237,7 @@ TOPICS = [
         ("config key 'render.spp' must be a multiple of 2 with paired times", "paired time sampling renders pairs", "an even spp"),
         ("config key 'render.spp' must be at least … (…, …: two independent groups", "one group of correlated times per pixel leaves no replicates: no standard errors, no camera covariance", "at least twice the group (4 with paired times, 2 with uniform)"),
         ("… must be a sensor (preset name or .toml file), a list of them or a table {name = weight}", "`sensor.model` is of another form", "a preset name, a sensor TOML path, a list of them, or `{name = weight}`"),
-        ("…: sensor … has a …-bit ADC; `raw_dn` is uint16", "a drawn sensor's digital numbers do not fit the field's 16 bits", "a sensor with an ADC of 16 bits or fewer"),
+        ("…: sensor … has a …-bit ADC", "a drawn sensor's digital numbers do not fit the field's 16 bits", "a sensor with an ADC of 16 bits or fewer"),
         ("field … needs a sensor: set the config key 'sensor.model'", "`raw_electrons`/`raw_dn` come from a sensor's raw frames", "set `sensor.model`, or drop the field from `fields`"),
         ("… must be an integer, got …", "a configuration value that must be an integer", "an integer"),
         ("… must be ≥ …, got …", "a configuration value below its minimum", "at least the minimum"),
