@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -117,6 +118,17 @@ def test_a_record_written_and_read_gives_the_same_readout(recorded, tmp_path):
     np.savez(tmp_path / "arrays.npz", phasors=np.zeros(3))
     with pytest.raises(ValueError, match="not a dopplertof response record"):
         dt.io.read_record(tmp_path / "arrays.npz")
+    with pytest.raises(TypeError, match="write_record: 'record' must be a dopplertof.design.Record .*got RenderResult"):
+        dt.io.write_record(tmp_path / "result.npz", recorded)  # the result, not its .record
+    assert not (tmp_path / "result.npz").exists()
+
+
+def test_a_record_band_below_100_khz_is_honoured_with_a_warning():
+    from dopplertof.design import RecordSpec
+
+    with pytest.warns(UserWarning, match=r"record: band_hz=\(10.0, 100.0\) Hz is below 100 kHz; the unit is Hz \(10 MHz is 10e6\)"):
+        spec = RecordSpec(band_hz=(10, 100), step_hz=10)
+    assert spec.band_hz == (10.0, 100.0)
 
 
 @pytest.mark.parametrize(
@@ -577,10 +589,21 @@ def test_until_noise_stops_at_the_first_pass_that_reaches_the_ratio():
     assert b / a == pytest.approx(math.sqrt(spp_a / spp_b), rel=0.2)
 
 
+def test_until_noise_checks_after_every_replicate_even_when_one_pass_would_hold_the_whole_render():
+    from dopplertof.sensors import preset
+
+    sensor = preset("dtof-prototype", radiance_unit=1e-3)
+    # 8x8 x 2048 spp fit in one pass of the default size: until_noise must still see the error grow small
+    result = dt.render(dt.scenes.cornell_box(resolution=8), sensor=sensor, spp=2048, max_depth=3, seed=2, until_noise=1.0)
+    history = result.info["until_noise"]["history"][0]
+    assert len(history) >= 1 and history[-1][1] <= 1.0 and result.spp == history[-1][0] < 2048
+    assert result.settings.lanes_per_pass == 64 * 2048 // 16  # one replicate (of the default 16) per pass
+
+
 def test_until_noise_needs_a_sensor_and_a_positive_ratio(cornell):
     with pytest.raises(ValueError, match="needs a sensor"):
         dt.render(cornell, spp=2, until_noise=0.5)
-    with pytest.raises(ValueError, match="needs a sensor"):
+    with pytest.raises(ValueError, match=re.escape("until_noise=0.0: must be > 0")):
         dt.render(cornell, spp=2, sensor=Sensor(frames=[RawFrame(exposure=T)], noise=SILICON), until_noise=0.0)
 
 

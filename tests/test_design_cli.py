@@ -120,7 +120,12 @@ def test_render_until_noise_reports_the_spp_it_took(tmp_path):
     assert 0 < spp < 1024 and f"rendered cornell-box at {spp} spp" in done.stdout
 
 
-@pytest.mark.parametrize("args, message", [(["--until-noise", "0.5"], "give --sensor"), (["--sensor", "dtof-prototype", "--until-noise", "-1"], "ratio > 0")])
+def test_render_help_writes_the_until_noise_quantile_as_a_percentage():
+    done = _run("render", "--help")
+    assert done.returncode == 0 and "95% of the pixels" in " ".join(done.stdout.split()) and "%%" not in done.stdout
+
+
+@pytest.mark.parametrize("args, message", [(["--until-noise", "0.5"], "give --sensor"), (["--sensor", "dtof-prototype", "--until-noise", "-1"], "error: until_noise=-1.0: must be > 0")])
 def test_render_until_noise_refuses_bad_input(tmp_path, args, message):
     done = _run("render", "cornell-box", *args, "-o", str(tmp_path / "o"), *FAST)
     assert done.returncode == 2
@@ -128,7 +133,27 @@ def test_render_until_noise_refuses_bad_input(tmp_path, args, message):
     assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], done.stderr
 
 
-def test_design_interrupted_writes_nothing_and_says_so(tmp_path):
+STATIC_SCENE = """<scene version="3.0.0">
+    <sensor type="perspective"> <float name="fov" value="40"/>
+        <transform name="to_world"> <lookat origin="0 0 4" target="0 0 0" up="0 1 0"/> </transform>
+        <film type="hdrfilm"> <integer name="width" value="8"/> <integer name="height" value="8"/> </film>
+    </sensor>
+    <emitter type="point"> <point name="position" value="0 0 4"/> <rgb name="intensity" value="10"/> </emitter>
+    <shape type="rectangle"> <bsdf type="diffuse"/> </shape>
+</scene>
+"""
+
+
+@pytest.mark.parametrize("objective", ["velocity_crb", "depth_crb"])
+def test_design_of_a_scene_where_nothing_moves_says_so(tmp_path, objective):
+    (tmp_path / "static.xml").write_text(STATIC_SCENE)
+    done = _run("design", "static.xml", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:2", "--objective", objective, "-o", "d", *FAST, cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip().splitlines()[-1] == "error: static.xml: no moving pixel (the ground-truth velocity is zero everywhere in the exposure); the design's objective is the mean bound over the moving pixels"
+
+
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_design_interrupted_writes_nothing_and_says_so(tmp_path, signame):
     import signal
     import time
 
@@ -142,8 +167,8 @@ def test_design_interrupted_writes_nothing_and_says_so(tmp_path):
     while time.time() < deadline and "rendering the record" not in process.stderr.readline():
         pass
     time.sleep(1.0)
-    process.send_signal(signal.SIGINT)
+    process.send_signal(getattr(signal, signame))
     _, stderr = process.communicate(timeout=120)
-    assert process.returncode == 130, stderr
+    assert process.returncode == 128 + getattr(signal, signame), stderr
     assert stderr.strip().splitlines()[-1] == "error: interrupted before the record was finished; nothing written"
     assert not (out / "record.npz").exists() and not (out / "sweep.csv").exists()

@@ -276,6 +276,17 @@ def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_ide
     _assert_same_as_an_uninterrupted_render(tmp_path, out)
 
 
+def test_a_dataset_on_a_full_disk_is_one_error_line_and_leaves_no_partial_shard(small_disk):
+    free = os.statvfs(small_disk).f_bavail * os.statvfs(small_disk).f_frsize
+    with open(small_disk / "filler", "wb") as filler:  # room for the manifest, not for a shard
+        filler.write(b"\0" * (free - 256 * 1024))
+    out = small_disk / "ds"
+    run = _cli("dataset", "generate", "-o", str(out), "--samples", "2", "--shard-size", "1", "--resolution", "64", "--spp", "4", "--quiet")
+    _one_error_line(run, f"cannot write {str(out)!r}: No space left on device")
+    assert "run the same command again" in run.stderr
+    assert not [p for p in os.listdir(out) if ".partial" in p or p.endswith(".tar")]  # no half-written shard left behind
+
+
 @pytest.mark.slow
 def test_a_disk_that_fills_while_the_images_are_written_keeps_the_rendered_sums(tmp_path, small_disk):
     """The render finishes, its checkpoint is saved, then the disk is too full for the images:
@@ -522,7 +533,7 @@ def test_sigint_during_start_up_is_one_error_line(tmp_path):
 @pytest.mark.parametrize("args, says", [
     (["animate", "cornell-box", "--resolution", "16", "--spp", "4", "--frames", "2", "--quiet"], "interrupted: the finished frames are in"),
     (["experiment", "velocity", "cornell-box", "--quick"], "error: aborted"),
-    (["dataset", "generate", "--samples", "2", "--resolution", "8", "--spp", "2"], "interrupted: 0 of"),
+    (["dataset", "generate", "--samples", "2", "--resolution", "8", "--spp", "4"], "interrupted: 0 of"),
 ], ids=["animate", "experiment", "dataset"])
 def test_sigint_during_start_up_of_other_commands_neither_crashes_nor_prints_a_traceback(tmp_path, args, says):
     """Dr.Jit's extension crashed (SIGSEGV) when the KeyboardInterrupt came during its start-up."""

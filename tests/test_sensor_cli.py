@@ -77,6 +77,9 @@ phase = 0.5
         ('preset = "opt8241"\n[silicon]\nf_number = -1.0\n', ["--sensor", "s.toml"], "error: s.toml: Silicon: 'f_number' must be > 0, got -1.0"),
         ('taps = 2\n', ["--sensor", "s.toml"], "error: s.toml: a sensor without a preset needs [[frames]]"),
         ('taps = [', ["--sensor", "s.toml"], "error: s.toml: not valid TOML"),
+        (None, ["--sensor", "missing.toml"], "error: sensor file 'missing.toml' not found"),
+        ('taps = 2\n[[frames]]\nmodulation_frequency = 30e6\nlight_code = { table = "nosuch.npz", row = 0 }\nsensor_code = [1, 1, 1, 1, 0, 0, 0, 0]\n',
+         ["--sensor", "s.toml"], "error: s.toml: frame 0: light_code: code table 'nosuch.npz' not found"),
     ],
 )
 def test_bad_sensors_are_one_error_line(tmp_path, toml, args, message):
@@ -97,3 +100,10 @@ def test_reconstruct_reads_a_sensor_render(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith(f"reconstructed velocity (fit) of {out}")
     assert (out / "velocity_reconstructed.exr").exists()
+
+
+def test_a_suspicious_frame_is_warned_about_once(tmp_path):
+    (tmp_path / "s.toml").write_text('taps = 2\n[[frames]]\nmodulation_frequency = 30\n')
+    proc = _run("render", "cornell-box", "--resolution", "8", "--spp", "4", "--max-depth", "2", "--quiet", "--sensor", "s.toml", "-o", str(tmp_path / "out"), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.strip().splitlines() == ["warning: Camera: modulation_frequency=30 Hz, a wavelength of 9.99e+06 m; the unit is Hz (30 MHz is 30e6)"], proc.stderr

@@ -1,6 +1,7 @@
 """Sensors: raw frames, tap layouts, raw electrons from one render, and the noise chain."""
 
 import dataclasses
+import re
 import math
 
 import numpy as np
@@ -278,3 +279,10 @@ def test_a_sensor_file_that_is_not_utf8_is_refused(tmp_path):
     assert loads_sensor(sensor_toml(sensor)) == sensor
     with pytest.raises(ValueError, match="^my text: not valid TOML"):
         loads_sensor("taps = [", where="my text")
+
+
+@pytest.mark.parametrize("seed,message", [("x", "'seed' must be an integer, got 'x'"), (1.5, "'seed' must be an integer, got 1.5"), (-1, "'seed' must be >= 0, got -1")])
+def test_read_out_names_a_bad_seed(seed, message):
+    sensor = dt.Sensor(frames=[dt.RawFrame(modulation_frequency=30e6)], taps=2)
+    with pytest.raises(ValueError, match=re.escape(f"Sensor.read_out: {message}")):
+        sensor.read_out(np.full((1, 2, 2, 2), 100.0), seed=seed)

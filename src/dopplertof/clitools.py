@@ -27,9 +27,17 @@ def fail(message: str):
     sys.exit(EXIT_BAD_INPUT)
 
 
+_WARNED: set[str] = set()
+
+
 def show_warning(message, category, filename, lineno, file=None, line=None):
-    """``warnings.showwarning`` of the command line: one line ``warning: message`` on stderr."""
-    click.echo(f"warning: {' '.join(str(message).split())}", err=True)
+    """``warnings.showwarning`` of the command line: one line ``warning: message`` on stderr,
+    once per message (a value checked again where it is used, e.g. a sensor's frames when the
+    render schedules them, says nothing new the second time)."""
+    text = " ".join(str(message).split())
+    if text not in _WARNED:
+        _WARNED.add(text)
+        click.echo(f"warning: {text}", err=True)
 
 
 class StopOnSignal:

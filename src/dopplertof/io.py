@@ -477,7 +477,16 @@ def write_record(path: PathLike, record) -> Path:
     -------
     pathlib.Path
         The path written.
+
+    Raises
+    ------
+    TypeError
+        If ``record`` is not a Record (a render's result, say, instead of its ``.record``).
     """
+    from .design.record import Record
+
+    if not isinstance(record, Record):
+        raise TypeError(f"write_record: 'record' must be a dopplertof.design.Record (dopplertof.render(..., record=...).record), got {type(record).__name__}")
     arrays = record.to_arrays()
     with atomic_path(path) as tmp, open(tmp, "wb") as file:  # a file object stops numpy appending ".npz"
         np.savez(file, **arrays)

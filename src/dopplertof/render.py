@@ -40,6 +40,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import os
 import warnings
 import zipfile
@@ -392,6 +393,8 @@ def render(
         noise in 95 % of its pixels (:mod:`dopplertof.design.convergence`); ``spp`` is
         then the most it may take, ``result.spp`` what it took and ``result.info["until_noise"]``
         the ratio reached and the spp of each window, and the (spp, ratio) after each pass.
+        A pass then holds at most one replicate (``lanes_per_pass`` lowered to it where
+        larger, as ``result.settings`` says), so that the ratio is checked as the render goes.
 
     Returns
     -------
@@ -452,8 +455,14 @@ def render(
     settings = RenderSettings.build(*layers, overrides)
     if until_noise is not None:
         until_noise = checked("until_noise", until_noise, "float")
-        if sensor is None or not until_noise > 0:
-            raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...) and a ratio > 0")
+        if sensor is None:
+            raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...)")
+        if not until_noise > 0:
+            raise ValueError(f"until_noise={until_noise!r}: must be > 0")
+        # The ratio is checked after each pass: a pass of more than one replicate (on a small
+        # film, one pass may hold the whole render) would check too late to save anything.
+        one_replicate = math.prod(scene.resolution) * max(settings.group_size, settings.spp // settings.replicates)
+        settings = dataclasses.replace(settings, lanes_per_pass=min(settings.lanes_per_pass, one_replicate))
     if record is not None and record is not False:
         from .design.record import as_spec, by_probes, first_grid
         from .design.record import check_memory as check_record_memory

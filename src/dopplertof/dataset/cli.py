@@ -2,20 +2,20 @@
 
 Bad input (configuration, arguments, an unwritable or foreign folder) prints one line
 ``error: …`` and exits with status 2; ``verify`` exits 1 when a shard is bad; an interrupted
-``generate`` (Ctrl-C, SIGTERM) keeps its finished shards and exits 130.
+``generate`` (Ctrl-C, SIGTERM, SIGHUP) keeps its finished shards and exits with 128 + the
+signal (130, 143, 129).
 """
 
 from __future__ import annotations
 
 import os
+import signal
 import sys
 
 import click
 
 from ..clitools import fail as _fail
 from .generate import DEFAULT_SHARD_SIZE
-
-EXIT_INTERRUPTED = 130
 
 
 @click.group("dataset")
@@ -48,13 +48,15 @@ def generate_command(output, samples, seed, config_path, resolution, spp, shard_
                           ray=use_ray, address=address, shards_range=shard_range, progress=not quiet)
     except (ValueError, BackendError) as exc:
         _fail(str(exc))
-    except KeyboardInterrupt:
+    except OSError as exc:  # a full disk or a folder that became unwritable while shards are written
+        _fail(f"cannot write {output!r}: {exc.strerror or exc}; the finished shards are kept: fix it, then run the same command again to resume")
+    except KeyboardInterrupt as exc:
         from .shards import read_manifest
 
         m = read_manifest(output) or {"shards_done": 0, "shards": []}
         click.echo(f"interrupted: {m['shards_done']} of {len(m['shards'])} shards done in {output}; run the same command again to resume",
                    err=True)
-        sys.exit(EXIT_INTERRUPTED)
+        sys.exit(128 + getattr(exc, "signum", signal.SIGINT))  # as every command: 130, 143, 129
     m = result["manifest"]
     click.echo(f"{len(result['generated'])} shards generated, {len(result['skipped'])} already complete; "
                f"{m['shards_done']}/{len(m['shards'])} shards ({m['samples_done']} samples) in {os.path.abspath(output)}"

@@ -95,21 +95,47 @@ def _variant(variant) -> str:
     return name
 
 
+class Stopped(KeyboardInterrupt):
+    """SIGTERM or SIGHUP turned into a KeyboardInterrupt.
+
+    Parameters
+    ----------
+    signum : int
+        The signal received; the command line exits with 128 + it.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(f"signal {signum}")
+        self.signum = signum
+
+
+_STOP_SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGTERM", "SIGHUP")) if s is not None)
+
+
 @contextlib.contextmanager
-def _sigterm_as_interrupt():
-    """SIGTERM (e.g. from Slurm) stops like Ctrl-C: finished shards are kept."""
+def _signals_as_interrupt():
+    """SIGTERM (e.g. from Slurm) and SIGHUP stop like Ctrl-C: finished shards are kept. What
+    leaves is a :class:`Stopped` naming the signal, also where a render in progress caught
+    it and raised a KeyboardInterrupt of its own."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    received = []
 
     def handler(signum, frame):
-        raise KeyboardInterrupt(f"signal {signum}")
+        received.append(signum)
+        raise Stopped(signum)
 
-    previous = signal.signal(signal.SIGTERM, handler)
+    previous = {s: signal.signal(s, handler) for s in _STOP_SIGNALS}
     try:
         yield
+    except KeyboardInterrupt as exc:
+        if received and not isinstance(exc, Stopped):
+            raise Stopped(received[-1]) from None
+        raise
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for s, handler_before in previous.items():
+            signal.signal(s, handler_before)
 
 
 def header_for(cfg: dict, samples: int, seed: int, shard_size: int, variant: str) -> dict:
@@ -229,7 +255,8 @@ def generate(
         Bad arguments or configuration (naming the value), an unwritable folder, or a folder
         holding another dataset (other seed, size, configuration or versions).
     KeyboardInterrupt
-        On SIGINT or SIGTERM, after recording the finished shards.
+        On SIGINT, or SIGTERM or SIGHUP (a :class:`Stopped` with the signal's number),
+        after recording the finished shards.
     """
     started = time.perf_counter()
     samples = _positive_int("samples", samples)
@@ -283,7 +310,7 @@ def generate(
             bar.update(record["count"])
 
     try:
-        with _sigterm_as_interrupt():
+        with _signals_as_interrupt():
             if jobs and ray:
                 execute.run_ray(jobs, on_done, address=address, max_retries=max_retries)
             elif jobs:

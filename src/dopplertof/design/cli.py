@@ -30,7 +30,7 @@ import sys
 import click
 import numpy as np
 
-from ..clitools import fail, given_settings, settings_options
+from ..clitools import StopOnSignal, fail, given_settings, settings_options
 from .search import OBJECTIVES, OPTIMIZE_KEYS
 
 OUTPUTS = ("record.npz", "sweep.csv", "optimize.csv", "best_sensor.toml", "velocity_crb.exr", "depth_crb.exr", "velocity_rmse.exr")
@@ -62,8 +62,10 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     from ..sensors.files import load_sensor, sensor_toml
     from ..settings import RenderSettings, scene_layer
     from .precision import achieved_rmse, crb
-    from .search import optimize, parse_sweep, record_spec, sweep, variant
+    from .search import check_moving, optimize, parse_sweep, record_spec, sweep, variant
 
+    written = []
+    stop = StopOnSignal()
     try:
         if not sweep_specs and not optimize_keys:
             raise ValueError("give --sweep KEY=LO:HI:N and/or --optimize KEY")
@@ -86,7 +88,6 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
         if earlier and not overwrite:
             raise ValueError(f"{output!r} holds an earlier design run ({', '.join(earlier)}); choose another folder or --overwrite")
         os.makedirs(output, exist_ok=True)  # before the render: an unwritable folder fails first
-        written = []
         if record_paths:
             records = [read_record(path) for path in record_paths]
         else:
@@ -96,11 +97,13 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                 dyn = load()
                 settings = RenderSettings.build(scene_layer(dyn, scene), {**given_settings(options), "cameras": cameras}, where=scene)
                 click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp", err=True)
-                record = render(dyn, settings=settings, record=spec).record
-                if record is None:  # a render stopped early (Ctrl-C) keeps no record
+                with stop:  # SIGINT, SIGTERM, SIGHUP end the render after its pass in progress
+                    record = render(dyn, settings=settings, record=spec, stop=stop).record
+                if record is None:  # a render stopped early keeps no record
                     raise KeyboardInterrupt
                 records.append(record)
                 written.append(str(write_record(os.path.join(output, named("record.npz", index)), records[-1])))
+        check_moving(records, [name for name, _ in scenes])
         unit = "m/s" if objective == "velocity_crb" else "m"
         best = sensor
         if sweeps:
@@ -132,8 +135,9 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                 line += f"; estimator RMSE {float(np.nanmedian(rmse[precision.moving])):.4g} m/s over {rmse_draws} draws"
             click.echo(line)
     except KeyboardInterrupt:
-        click.echo("error: interrupted before the record was finished; nothing written", err=True)
-        sys.exit(130)
+        kept = f"; kept {', '.join(os.path.basename(w) for w in written)}" if written else "; nothing written"
+        click.echo(f"error: interrupted before the record was finished{kept}", err=True)
+        sys.exit(stop.exit_status)
     except (ValueError, SceneError, FileNotFoundError) as exc:
         fail(str(exc))
     except OSError as exc:

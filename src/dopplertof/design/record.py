@@ -44,12 +44,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..codes import NAMED_CODES
-from ..modulation import MAX_HETERODYNE, MAX_MODULATION_FREQUENCY_HZ, Camera
+from ..modulation import MAX_HETERODYNE, MAX_MODULATION_FREQUENCY_HZ, SUSPICIOUS_MODULATION_FREQUENCY_HZ, Camera
 from ..validation import checked
 
 # A grid longer than this is a unit mistake (MHz given as Hz): 4096 frequencies per beat
@@ -91,7 +92,8 @@ class RecordSpec:
     Parameters
     ----------
     band_hz : (float, float), Hz. Lowest and highest frequency F recorded (every harmonic of
-        an evaluated camera must lie in it). Default (10 MHz, 300 MHz).
+        an evaluated camera must lie in it). Default (10 MHz, 300 MHz). A band below
+        100 kHz is honoured with a warning (Hz written for MHz, as the Camera warns).
     step_hz : float, Hz. The grid: every multiple of it in ``band_hz``. Default 10 MHz.
     beats : sequence of float. The beat cycles per exposure ν recorded (a camera with
         heterodyne h needs m h for each of its harmonics m). Default (0, 1): homodyne and
@@ -137,6 +139,8 @@ class RecordSpec:
             raise ValueError(f"record: 'step_hz' must be > 0 Hz, got {self.step_hz!r}")
         object.__setattr__(self, "band_hz", (low, high))
         object.__setattr__(self, "step_hz", step)
+        if high < SUSPICIOUS_MODULATION_FREQUENCY_HZ:  # the Camera's warning, for the same unit mistake
+            warnings.warn(f"record: band_hz={self.band_hz!r} Hz is below {SUSPICIOUS_MODULATION_FREQUENCY_HZ / 1e3:g} kHz; the unit is Hz (10 MHz is 10e6)", stacklevel=3)
         n = self.frequencies_hz.size
         if n == 0:
             raise ValueError(f"record: no multiple of step_hz={step:g} Hz lies in band_hz={band!r}")

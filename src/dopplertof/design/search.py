@@ -194,6 +194,32 @@ def as_records(records) -> list:
     return records
 
 
+def check_moving(records, names=None) -> None:
+    """Refuse records with no moving pixel: the objectives are means over the moving pixels
+    (:func:`summary`), which such a scene does not have (a static scene, or bodies whose
+    motion ends before the exposure).
+
+    Parameters
+    ----------
+    records : Record or list of Record (:func:`as_records`).
+    names : list of str or None, default None
+        What each record is (a scene's name or file) for the message; default ``record``
+        (one) or ``record i``.
+
+    Raises
+    ------
+    ValueError
+        Naming the first record without a moving pixel.
+    """
+    from .precision import moving_pixels
+
+    records = as_records(records)
+    names = names or (["record"] if len(records) == 1 else [f"record {i}" for i in range(len(records))])
+    for name, record in zip(names, records):
+        if not moving_pixels(record).any():
+            raise ValueError(f"{name}: no moving pixel (the ground-truth velocity is zero everywhere in the exposure); the design's objective is the mean bound over the moving pixels")
+
+
 def summary(records, sensor) -> dict:
     """The bounds' summary averaged over the scenes of a design.
 
@@ -258,9 +284,11 @@ def sweep(records, sensor, sweeps, objective: str = "velocity_crb") -> list[dict
     Raises
     ------
     ValueError
-        For a grid of more than :data:`MAX_SWEEP_POINTS` points.
+        For a grid of more than :data:`MAX_SWEEP_POINTS` points, or records without a
+        moving pixel (:func:`check_moving`).
     """
     _check_size(sweeps)
+    check_moving(records)
     keys = [k for k, _ in sweeps]
     rows = []
     for values in itertools.product(*[v for _, v in sweeps]):
@@ -295,13 +323,14 @@ def optimize(records, sensor, keys, objective: str = "velocity_crb", *, iteratio
     Raises
     ------
     ValueError
-        For unknown keys.
+        For unknown keys, or records without a moving pixel (:func:`check_moving`).
     """
     from .gradient import gradient
 
     unknown = [k for k in keys if k not in OPTIMIZE_KEYS]
     if unknown or not keys:
         raise ValueError(f"--optimize: choose keys among {', '.join(OPTIMIZE_KEYS)}, got {list(keys)!r}")
+    check_moving(records)
     best, best_value = sensor, objective_value(records, sensor, objective)
     history = [_state(best, best_value)]
     for _ in range(iterations):

@@ -67,8 +67,11 @@ def load_sensor(spec: str) -> Sensor:
         return preset(spec)
     if not spec.endswith(".toml"):
         raise ValueError(f"--sensor {spec!r}: neither a preset ({', '.join(PRESETS)}) nor a .toml file")
-    with open(spec, "rb") as f:
-        data = f.read()
+    try:
+        with open(spec, "rb") as f:
+            data = f.read()
+    except FileNotFoundError:
+        raise FileNotFoundError(f"sensor file {spec!r} not found") from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -146,7 +149,10 @@ def _frame(data: dict, index: int, folder: str) -> RawFrame:
     for name in ("light_code", "sensor_code"):
         value = kwargs.get(name)
         if isinstance(value, dict) and set(value) == {"table", "row"}:
-            table = load_codes(os.path.join(folder, str(value["table"])))
+            path = os.path.join(folder, str(value["table"]))
+            if not os.path.isfile(path):
+                raise ValueError(f"{where}{name}: code table {value['table']!r} not found ({path})")
+            table = load_codes(path)
             row = value["row"]
             if isinstance(row, bool) or not isinstance(row, int) or not 0 <= row < len(table):
                 raise ValueError(f"{where}{name}: row {row!r} not in the {len(table)} rows of {value['table']!r}")

@@ -360,8 +360,8 @@ class Sensor:
         Raises
         ------
         ValueError
-            For an unknown mode, a mode the tap layout lacks, ``raw`` of another shape, or
-            frames without a finite charge (an interrupted render's untraced windows).
+            For a seed that is not a whole number >= 0 (or a SeedSequence), an unknown mode,
+            a mode the tap layout lacks, ``raw`` of another shape, or frames without a finite charge (an interrupted render's untraced windows).
         """
         if mode not in READOUT_MODES:
             raise ValueError(f"Sensor.read_out: unknown mode {mode!r}; choose one of {', '.join(READOUT_MODES)}")
@@ -374,6 +374,10 @@ class Sensor:
         empty = [i for i in range(len(raw)) if not np.all(np.isfinite(raw[i]))]
         if empty:
             raise ValueError(f"Sensor.read_out: raw frames {empty} hold no charge estimate (NaN: a render stopped before their window was traced); finish the render first")
+        if not (seed is None or isinstance(seed, np.random.SeedSequence)):
+            seed = checked("seed", seed, "int", "Sensor.read_out")
+            if seed < 0:
+                raise ValueError(f"Sensor.read_out: 'seed' must be >= 0, got {seed}")
         _, offset = self.noise.pattern(raw.shape[1:])
         rng = np.random.default_rng(seed)
         dn = self.noise.digitize(self.expected_electrons(raw), rng, offset_e=offset)
