@@ -344,6 +344,7 @@ def test_default_config_is_printed_and_round_trips():
         ("render = [\n", "not valid TOML"),
         ("[sensor]\nmodel = 'mlx9'\n", "'sensor.model': --sensor 'mlx9': neither a preset"),
         ("[sensor]\nmodel = 3\n", "'sensor.model' must be a sensor (preset name or .toml file)"),
+        ("[sensor]\nmodel = []\n", "'sensor.model' lists no sensor, got []"),
         ("[sensor]\nmodel = { mlx75027 = -1.0 }\n", "'sensor.model': weights must be finite numbers ≥ 0"),
         ("[sensor]\nmodel = ['missing.toml']\n", "config key 'sensor.model': sensor file 'missing.toml' not found"),
     ],
