@@ -16,10 +16,12 @@ Windows of a capture schedule (:attr:`dopplertof.settings.RenderSettings.windows
 traced with seeds of their own (:func:`window_seed`), so their estimates are independent;
 the first window keeps the render's seed.
 
-Replicates: the G = spp / N groups of a pixel are split into R contiguous runs of nearly
-equal size (:func:`replicate_layout`); each run is stratified over its own groups
-(:mod:`dopplertof.timesampling`), so the R run means are independent and their spread
-is an honest standard error even where stratification makes groups dependent.
+Strata and replicates: where the times are stratified (:func:`dopplertof.timesampling.stratifies`)
+the G = spp / N groups of a pixel form ⌊G/2⌋ strata of two contiguous groups (the last of
+three where G is odd; :func:`stratum`, :func:`strata_bounds`), each pair jittered
+independently in its stratum, so the within-stratum differences give honest standard
+errors. Otherwise the groups are independent and are split into R contiguous runs of
+nearly equal size (:func:`replicate_layout`), whose means' spread is the standard error.
 """
 
 from __future__ import annotations
@@ -52,8 +54,6 @@ class LaneSetup:
         Samples per pixel of the whole render.
     n_times : int
         Correlated times per group (N).
-    replicates : int
-        Requested replicates R (fewer where the pixel has fewer groups).
     exposure_start_s, exposure_s : float, s
         The exposure window.
     seed : int
@@ -71,7 +71,6 @@ class LaneSetup:
     samples: int  # samples of each pixel in this pass (a multiple of n_times)
     spp_total: int
     n_times: int  # correlated times per group (N)
-    replicates: int  # requested R (fewer where the pixel has fewer groups)
     exposure_start_s: float
     exposure_s: float
     seed: int
@@ -81,12 +80,6 @@ class LaneSetup:
     def n_groups(self) -> int:
         """Groups of correlated times per pixel: spp / n_times (at least 1)."""
         return max(self.spp_total // self.n_times, 1)
-
-    @property
-    def layout(self) -> tuple[int, int, int]:
-        """(R, base, extra) of a pixel's groups: :func:`replicate_layout` of
-        :attr:`n_groups` and ``replicates``."""
-        return replicate_layout(self.n_groups, self.replicates)
 
 
 def replicate_layout(n_groups: int, replicates: int) -> tuple[int, int, int]:
@@ -273,8 +266,26 @@ def pixel_and_index(setup: LaneSetup, per_pixel: int):
     return lane // per + opaque_u32(setup.pixel_start), lane % per
 
 
+def strata_bounds(n_groups: int) -> list[tuple[int, int]]:
+    """[(first group, group count)] of a pixel's strata (host side, as :func:`stratum`):
+    pairs of groups, the last holding three where ``n_groups`` is odd (one where it is 1).
+
+    Parameters
+    ----------
+    n_groups : int
+        Groups G of a pixel, at least 1.
+
+    Returns
+    -------
+    list of tuple of (int, int)
+    """
+    count = max(n_groups // 2, 1)
+    return [(2 * s, 2) for s in range(count - 1)] + [(2 * (count - 1), n_groups - 2 * (count - 1))]
+
+
 def stratum(setup: LaneSetup, group):
-    """(replicate, index in it, its group count) of per-lane ``group`` (UInt32).
+    """(first group, group count) of the stratum of per-lane ``group`` (UInt32), as
+    :func:`strata_bounds`.
 
     Parameters
     ----------
@@ -288,14 +299,10 @@ def stratum(setup: LaneSetup, group):
     """
     import drjit as dr
 
-    _, base, extra = setup.layout
-    base_u, extra_n = opaque_u32(base), opaque_u32(extra)  # base >= 1: R <= G
-    cut = extra_n * (base_u + 1)
-    big = group < cut
-    g_rest = group - cut
-    replicate = dr.select(big, group // (base_u + 1), extra_n + g_rest // base_u)
-    index = dr.select(big, group % (base_u + 1), g_rest % base_u)
-    return replicate, index, dr.select(big, base_u + 1, base_u)
+    n_groups = setup.n_groups
+    last = opaque_u32(2 * (max(n_groups // 2, 1) - 1))  # data, not code: any spp reuses the kernel
+    first = dr.minimum(group - group % 2, last)
+    return first, dr.select(first == last, opaque_u32(n_groups) - last, 2)
 
 
 def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared, r_own):
@@ -322,10 +329,12 @@ def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared
 
     from ..timesampling import sample_times
 
-    replicate, index, n_strata = stratum(setup, group)
-    rotation = seeded_pcg(seed, STREAM_ROTATION, pixel, replicate * setup.n_times + member).next_float32()
+    first, count = stratum(setup, group)
+    # stratified decorrelates its members' strata; the antithetic members share r
+    key = mi.UInt32(member) if settings.time_sampling == "stratified" else mi.UInt32(0)
+    rotation = seeded_pcg(seed, STREAM_ROTATION, pixel, key).next_float32()
     return sample_times(
-        settings.time_sampling, r_shared, r_own, index, n_strata, mi.UInt32(member), setup.n_times,
+        settings.time_sampling, r_shared, r_own, first, count, setup.n_groups, mi.UInt32(member), setup.n_times,
         settings.shift, settings.stratify_intervals, rotation,
     )  # fmt: skip
 
