@@ -55,8 +55,9 @@ class Reducer:
     group            int    correlated samples per group (``settings.group_size``)
     lanes_per_group  int    lanes a group takes (1 where primal and partner share a lane)
     replicates       int    independent replicates per pixel (``settings.replicates``)
-    stratified       bool   times stratified over the pixel's groups
-                            (``settings.stratified``): errors from the strata
+    wraps            tuple  where the strata are cut (``settings.wraps``) where the times
+                     |None  are stratified over the pixel's groups (``settings.stratified``):
+                            errors from the strata; None where they are not
     ===============  =====  ==========================================================
 
     The standard errors come from *units* of a pixel's groups: with ``stratified`` its
@@ -66,16 +67,16 @@ class Reducer:
     (:func:`~dopplertof.tracing.lanes.replicate_bounds`), whose means' spread gives it.
     """
 
-    def __init__(self, color_channels, n_cameras, spp, group, lanes_per_group, replicates, stratified):
+    def __init__(self, color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps):
         from .tracing.lanes import replicate_bounds, strata_bounds
 
         self.color_channels, self.n_cameras = color_channels, n_cameras
         self.group, self.lanes_per_group = group, lanes_per_group
         n_groups = max(spp // group, 1)
-        self.within = stratified
-        self.bounds = strata_bounds(n_groups) if stratified else replicate_bounds(n_groups, replicates)
+        self.within = wraps is not None
+        self.bounds = strata_bounds(n_groups, wraps) if self.within else replicate_bounds(n_groups, replicates)
         self.sizes = {start + n: n for start, n in self.bounds}  # unit end -> its groups
-        self.replicated = n_groups > 1 if stratified else len(self.bounds) > 1  # standard errors can be estimated
+        self.replicated = n_groups > 1 if self.within else len(self.bounds) > 1  # standard errors can be estimated
         self.pairs = []
         if self.replicated and 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:  # cameras share paths: their errors correlate
             self.pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
@@ -87,7 +88,7 @@ class Reducer:
 
         group = settings.group_size
         lanes_per_group = 1 if settings.paired else group
-        return 3 if mi.is_rgb else 1, len(settings.cameras), settings.spp, group, lanes_per_group, settings.replicates, settings.stratified
+        return 3 if mi.is_rgb else 1, len(settings.cameras), settings.spp, group, lanes_per_group, settings.replicates, settings.wraps if settings.stratified else None
 
     def groups(self, p: Pass) -> tuple[int, int]:
         """The pass's groups of every pixel: [g0, g1)."""
@@ -200,8 +201,8 @@ class Accumulator(Reducer):
     # (:class:`~dopplertof.tracing.sink.PhasorGrid`), once a pass brought some; no checkpoint holds them
     record_sum = None
 
-    def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates, stratified):
-        super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates, stratified)
+    def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps):
+        super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps)
         c, n = color_channels + n_cameras, n_pixels
         self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int32)}
         if self.replicated and self.within:  # the open stratum's sums, and the closed strata's Q_s

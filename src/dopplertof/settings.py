@@ -32,7 +32,7 @@ import numpy as np
 
 from .correlation import MODES, PAIRED, Correlation
 from .modulation import Camera, checked_exposure
-from .timesampling import ANALYTIC, METHODS, stratifies
+from .timesampling import ANALYTIC, METHODS, group_cuts, stratifies, wrap_points
 from .validation import checked
 
 DEFAULT_EXPOSURE_S = 1.5e-3
@@ -172,6 +172,12 @@ class RenderSettings:
         return stratifies(self.time_sampling, self.stratify_intervals)
 
     @property
+    def wraps(self) -> tuple[float, ...]:
+        """Where the stratified times wrap around the exposure's end: the strata are cut
+        there (:func:`dopplertof.timesampling.wrap_points`)."""
+        return wrap_points(self.time_sampling, self.group_size, self.shift)
+
+    @property
     def group_size(self) -> int:
         """Correlated times per group (``n_times`` resolved)."""
         if self.n_times is not None:
@@ -247,6 +253,13 @@ class RenderSettings:
         if self.spp % n:
             raise ValueError(f"spp={self.spp} must be a multiple of the {n} correlated times per group ({self.time_sampling})")
         groups = self.spp // n
+        uncut = group_cuts(groups, self.wraps)[1]
+        if self.stratified and groups >= 3 and uncut:
+            warnings.warn(
+                f"spp={self.spp} gives {groups} groups of {n} times: {self.time_sampling}'s times wrap around the exposure's end at "
+                f"{', '.join(f'{w:g}' for w in uncut)} T, inside a stratum, so the standard errors at heterodyne cameras are less reliable "
+                f"(an spp that puts those points between groups avoids it: for antithetic pairs at shift 0.5, a multiple of 4)", stacklevel=2,
+            )  # fmt: skip
         if self.replicates != FIELDS["replicates"].default and self.stratified:
             warnings.warn(
                 f"replicates={self.replicates} has no effect: time_sampling={self.time_sampling!r} with stratify_intervals stratifies the "

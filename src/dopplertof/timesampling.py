@@ -5,40 +5,36 @@ Samples of a pixel come in groups of ``N`` correlated times (an antithetic pair 
 ``m = s mod N`` of group ``g = s // N``.
 
 Further stratification (``stratify_intervals``, :func:`stratifies`) stratifies each
-member's interval over *all* G groups of the pixel, with two groups per stratum: the
-S = ⌊G/2⌋ strata are the pairs of groups (2s, 2s + 1) (with an odd G the last stratum
-holds the last three groups), a stratum of n groups spans n/G of the interval, and the
-groups of a stratum are jittered independently in it, so their differences estimate the
-variance (:class:`dopplertof.passes.Reducer`): Var(μ̂) = Σ_s Q_s / G², with
-Q_s = n_s/(n_s − 1) Σ_{g∈s} (x_g − x̄_s)² (d_s² for a pair), unbiased, S degrees of
-freedom. :func:`dopplertof.tracing.lanes.stratum` gives each group its stratum, whose
-place in the interval is rotated by a random whole number of pair strata per pixel (a
-cyclic permutation of the pair strata; the three-group stratum of an odd G stays last), so
-each group's time is uniform over the pair strata on its own and a render stopped before
-its last pass (an interrupt, ``until_noise``) is unbiased too (for an odd G, but for the
-last stratum's span); its standard error then leaves out the between-strata spread of the
-strata not yet drawn. (A continuous rotation would let one stratum wrap around the
-interval's end, where a heterodyne weight jumps: that stratum's variance, estimated from
-one difference, then dominates the pixel's and the errors lose their calibration.)
-Where the
-times are not stratified, the groups are independent and the standard errors come from R
-replicates (``replicates``). Each strategy is a function of
+member's interval over *all* G groups of the pixel, two groups per stratum, jittered
+independently in it, so that their differences estimate the variance
+(:class:`dopplertof.passes.Reducer`): Var(μ̂) = Σ_s Q_s / G², with
+Q_s = n_s/(n_s − 1) Σ_{g∈s} (x_g − x̄_s)² (d_s² for a pair), unbiased, about G/2 degrees
+of freedom. A stratum of n groups spans n/G of the interval. The interval is first cut
+where a member's time wraps around the exposure's end (:func:`wrap_points`: ½ for the
+antithetic pair, where a contribution that differs between the exposure's ends jumps),
+wherever the cut falls between groups; each piece is split into pairs of groups, the last
+holding three where the piece has an odd number. (Without the cut, one stratum holds the
+jump: its variance, estimated from one difference, dominates the pixel's and the errors
+lose their calibration: z spread 1.8 on the moving plane at h = 1, G = 34.)
+:func:`dopplertof.tracing.lanes.strata_units` lays the strata out and rotates them per
+pixel. Where the times are not stratified, the groups are independent and the standard
+errors come from R replicates (``replicates``). Each strategy is a function of
 
 * ``r_shared``: a uniform number shared by the whole group,
 * ``r_own``: a uniform number of this sample alone,
-* the group's stratum (first group ``f``, ``n`` groups) among the G groups, rotated to
-  ``f'``, ``m``, ``N``.
+* the place of the group's stratum: its first group ``f`` (in units of 1/G of the
+  interval) and its ``n`` groups, ``m``, ``N``.
 
 =====================  ==============================================================
 name                   times of the members of a group
 =====================  ==============================================================
 ``uniform``            independent: u = r_own
-``stratified``         u = (m + r)/N; with ``stratify_intervals`` r = (f' + n·r_own)/G,
-                       rotated per (pixel, member) (each interval stays stratified
-                       while the members' strata decorrelate), else r = r_own
+``stratified``         u = (m + r)/N; with ``stratify_intervals`` r = (f + n·r_own)/G,
+                       the strata placed per (pixel, member) (each interval stays
+                       stratified while the members' strata decorrelate), else r = r_own
 ``antithetic``         u_m = frac(r + m·a) for N = 2 (shift ``a``, default ½), or
-                       frac(r + m/N) for N > 2; r = (f' + n·r_shared)/G with
-                       ``stratify_intervals`` (rotated per pixel) else r_shared
+                       frac(r + m/N) for N > 2; r = (f + n·r_shared)/G with
+                       ``stratify_intervals`` (placed per pixel) else r_shared
 ``antithetic_mirror``  N = 2: u_0 = r, u_1 = frac(1 − r + a)
 ``analytic``           N = 2: u_0 = 0, u_1 = 1, integrated in closed form between them
                        (:mod:`dopplertof.tracing.paired`; biased)
@@ -80,7 +76,54 @@ def stratifies(method: str, stratify_intervals: bool) -> bool:
     return bool(stratify_intervals) and method in METHODS[1:]
 
 
-def sample_times(method, r_shared, r_own, first, count, n_groups, member, n_times, shift, stratify_intervals, rotation):
+def wrap_points(method: str, n_times: int, shift: float) -> tuple[float, ...]:
+    """Where in [0, 1) the group's stratified number r makes a member's time wrap around
+    the exposure's end: the strata are cut there (module docstring).
+
+    Parameters
+    ----------
+    method : str
+        The time sampling.
+    n_times : int
+        Times per group N.
+    shift : float, units of T
+        The antithetic shift a.
+
+    Returns
+    -------
+    tuple of float
+        In (0, 1): 1 − a for an antithetic pair, 1 − m/N for N > 2, a for the mirror
+        (whose partner 1 − r + a wraps at r = a); none for the others.
+    """
+    if method == "antithetic":
+        points = [1.0 - shift] if n_times == 2 else [1.0 - m / n_times for m in range(1, n_times)]
+    elif method == "antithetic_mirror":
+        points = [shift]
+    else:
+        points = []
+    return tuple(sorted(p for p in points if 0.0 < p < 1.0))
+
+
+def group_cuts(n_groups: int, wraps) -> tuple[list[int], list[float]]:
+    """The ``wraps`` that fall between groups, as group counts, and those that do not.
+
+    Parameters
+    ----------
+    n_groups : int
+        Groups G of a pixel.
+    wraps : sequence of float
+        Points in (0, 1) (:func:`wrap_points`).
+
+    Returns
+    -------
+    tuple of (list of int, list of float)
+        The cuts c = w·G that are whole numbers; the wraps that are not.
+    """
+    whole = [abs(w * n_groups - round(w * n_groups)) <= 1e-9 * n_groups for w in wraps]
+    return [round(w * n_groups) for w, ok in zip(wraps, whole) if ok], [w for w, ok in zip(wraps, whole) if not ok]
+
+
+def sample_times(method, r_shared, r_own, first, count, n_groups, member, n_times, shift, stratify_intervals):
     """Normalised times (``mi.Float64``) for each lane; see the module table.
 
     Parameters
@@ -90,8 +133,8 @@ def sample_times(method, r_shared, r_own, first, count, n_groups, member, n_time
     r_shared, r_own : mi.Float
         The group's and the lane's uniform numbers.
     first, count : mi.UInt32
-        The group's stratum: its first group and its number of groups
-        (:func:`dopplertof.tracing.lanes.stratum`).
+        The place of the group's stratum in units of 1/G of the interval, and its number
+        of groups (:func:`dopplertof.tracing.lanes.stratum`).
     n_groups : int
         Groups G of the pixel.
     member : mi.UInt32
@@ -102,9 +145,6 @@ def sample_times(method, r_shared, r_own, first, count, n_groups, member, n_time
         The antithetic shift a.
     stratify_intervals : bool
         Further stratification on.
-    rotation : mi.Float
-        A uniform per pixel, and per member for ``stratified``: picks the rotation of the
-        pair strata.
 
     Returns
     -------
@@ -121,14 +161,8 @@ def sample_times(method, r_shared, r_own, first, count, n_groups, member, n_time
     groups = F(n_groups)
     dr.make_opaque(groups)
 
-    # the pair strata span the first `span` groups: all of an even G, an odd G but its last three
-    span = F(n_groups if n_groups % 2 == 0 else max(n_groups - 3, 0))
-    dr.make_opaque(span)
-    placed = F(first) + 2.0 * dr.floor(F(rotation) * span * 0.5)
-    placed = dr.select((F(first) < span) & (placed >= span), placed - span, placed)
-
-    def stratum(r):  # r uniform in [0, 1) -> uniform in the group's rotated stratum
-        return (placed + F(count) * F(r)) / groups
+    def stratum(r):  # r uniform in [0, 1) -> uniform in the group's stratum
+        return (F(first) + F(count) * F(r)) / groups
 
     if method == "uniform":
         u = F(r_own)

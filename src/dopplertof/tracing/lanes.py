@@ -17,10 +17,9 @@ traced with seeds of their own (:func:`window_seed`), so their estimates are ind
 the first window keeps the render's seed.
 
 Strata and replicates: where the times are stratified (:func:`dopplertof.timesampling.stratifies`)
-the G = spp / N groups of a pixel form ⌊G/2⌋ strata of two contiguous groups (the last of
-three where G is odd; :func:`stratum`, :func:`strata_bounds`), each pair jittered
-independently in its stratum, so the within-stratum differences give honest standard
-errors. Otherwise the groups are independent and are split into R contiguous runs of
+the G = spp / N groups of a pixel form strata of two contiguous groups (some of three;
+:func:`strata_units`), each group jittered independently in its stratum, so the
+within-stratum differences give honest standard errors. Otherwise the groups are independent and are split into R contiguous runs of
 nearly equal size (:func:`replicate_layout`), whose means' spread is the standard error.
 """
 
@@ -266,43 +265,100 @@ def pixel_and_index(setup: LaneSetup, per_pixel: int):
     return lane // per + opaque_u32(setup.pixel_start), lane % per
 
 
-def strata_bounds(n_groups: int) -> list[tuple[int, int]]:
-    """[(first group, group count)] of a pixel's strata (host side, as :func:`stratum`):
-    pairs of groups, the last holding three where ``n_groups`` is odd (one where it is 1).
+def strata_units(n_groups: int, wraps=()) -> list[tuple[int, int, int, int, int]]:
+    """The strata of a pixel's groups (:mod:`dopplertof.timesampling`), in group order:
+    (first group, group count, place, piece start, piece span) of each.
+
+    The interval, in units of 1/G, is cut at the ``wraps`` that fall between groups (none
+    where a piece would hold fewer than 2 groups); each piece is split into pairs, the last
+    holding three where the piece has an odd number (one where G = 1). A stratum's
+    *place* is its first unit in the interval; the pieces' strata take turns in group order,
+    so every prefix of the groups spreads over the pieces. Per pixel the pairs of a piece
+    (its first ``piece span`` units) are rotated by a whole number of pairs (:func:`stratum`),
+    so each group's time is uniform over them on its own: a render stopped before its last
+    pass is unbiased (but for a piece's three-group stratum).
 
     Parameters
     ----------
     n_groups : int
         Groups G of a pixel, at least 1.
+    wraps : sequence of float, default ()
+        Cut points in (0, 1) (:func:`dopplertof.timesampling.wrap_points`).
+
+    Returns
+    -------
+    list of tuple of (int, int, int, int, int)
+    """
+    from ..timesampling import group_cuts
+
+    edges = sorted({0, n_groups} | {c for c in group_cuts(n_groups, wraps)[0] if 0 < c < n_groups})
+    if any(b - a < 2 for a, b in zip(edges, edges[1:])):
+        edges = [0, n_groups]
+    pieces = []
+    for a, b in zip(edges, edges[1:]):
+        count = max((b - a) // 2, 1)
+        sizes = [2] * (count - 1) + [b - a - 2 * (count - 1)]
+        span = b - a if (b - a) % 2 == 0 else max(b - a - 3, 0)
+        pieces.append([(a + 2 * i, n, a, span) for i, n in enumerate(sizes)])
+    units, first = [], 0
+    for i in range(max(len(p) for p in pieces)):
+        for piece in pieces:
+            if i < len(piece):
+                place, n, start, span = piece[i]
+                units.append((first, n, place, start, span))
+                first += n
+    return units
+
+
+def strata_bounds(n_groups: int, wraps=()) -> list[tuple[int, int]]:
+    """[(first group, group count)] of a pixel's strata in group order (:func:`strata_units`).
+
+    Parameters
+    ----------
+    n_groups : int
+        Groups G of a pixel, at least 1.
+    wraps : sequence of float, default ()
+        Cut points in (0, 1).
 
     Returns
     -------
     list of tuple of (int, int)
     """
-    count = max(n_groups // 2, 1)
-    return [(2 * s, 2) for s in range(count - 1)] + [(2 * (count - 1), n_groups - 2 * (count - 1))]
+    return [(first, n) for first, n, *_ in strata_units(n_groups, wraps)]
 
 
-def stratum(setup: LaneSetup, group):
-    """(first group, group count) of the stratum of per-lane ``group`` (UInt32), as
-    :func:`strata_bounds`.
+def stratum(setup: LaneSetup, group, wraps, rotation):
+    """(place, group count) of the stratum of per-lane ``group`` (UInt32), its place rotated
+    by ``rotation`` (:func:`strata_units`).
 
     Parameters
     ----------
     setup : LaneSetup
     group : mi.UInt32
         Each lane's group in its pixel.
+    wraps : sequence of float
+        Cut points in (0, 1).
+    rotation : mi.Float
+        A uniform per lane (per pixel, or per pixel and member): picks the rotation.
 
     Returns
     -------
-    tuple of mi.UInt32
+    tuple of (mi.Float64, mi.UInt32)
     """
     import drjit as dr
+    import mitsuba as mi
+    import numpy as np
 
-    n_groups = setup.n_groups
-    last = opaque_u32(2 * (max(n_groups // 2, 1) - 1))  # data, not code: any spp reuses the kernel
-    first = dr.minimum(group - group % 2, last)
-    return first, dr.select(first == last, opaque_u32(n_groups) - last, 2)
+    units = strata_units(setup.n_groups, wraps)
+    table = np.zeros((4, setup.n_groups), np.uint32)  # per group: count, place, piece start, piece span
+    for first, n, place, start, span in units:
+        table[:, first : first + n] = np.array([n, place, start, span], np.uint32)[:, None]
+    count, place, start, span = (dr.gather(mi.UInt32, mi.UInt32(row), group) for row in table)  # data, not code
+    F = mi.Float64
+    offset = F(place - start)
+    rotated = offset + 2.0 * dr.floor(F(rotation) * F(span) * 0.5)
+    rotated = dr.select(rotated >= F(span), rotated - F(span), rotated)
+    return F(start) + dr.select(offset < F(span), rotated, offset), count
 
 
 def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared, r_own):
@@ -329,13 +385,13 @@ def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared
 
     from ..timesampling import sample_times
 
-    first, count = stratum(setup, group)
     # stratified decorrelates its members' strata; the antithetic members share r
     key = mi.UInt32(member) if settings.time_sampling == "stratified" else mi.UInt32(0)
     rotation = seeded_pcg(seed, STREAM_ROTATION, pixel, key).next_float32()
+    place, count = stratum(setup, group, settings.wraps, rotation)
     return sample_times(
-        settings.time_sampling, r_shared, r_own, first, count, setup.n_groups, mi.UInt32(member), setup.n_times,
-        settings.shift, settings.stratify_intervals, rotation,
+        settings.time_sampling, r_shared, r_own, place, count, setup.n_groups, mi.UInt32(member), setup.n_times,
+        settings.shift, settings.stratify_intervals,
     )  # fmt: skip
 
 
