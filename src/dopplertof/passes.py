@@ -61,22 +61,25 @@ class Reducer:
     ===============  =====  ==========================================================
 
     The standard errors come from *units* of a pixel's groups: with ``stratified`` its
-    strata (:func:`~dopplertof.tracing.lanes.strata_bounds`), whose within-stratum spread
+    strata (:class:`~dopplertof.tracing.lanes.StrataLayout`), whose within-stratum spread
     Q_s = n_s/(n_s − 1) Σ (x_g − x̄_s)² (d_s² for a pair) sums to G² Var(μ̂)
     (:mod:`dopplertof.timesampling`); else its independent replicates
     (:func:`~dopplertof.tracing.lanes.replicate_bounds`), whose means' spread gives it.
     """
 
     def __init__(self, color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps):
-        from .tracing.lanes import replicate_bounds, strata_bounds
+        from .tracing.lanes import StrataLayout, replicate_bounds
 
         self.color_channels, self.n_cameras = color_channels, n_cameras
         self.group, self.lanes_per_group = group, lanes_per_group
         n_groups = max(spp // group, 1)
         self.within = wraps is not None
-        self.bounds = strata_bounds(n_groups, wraps) if self.within else replicate_bounds(n_groups, replicates)
-        self.sizes = {start + n: n for start, n in self.bounds}  # unit end -> its groups
-        self.replicated = n_groups > 1 if self.within else len(self.bounds) > 1  # standard errors can be estimated
+        if self.within:
+            self.strata = StrataLayout(n_groups, wraps)
+            self.replicated = n_groups > 1  # standard errors can be estimated
+        else:
+            self.bounds = replicate_bounds(n_groups, replicates)
+            self.replicated = len(self.bounds) > 1
         self.pairs = []
         if self.replicated and 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:  # cameras share paths: their errors correlate
             self.pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
@@ -94,10 +97,11 @@ class Reducer:
         """The pass's groups of every pixel: [g0, g1)."""
         return p.first_sample // self.group, (p.first_sample + p.samples) // self.group
 
-    def segments(self, p: Pass) -> list[tuple[int, int, int]]:
-        """The pass's groups split at unit ends: (first group, end group, unit end)."""
+    def segments(self, p: Pass) -> list[tuple[int, int, int, int]]:
+        """The pass's groups split at unit ends: (first group, end group, unit end, unit size)."""
         g0, g1 = self.groups(p)
-        return [(max(a, g0), min(a + n, g1), a + n) for a, n in self.bounds if max(a, g0) < min(a + n, g1)]
+        units = [(a, n) for a, n, *_ in self.strata.units(g0, g1)] if self.within else self.bounds
+        return [(max(a, g0), min(a + n, g1), a + n, n) for a, n in units if max(a, g0) < min(a + n, g1)]
 
     def reduce(self, p: Pass, out: dict) -> dict:
         """One pass's per-lane outputs (Dr.Jit arrays), reduced in Float64 on the device to
@@ -166,9 +170,9 @@ class Reducer:
         else:
             dr.eval(means, truth_sums)
             host = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in means])  # (channels, pixels, groups)
-            inc["parts"] = np.stack([host[:, :, a - g0 : b - g0].sum(axis=2) for a, b, _ in segments], axis=2)
+            inc["parts"] = np.stack([host[:, :, a - g0 : b - g0].sum(axis=2) for a, b, *_ in segments], axis=2)
             if self.within and self.replicated:  # (channels, pixels, segments) sums of squares and of camera products
-                pieces = [host[:, :, a - g0 : b - g0] for a, b, _ in segments]
+                pieces = [host[:, :, a - g0 : b - g0] for a, b, *_ in segments]
                 inc["parts_sq"] = np.stack([(x * x).sum(axis=2) for x in pieces], axis=2)
                 cc = self.color_channels
                 inc["parts_cross"] = [np.stack([(x[cc + i] * x[cc + j]).sum(axis=1) for x in pieces], axis=1) for i, j in self.pairs]
@@ -183,9 +187,9 @@ class Reducer:
 
     def whole(self, segments) -> bool:
         """Whether a pass's segments are complete units of one size (pairs, where stratified)."""
-        sizes = {b - a for a, b, _ in segments}
+        sizes = {b - a for a, b, *_ in segments}
         equal = len(sizes) == 1 and (not self.within or sizes == {2})
-        return self.replicated and equal and all(b - a == self.sizes[end] for a, b, end in segments)
+        return self.replicated and equal and all(b - a == size for a, b, _, size in segments)
 
 
 class Accumulator(Reducer):
@@ -241,16 +245,16 @@ class Accumulator(Reducer):
             parts = inc["parts"]
             s["group_sum"][:, pix] += parts.sum(axis=2)
             if self.replicated:
-                for k, (a, b, end) in enumerate(self.segments(p)):
+                for k, (a, b, end, size) in enumerate(self.segments(p)):
                     s["open_sum"][:, pix] += parts[:, :, k]
                     if self.within:
                         s["open_sq"][:, pix] += inc["parts_sq"][:, :, k]
                         for j, x in enumerate(inc["parts_cross"]):
                             s["open_cross"][j, pix] += x[:, k]
                         if b == end:
-                            self._close_stratum(pix, self.sizes[end])
+                            self._close_stratum(pix, size)
                     elif b == end:  # the replicate is complete: its mean is one independent unit
-                        self._close(pix, (s["open_sum"][:, pix] / self.sizes[end])[:, :, None])
+                        self._close(pix, (s["open_sum"][:, pix] / size)[:, :, None])
                         s["open_sum"][:, pix] = 0.0
         g0, g1 = self.groups(p)
         s["groups_done"][pix] += g1 - g0

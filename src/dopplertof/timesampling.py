@@ -16,7 +16,7 @@ wherever the cut falls between groups; each piece is split into pairs of groups,
 holding three where the piece has an odd number. (Without the cut, one stratum holds the
 jump: its variance, estimated from one difference, dominates the pixel's and the errors
 lose their calibration: z spread 1.8 on the moving plane at h = 1, G = 34.)
-:func:`dopplertof.tracing.lanes.strata_units` lays the strata out and rotates them per
+:class:`dopplertof.tracing.lanes.StrataLayout` lays the strata out and rotates them per
 pixel. Where the times are not stratified, the groups are independent and the standard
 errors come from R replicates (``replicates``). Each strategy is a function of
 

@@ -18,7 +18,7 @@ the first window keeps the render's seed.
 
 Strata and replicates: where the times are stratified (:func:`dopplertof.timesampling.stratifies`)
 the G = spp / N groups of a pixel form strata of two contiguous groups (some of three;
-:func:`strata_units`), each group jittered independently in its stratum, so the
+:class:`StrataLayout`), each group jittered independently in its stratum, so the
 within-stratum differences give honest standard errors. Otherwise the groups are independent and are split into R contiguous runs of
 nearly equal size (:func:`replicate_layout`), whose means' spread is the standard error.
 """
@@ -265,18 +265,18 @@ def pixel_and_index(setup: LaneSetup, per_pixel: int):
     return lane // per + opaque_u32(setup.pixel_start), lane % per
 
 
-def strata_units(n_groups: int, wraps=()) -> list[tuple[int, int, int, int, int]]:
-    """The strata of a pixel's groups (:mod:`dopplertof.timesampling`), in group order:
-    (first group, group count, place, piece start, piece span) of each.
+class StrataLayout:
+    """The strata of a pixel's G groups (:mod:`dopplertof.timesampling`), in group order.
 
     The interval, in units of 1/G, is cut at the ``wraps`` that fall between groups (none
     where a piece would hold fewer than 2 groups); each piece is split into pairs, the last
     holding three where the piece has an odd number (one where G = 1). A stratum's
-    *place* is its first unit in the interval; the pieces' strata take turns in group order,
-    so every prefix of the groups spreads over the pieces. Per pixel the pairs of a piece
-    (its first ``piece span`` units) are rotated by a whole number of pairs (:func:`stratum`),
-    so each group's time is uniform over them on its own: a render stopped before its last
-    pass is unbiased (but for a piece's three-group stratum).
+    *place* is its first unit in the interval; the pieces' strata take turns in group order
+    (round i holds the i-th stratum of each piece), so every prefix of the groups spreads
+    over the pieces. Per pixel the pairs of a piece (its first ``span`` units) are rotated
+    by a whole number of pairs (:func:`stratum`), so each group's time is uniform over them
+    on its own: a render stopped before its last pass is unbiased (but for a piece's
+    three-group stratum). Computed, not listed: a render of 10⁹ spp has 10⁸ strata.
 
     Parameters
     ----------
@@ -284,52 +284,55 @@ def strata_units(n_groups: int, wraps=()) -> list[tuple[int, int, int, int, int]
         Groups G of a pixel, at least 1.
     wraps : sequence of float, default ()
         Cut points in (0, 1) (:func:`dopplertof.timesampling.wrap_points`).
-
-    Returns
-    -------
-    list of tuple of (int, int, int, int, int)
     """
-    from ..timesampling import group_cuts
 
-    edges = sorted({0, n_groups} | {c for c in group_cuts(n_groups, wraps)[0] if 0 < c < n_groups})
-    if any(b - a < 2 for a, b in zip(edges, edges[1:])):
-        edges = [0, n_groups]
-    pieces = []
-    for a, b in zip(edges, edges[1:]):
-        count = max((b - a) // 2, 1)
-        sizes = [2] * (count - 1) + [b - a - 2 * (count - 1)]
-        span = b - a if (b - a) % 2 == 0 else max(b - a - 3, 0)
-        pieces.append([(a + 2 * i, n, a, span) for i, n in enumerate(sizes)])
-    units, first = [], 0
-    for i in range(max(len(p) for p in pieces)):
-        for piece in pieces:
-            if i < len(piece):
-                place, n, start, span = piece[i]
-                units.append((first, n, place, start, span))
-                first += n
-    return units
+    def __init__(self, n_groups: int, wraps=()):
+        from ..timesampling import group_cuts
 
+        self.n_groups = n_groups
+        edges = sorted({0, n_groups} | {c for c in group_cuts(n_groups, wraps)[0] if 0 < c < n_groups})
+        if any(b - a < 2 for a, b in zip(edges, edges[1:])):
+            edges = [0, n_groups]
+        # per piece: (start, length, strata); its last stratum holds length - 2 (strata - 1) groups
+        self.pieces = [(a, b - a, max((b - a) // 2, 1)) for a, b in zip(edges, edges[1:])]
 
-def strata_bounds(n_groups: int, wraps=()) -> list[tuple[int, int]]:
-    """[(first group, group count)] of a pixel's strata in group order (:func:`strata_units`).
+    def _round_start(self, i: int) -> int:
+        """The first group of round ``i``."""
+        return sum(2 * min(i, n) + (length - 2 * n if i >= n else 0) for _, length, n in self.pieces)
 
-    Parameters
-    ----------
-    n_groups : int
-        Groups G of a pixel, at least 1.
-    wraps : sequence of float, default ()
-        Cut points in (0, 1).
+    def units(self, g0: int, g1: int) -> list[tuple[int, int, int, int, int]]:
+        """(first group, group count, place, piece start, piece span) of the strata that
+        hold groups of [g0, g1), in group order.
 
-    Returns
-    -------
-    list of tuple of (int, int)
-    """
-    return [(first, n) for first, n, *_ in strata_units(n_groups, wraps)]
+        Parameters
+        ----------
+        g0, g1 : int
+            A range of groups.
+
+        Returns
+        -------
+        list of tuple of (int, int, int, int, int)
+        """
+        lo, hi = 0, max(n for *_, n in self.pieces)
+        while lo < hi:  # the round that holds g0: the last whose start is <= g0
+            mid = (lo + hi + 1) // 2
+            lo, hi = (mid, hi) if self._round_start(mid) <= g0 else (lo, mid - 1)
+        out, first, i = [], self._round_start(lo), lo
+        while first < g1:
+            for start, length, n in self.pieces:
+                if i < n:
+                    size = 2 if i < n - 1 else length - 2 * (n - 1)
+                    span = length if length % 2 == 0 else max(length - 3, 0)
+                    if g0 < first + size and first < g1:
+                        out.append((first, size, start + 2 * i, start, span))
+                    first += size
+            i += 1
+        return out
 
 
 def stratum(setup: LaneSetup, group, wraps, rotation):
-    """(place, group count) of the stratum of per-lane ``group`` (UInt32), its place rotated
-    by ``rotation`` (:func:`strata_units`).
+    """(place, group count) of the stratum of per-lane ``group`` (UInt32, in the pass),
+    its place rotated by ``rotation`` (:class:`StrataLayout`).
 
     Parameters
     ----------
@@ -349,11 +352,14 @@ def stratum(setup: LaneSetup, group, wraps, rotation):
     import mitsuba as mi
     import numpy as np
 
-    units = strata_units(setup.n_groups, wraps)
-    table = np.zeros((4, setup.n_groups), np.uint32)  # per group: count, place, piece start, piece span
-    for first, n, place, start, span in units:
-        table[:, first : first + n] = np.array([n, place, start, span], np.uint32)[:, None]
-    count, place, start, span = (dr.gather(mi.UInt32, mi.UInt32(row), group) for row in table)  # data, not code
+    g0 = setup.first_sample // setup.n_times
+    g1 = g0 + setup.samples // setup.n_times
+    table = np.zeros((4, g1 - g0), np.uint32)  # per group of the pass: count, place, piece start, piece span
+    for first, n, place, start, span in StrataLayout(setup.n_groups, wraps).units(g0, g1):
+        a, b = max(first, g0) - g0, min(first + n, g1) - g0
+        table[:, a:b] = np.array([n, place, start, span], np.uint32)[:, None]
+    local = group - opaque_u32(g0)
+    count, place, start, span = (dr.gather(mi.UInt32, mi.UInt32(row), local) for row in table)  # data, not code
     F = mi.Float64
     offset = F(place - start)
     rotated = offset + 2.0 * dr.floor(F(rotation) * F(span) * 0.5)
