@@ -279,6 +279,47 @@ def test_filters_with_negative_lobes_are_refused(name):
 # ------------------------------------------------------------------------------ calibrated standard errors
 
 
+@pytest.mark.parametrize("n_groups, wraps", [(34, (0.5,)), (33, (0.5,)), (100, (0.3,)), (12, (1 / 3, 2 / 3)), (7, ()), (2, (0.5,)), (1, ())])
+def test_strata_tile_the_interval_and_any_range_of_groups_finds_its_own(n_groups, wraps):
+    from dopplertof.tracing.lanes import StrataLayout
+
+    layout = StrataLayout(n_groups, wraps)
+    units = layout.units(0, n_groups)
+    assert [u[0] for u in units] == list(np.cumsum([0] + [u[1] for u in units[:-1]]))  # contiguous in group order
+    places = sorted((place, n) for _, n, place, _, _ in units)
+    assert [p for p, _ in places] == list(np.cumsum([0] + [n for _, n in places[:-1]])) and sum(n for _, n in places) == n_groups
+    assert {n for _, n in places} <= ({1} if n_groups == 1 else {2, 3})
+    cuts = [round(w * n_groups) for w in wraps if float(w * n_groups).is_integer() and n_groups > 2]
+    assert all(any(p == c for p, _ in places) for c in cuts)  # a stratum starts at every cut
+    for g0 in range(n_groups):
+        for g1 in range(g0 + 1, n_groups + 1):
+            assert layout.units(g0, g1) == [u for u in units if u[0] + u[1] > g0 and u[0] < g1], (g0, g1)
+
+
+def test_each_pixels_times_fill_its_strata_and_the_rotation_varies():
+    """Antithetic pairs, 68 spp: 34 groups in two pieces of 17 (7 pairs and a stratum of
+    three each); per pixel, each stratum holds as many primal times as it has groups."""
+    from dopplertof.tracing import lanes
+
+    dt.scenes.build("cornell-box", resolution=4)  # sets the variant
+    spp, pixels = 68, 500
+    settings = RenderSettings(spp=spp)
+    setup = lanes.LaneSetup(width=pixels, height=1, pixel_start=0, n_pixels=pixels, first_sample=0, samples=spp, spp_total=spp,
+                            n_times=2, exposure_start_s=0.0, exposure_s=1.0, seed=0)  # fmt: skip
+    pixel, index = lanes.pixel_and_index(setup, spp)
+    group, member = index // 2, index % 2
+    seed = mi.UInt32(0)
+    r_shared = lanes.seeded_pcg(seed, lanes.STREAM_SHARED, pixel, group).next_float32()
+    r_own = lanes.seeded_pcg(seed, lanes.STREAM_OWN, pixel, index).next_float32()
+    u = np.array(lanes.sample_time(setup, settings, seed, pixel, group, member, r_shared, r_own)).reshape(pixels, 34, 2)
+    assert np.allclose(u[:, :, 1], (u[:, :, 0] + 0.5) % 1.0, atol=1e-6)
+    edges = np.array([0, 2, 4, 6, 8, 10, 12, 14, 17, 19, 21, 23, 25, 27, 29, 31, 34]) / 34
+    counts = np.stack([np.histogram(row, bins=edges)[0] for row in u[:, :, 0]])
+    np.testing.assert_array_equal(counts, np.broadcast_to(np.diff(edges * 34), counts.shape))
+    first = np.floor(u[:, 0, 0] * 34)  # the place of group 0's stratum: rotated per pixel over the 7 pairs of its piece
+    assert len(set(first // 2)) == 7
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "time_sampling, spp, extra",
