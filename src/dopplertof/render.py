@@ -7,9 +7,11 @@ kernel (:func:`dopplertof.tracing.trace_pass`) and is added, in Float64 on the h
 per-pixel sums:
 
 * estimates (:data:`~dopplertof.outputs.OUTPUTS` of kind ``estimate``): the sum of the
-  group means (a group of correlated samples counts once), and the sums and squares of
-  the means of the pixel's independent *replicates* (:mod:`dopplertof.tracing.lanes`),
-  whose spread gives the standard error;
+  group means (a group of correlated samples counts once), and, for the standard errors
+  and the cameras' covariance, where the times are stratified the sums of the squares and
+  camera products of the differences within the pixel's strata, else the sums, squares
+  and camera products of the means of its independent *replicates*
+  (:mod:`dopplertof.tracing.lanes`, :class:`~dopplertof.passes.Reducer`);
 * ground truth: sums of value × hit and of hits.
 
 Capture schedules: cameras whose exposure windows differ
