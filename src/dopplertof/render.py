@@ -135,7 +135,7 @@ def sums_bytes_per_pixel(n_cameras: int) -> int:
     estimates = 3 + n_cameras
     truth = sum(o.channels for o in TRUTH)
     pairs = n_cameras * (n_cameras - 1) // 2 if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS else 0
-    return 8 * (4 * estimates + truth + pairs) + 4 * 5
+    return 8 * (4 * estimates + truth + 2 * pairs) + 4 * 5  # stratified times: open and closed camera products
 
 
 def host_bytes_per_pixel(n_cameras: int) -> int:

@@ -77,7 +77,7 @@ def stratifies(method: str, stratify_intervals: bool) -> bool:
 
 
 def wrap_points(method: str, n_times: int, shift: float) -> tuple[float, ...]:
-    """Where in [0, 1) the group's stratified number r makes a member's time wrap around
+    """Where in (0, 1) the group's stratified number r makes a member's time wrap around
     the exposure's end: the strata are cut there (module docstring).
 
     Parameters

@@ -16,10 +16,11 @@ Windows of a capture schedule (:attr:`dopplertof.settings.RenderSettings.windows
 traced with seeds of their own (:func:`window_seed`), so their estimates are independent;
 the first window keeps the render's seed.
 
-Strata and replicates: where the times are stratified (:func:`dopplertof.timesampling.stratifies`)
-the G = spp / N groups of a pixel form strata of two contiguous groups (some of three;
-:class:`StrataLayout`), each group jittered independently in its stratum, so the
-within-stratum differences give honest standard errors. Otherwise the groups are independent and are split into R contiguous runs of
+Strata and replicates: where the times are stratified
+(:func:`dopplertof.timesampling.stratifies`) the G = spp / N groups of a pixel form strata
+of two contiguous groups (some of three; :class:`StrataLayout`), each group jittered
+independently in its stratum, so the within-stratum differences give honest standard
+errors. Otherwise the groups are independent and are split into R contiguous runs of
 nearly equal size (:func:`replicate_layout`), whose means' spread is the standard error.
 """
 
