@@ -398,6 +398,21 @@ def test_ground_truth_and_images_do_not_depend_on_the_pass_split():
             np.testing.assert_array_equal(getattr(whole, name), getattr(other, name), err_msg=name)
 
 
+@pytest.mark.parametrize("spp", [8, 12])  # pairs (device vs host); pieces of 3 groups (strata of three, carried across passes)
+def test_standard_errors_do_not_depend_on_the_pass_split(spp):
+    """Strata reduced on the device where a pass holds whole pairs, on the host where passes
+    split them (one group per pass here): the same errors and covariance, to rounding."""
+    scene = dt.scenes.build("cornell-box", resolution=32)
+    cams = [dt.Camera(heterodyne=1.0), dt.Camera(heterodyne=0.0, phase=math.pi / 2)]
+    whole = dt.render(scene, cams, spp=spp, seed=2)
+    split = dt.render(scene, cams, spp=spp, seed=2, lanes_per_pass=2048)  # 1024 pixels x one group
+    np.testing.assert_array_equal(whole.measurements, split.measurements)
+    for name in ("stderr", "measurement_stderr", "measurement_covariance"):
+        a, b = getattr(whole, name), getattr(split, name)
+        assert np.isfinite(a).mean() > 0.5, name
+        np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-12 * np.nanmax(np.abs(a)), err_msg=name)
+
+
 def test_optical_flow_of_a_receding_plane():
     """A plane receding along the optical axis at s shrinks the image towards its centre:
     d/dt (a x/z) = −(u − u_c) s / z pixels per second (u_c the film centre)."""
