@@ -63,12 +63,12 @@ POLICIES = ("none", "replay", "replay-depth-2", "split")
 
 def _render(scene, cameras, settings, spp, seed, max_depth, lanes):
     """(result, (CPU seconds, wall seconds)) of one antithetic render with ``settings`` (a dict)."""
-    from dopplertof.experiments.common import N_TIMES, SWEEP_REPLICATES
+    from dopplertof.experiments.common import N_TIMES
 
     start = time.process_time(), time.perf_counter()
     result = dopplertof.render(
         scene.scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth, time_sampling="antithetic", n_times=N_TIMES,
-        replicates=SWEEP_REPLICATES, lanes_per_pass=lanes, **scene.render_settings, **settings,
+        lanes_per_pass=lanes, **scene.render_settings, **settings,  # stratified times: errors from their strata
     )  # fmt: skip
     return result, np.array([time.process_time() - start[0], time.perf_counter() - start[1]])
 

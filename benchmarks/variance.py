@@ -16,9 +16,10 @@ Definitions:
 * time sampling: every method draws *pairs* of times (``n_times=2``; the render defaults
   otherwise: antithetic shift ½, mirror shift 0, per-interval stratification on), so
   ``uniform`` x ``replay`` means two independent times that replay the same path;
-  ``uniform`` x ``none`` is plain independent sampling. Renders use 2 replicates per pixel
-  (``dopplertof.experiments.common.SWEEP_REPLICATES``, as the ``experiment`` sweeps), so
-  each interval is stratified over half a pixel's groups rather than over 1/16 of them;
+  ``uniform`` x ``none`` is plain independent sampling. Stratified times take their
+  standard errors from their strata (each interval stratified over all of a pixel's
+  groups); uniform renders use 2 replicates per pixel
+  (``dopplertof.experiments.common.SWEEP_REPLICATES``, as the ``experiment`` sweeps);
 * reference: one render with antithetic + replay at ``--ref-spp`` and a seed no test
   render uses. Its own variance (mean of its squared standard errors over the region) is
   **subtracted** from the raw mean squared difference, so that MSE estimates the error
@@ -61,6 +62,7 @@ import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets th
 import _common
 from _common import CAMERA_GRID, diffuse, paired_times, transform
 from dopplertof.experiments.common import SWEEP_REPLICATES
+from dopplertof.timesampling import stratifies
 
 SCENE_NAMES = ("cornell-box", "rotating")
 HETERODYNES = (0.0, 0.5, 1.0)
@@ -118,8 +120,8 @@ def moving_mask(reference):
 
 def render_config(scene, cameras, method, correlation, spp, seed, max_depth):
     return dopplertof.render(
-        scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth, replicates=SWEEP_REPLICATES,
-        correlation=correlation, **paired_times(method),
+        scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth, correlation=correlation, **paired_times(method),
+        **({} if stratifies(method, True) else {"replicates": SWEEP_REPLICATES}),  # stratified times: errors from their strata
     )
 
 
@@ -332,7 +334,7 @@ def main(argv=None):
     settings = (
         f"settings: {args.resolution}x{args.resolution}, {args.spp} spp x {args.repeats} seeds per configuration, "
         f"reference {REFERENCE[0]} + {REFERENCE[1]} {args.ref_spp} spp (seed {REFERENCE_SEED}, variance subtracted), "
-        f"max_depth {args.max_depth}, pairs of times (shifts 0.5 / mirror 0, stratified intervals, {SWEEP_REPLICATES} replicates)"
+        f"max_depth {args.max_depth}, pairs of times (shifts 0.5 / mirror 0, stratified intervals; uniform: {SWEEP_REPLICATES} replicates)"
     )
     run = _common.Run("variance", args, argv, settings, f"correlation MODES: {', '.join(MODES)}")
     rows = [row for name in args.scenes for row in bench_scene(name, args, run.log)]

@@ -576,8 +576,8 @@ def test_until_noise_stops_at_the_first_pass_that_reaches_the_ratio():
     from dopplertof.sensors import preset
 
     sensor = preset("dtof-prototype", radiance_unit=1e-3)
-    # 16 spp per pass (1024 lanes over 64 pixels), a replicate per pass: the error is known after every pass
-    result = dt.render(dt.scenes.cornell_box(resolution=8), sensor=sensor, spp=2048, lanes_per_pass=1024, replicates=128, max_depth=3, seed=2, until_noise=0.3)
+    # 16 spp per pass (1024 lanes over 64 pixels), 4 strata per pass: the error is known after every pass
+    result = dt.render(dt.scenes.cornell_box(resolution=8), sensor=sensor, spp=2048, lanes_per_pass=1024, max_depth=3, seed=2, until_noise=0.3)
     info = result.info["until_noise"]
     history = info["history"][0]
     assert not result.interrupted and result.spp == info["spp"][0] == history[-1][0] < 2048

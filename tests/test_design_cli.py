@@ -111,7 +111,7 @@ def test_design_refuses_bad_input_with_one_error_line(tmp_path, args, message):
 def test_render_until_noise_reports_the_spp_it_took(tmp_path):
     sensor = tmp_path / "dim.toml"
     sensor.write_text('preset = "dtof-prototype"\n\n[silicon]\nradiance_unit = 1e-3\n')
-    args = ["--sensor", str(sensor), "--resolution", "8", "--max-depth", "2", "--spp", "1024", "--lanes-per-pass", "1024", "--replicates", "64", "--quiet"]
+    args = ["--sensor", str(sensor), "--resolution", "8", "--max-depth", "2", "--spp", "1024", "--lanes-per-pass", "1024", "--quiet"]
     done = _run("render", "cornell-box", "--until-noise", "0.5", "-o", str(tmp_path / "r"), *args)
     assert done.returncode == 0, done.stderr
     line = next(x for x in done.stdout.splitlines() if x.startswith("until-noise"))

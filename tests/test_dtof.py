@@ -26,9 +26,8 @@ def test_moving_plane_matches_closed_form(waveform, speed):
     """Relative error < 0.5 % for every waveform, h ∈ {0, ½, 1}, ψ ∈ {0, π/2}, 10 m/s … 1 cm/s
     (15 µm of travel during the exposure at 1 cm/s).
 
-    Each of the 16 replicates of a pixel stratifies the exposure over its own groups, so
-    stratification gains less per sample than over all of them: 1024 spp (32 strata per
-    replicate) keeps the noise (≲ 0.1 %) well below the tolerance."""
+    1024 spp (256 strata of two antithetic pairs over the exposure) keeps the noise well
+    below the tolerance."""
     tolerance = 5e-3
     cameras = [dt.Camera(heterodyne=h, phase=psi, waveform=waveform) for h, psi in CAMERA_GRID]
     result = dt.render(moving_plane_scene(speed), cameras=cameras, spp=1024, max_depth=2, seed=7)
@@ -39,8 +38,7 @@ def test_moving_plane_matches_closed_form(waveform, speed):
 
 
 def test_moving_plane_heterodyne_sinusoid_quick():
-    """The fast-subset version: sinusoid, h = 1, 1 m/s (1024 spp: 32 strata per replicate,
-    noise ≈ 0.03 %)."""
+    """The fast-subset version: sinusoid, h = 1, 1 m/s (1024 spp: 256 strata)."""
     cam = dt.Camera(heterodyne=1.0, phase=0.3)
     result = dt.render(moving_plane_scene(1.0, resolution=8), cameras=[cam], spp=1024, max_depth=2, seed=3)
     assert float(result.measurements[0].mean()) == pytest.approx(_reference_image_mean(cam, 1.0), rel=5e-3)

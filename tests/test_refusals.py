@@ -256,17 +256,37 @@ def test_a_render_of_days_warns_with_its_estimated_time():
 
 def test_more_replicates_than_groups_warns_and_the_default_does_not():
     with pytest.warns(UserWarning, match=r"replicates=64 exceeds the 2 group\(s\) .* standard errors come from 2 replicate\(s\)"):
-        dt.RenderSettings(spp=4, replicates=64)
+        dt.RenderSettings(spp=2, time_sampling="uniform", replicates=64)
     with pytest.warns(UserWarning, match=r"come from 1 replicate\(s\), so they are NaN"):
-        dt.RenderSettings(spp=2, replicates=8)
+        dt.RenderSettings(spp=2, stratify_intervals=False, replicates=8)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         dt.RenderSettings(spp=4)  # the default 16 replicates, fewer groups: the user asked for neither
-        dt.RenderSettings(spp=64, replicates=32)
+        dt.RenderSettings(spp=64, time_sampling="uniform", replicates=32)
+        dt.RenderSettings(spp=64, stratify_intervals=False, replicates=32)
+
+
+@pytest.mark.parametrize("time_sampling", ["stratified", "antithetic", "antithetic_mirror"])
+def test_replicates_of_stratified_times_warn_that_they_do_nothing(time_sampling):
+    with pytest.warns(UserWarning, match=rf"replicates=4 has no effect: time_sampling='{time_sampling}' with stratify_intervals .* come from the strata"):
+        dt.RenderSettings(spp=64, time_sampling=time_sampling, replicates=4)
+
+
+def test_a_wrap_inside_a_stratum_warns():
+    # 33 antithetic pairs: the partner's wrap at ½ T falls in the middle of a group's share
+    with pytest.warns(UserWarning, match=r"spp=66 gives 33 groups of 2 times: antithetic's times wrap .* at 0.5 T, inside a stratum"):
+        dt.RenderSettings(spp=66)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        dt.RenderSettings(spp=68)  # 34 pairs: cut into two pieces of 17
+        dt.RenderSettings(spp=66, time_sampling="stratified")  # no wrap
+        dt.RenderSettings(spp=66, time_sampling="antithetic_mirror")  # wraps at a = 0
+        dt.RenderSettings(spp=66, stratify_intervals=False)
 
 
 @pytest.mark.parametrize("args,warning", [
-    (("--spp", 4, "--replicates", 64), "warning: replicates=64 exceeds the 2 group(s)"),
+    (("--spp", 2, "--time-sampling", "uniform", "--replicates", 64), "warning: replicates=64 exceeds the 2 group(s)"),
+    (("--replicates", 4), "warning: replicates=4 has no effect"),
     (("--camera", "h=1,f=30"), "warning: Camera: modulation_frequency=30 Hz"),
 ])  # fmt: skip
 def test_cli_prints_a_warning_as_one_line(tmp_path, args, warning):

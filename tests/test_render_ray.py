@@ -98,10 +98,10 @@ def test_cli_ray_without_the_package_is_one_error_line(tmp_path, monkeypatch):
 
 def test_api_ray_render_stopped_and_resumed_equals_the_local_render(local_ray, tmp_path):
     # 32² pixels x 16 spp in passes of 1024 lanes: tiles of 512 pixels, one group each, and
-    # replicates of 2 groups that span passes (the sums carried from pass to pass)
+    # strata of 2 groups that span passes (the sums carried from pass to pass)
     scene = dt.scenes.build("cornell-box", resolution=32)
     cameras = [dt.Camera(heterodyne=1.0), dt.Camera(heterodyne=0.0, phase=np.pi / 2), dt.Camera(heterodyne=0.5)]
-    settings = dict(cameras=cameras, spp=16, lanes_per_pass=1024, replicates=4, seed=3)
+    settings = dict(cameras=cameras, spp=16, lanes_per_pass=1024, seed=3)
     whole = dt.render(scene, **settings)
     assert whole.info["passes"] == 16
     on_ray = dt.render(scene, executor="ray", workers=2, **settings)

@@ -55,17 +55,31 @@ class Reducer:
     group            int    correlated samples per group (``settings.group_size``)
     lanes_per_group  int    lanes a group takes (1 where primal and partner share a lane)
     replicates       int    independent replicates per pixel (``settings.replicates``)
+    wraps            tuple  where the strata are cut (``settings.wraps``) where the times
+                     |None  are stratified over the pixel's groups (``settings.stratified``):
+                            errors from the strata; None where they are not
     ===============  =====  ==========================================================
+
+    The standard errors come from *units* of a pixel's groups: with ``stratified`` its
+    strata (:class:`~dopplertof.tracing.lanes.StrataLayout`), whose within-stratum spread
+    Q_s = n_s/(n_s − 1) Σ (x_g − x̄_s)² (d_s² for a pair) sums to G² Var(μ̂)
+    (:mod:`dopplertof.timesampling`); else its independent replicates
+    (:func:`~dopplertof.tracing.lanes.replicate_bounds`), whose means' spread gives it.
     """
 
-    def __init__(self, color_channels, n_cameras, spp, group, lanes_per_group, replicates):
-        from .tracing.lanes import replicate_bounds
+    def __init__(self, color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps):
+        from .tracing.lanes import StrataLayout, replicate_bounds
 
         self.color_channels, self.n_cameras = color_channels, n_cameras
         self.group, self.lanes_per_group = group, lanes_per_group
-        self.bounds = replicate_bounds(max(spp // group, 1), replicates)
-        self.sizes = {start + n: n for start, n in self.bounds}  # replicate end -> its groups
-        self.replicated = len(self.bounds) > 1
+        n_groups = max(spp // group, 1)
+        self.within = wraps is not None
+        if self.within:
+            self.strata = StrataLayout(n_groups, wraps)
+            self.replicated = n_groups > 1  # standard errors can be estimated
+        else:
+            self.bounds = replicate_bounds(n_groups, replicates)
+            self.replicated = len(self.bounds) > 1
         self.pairs = []
         if self.replicated and 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS:  # cameras share paths: their errors correlate
             self.pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
@@ -76,25 +90,28 @@ class Reducer:
         import mitsuba as mi
 
         group = settings.group_size
-        return 3 if mi.is_rgb else 1, len(settings.cameras), settings.spp, group, 1 if settings.paired else group, settings.replicates
+        lanes_per_group = 1 if settings.paired else group
+        return 3 if mi.is_rgb else 1, len(settings.cameras), settings.spp, group, lanes_per_group, settings.replicates, settings.wraps if settings.stratified else None
 
     def groups(self, p: Pass) -> tuple[int, int]:
         """The pass's groups of every pixel: [g0, g1)."""
         return p.first_sample // self.group, (p.first_sample + p.samples) // self.group
 
-    def segments(self, p: Pass) -> list[tuple[int, int, int]]:
-        """The pass's groups split at replicate ends: (first group, end group, replicate end)."""
+    def segments(self, p: Pass) -> list[tuple[int, int, int, int]]:
+        """The pass's groups split at unit ends: (first group, end group, unit end, unit size)."""
         g0, g1 = self.groups(p)
-        return [(max(a, g0), min(a + n, g1), a + n) for a, n in self.bounds if max(a, g0) < min(a + n, g1)]
+        units = [(a, n) for a, n, *_ in self.strata.units(g0, g1)] if self.within else self.bounds
+        return [(max(a, g0), min(a + n, g1), a + n, n) for a, n in units if max(a, g0) < min(a + n, g1)]
 
     def reduce(self, p: Pass, out: dict) -> dict:
         """One pass's per-lane outputs (Dr.Jit arrays), reduced in Float64 on the device to
         per-pixel host increments (numpy), which :meth:`Accumulator.apply` adds.
 
         Group sums are gathers (Dr.Jit's block reductions over blocks of 2 lanes cost
-        several times the reduction itself); replicates that lie wholly in the pass are
-        reduced to per-pixel sums of their means, squares and camera products there too,
-        so only per-pixel arrays reach the host.
+        several times the reduction itself); units that lie wholly in the pass are
+        reduced to per-pixel sums there too (replicates: of their means, squares and camera
+        products; strata of two groups: of the groups and of their differences' squares and
+        camera products), so only per-pixel arrays reach the host.
         """
         import drjit as dr
         import mitsuba as mi
@@ -127,7 +144,19 @@ class Reducer:
         dr.eval(means, truth64)  # one kernel for every channel, not one per reduction
         truth_sums = [dr.block_sum(x, lanes_per_pixel) for x in truth64]
         inc = {}
-        if self.whole(segments):  # the usual pass: complete replicates of one size, reduced to per-pixel sums
+        if self.whole(segments) and self.within:  # the usual stratified pass: complete pairs
+            count = len(segments)
+            first_of_pair = dr.arange(mi.UInt32, p.n_pixels * count) * 2
+            diffs = [dr.gather(mi.Float64, m, first_of_pair) - dr.gather(mi.Float64, m, first_of_pair + 1) for m in means]
+            cams = diffs[self.color_channels :]
+            sums = [dr.block_sum(m, 2 * count) for m in means]
+            squares = [dr.block_sum(d * d, count) for d in diffs]
+            cross = [dr.block_sum(cams[i] * cams[j], count) for i, j in self.pairs]
+            dr.eval(sums, squares, cross, truth_sums)
+            inc["group_sum"] = np.stack([np.asarray(x.numpy()) for x in sums])
+            inc["within_sq"] = np.stack([np.asarray(x.numpy()) for x in squares])
+            inc["within_cross"] = [np.asarray(x.numpy()) for x in cross]
+        elif self.whole(segments):  # the usual pass: complete replicates of one size, reduced to per-pixel sums
             size, count = segments[0][1] - segments[0][0], len(segments)
             reps = [dr.block_sum(m, size) * (1.0 / size) if size > 1 else m for m in means]
             cams = reps[self.color_channels :]
@@ -141,7 +170,12 @@ class Reducer:
         else:
             dr.eval(means, truth_sums)
             host = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in means])  # (channels, pixels, groups)
-            inc["parts"] = np.stack([host[:, :, a - g0 : b - g0].sum(axis=2) for a, b, _ in segments], axis=2)
+            inc["parts"] = np.stack([host[:, :, a - g0 : b - g0].sum(axis=2) for a, b, *_ in segments], axis=2)
+            if self.within and self.replicated:  # (channels, pixels, segments) sums of squares and of camera products
+                pieces = [host[:, :, a - g0 : b - g0] for a, b, *_ in segments]
+                inc["parts_sq"] = np.stack([(x * x).sum(axis=2) for x in pieces], axis=2)
+                cc = self.color_channels
+                inc["parts_cross"] = [np.stack([(x[cc + i] * x[cc + j]).sum(axis=1) for x in pieces], axis=1) for i, j in self.pairs]
         truth_sums = [np.asarray(x.numpy()) for x in truth_sums]
         inc["truth_sum"] = np.stack(truth_sums[:-1])
         inc["hits"] = np.rint(truth_sums[-1]).astype(np.int32)  # counts of hits: whole numbers
@@ -152,9 +186,10 @@ class Reducer:
         return inc
 
     def whole(self, segments) -> bool:
-        """Whether a pass's segments are complete replicates of one size."""
-        equal = len({b - a for a, b, _ in segments}) == 1
-        return self.replicated and equal and all(b - a == self.sizes[end] for a, b, end in segments)
+        """Whether a pass's segments are complete units of one size (pairs, where stratified)."""
+        sizes = {b - a for a, b, *_ in segments}
+        equal = len(sizes) == 1 and (not self.within or sizes == {2})
+        return self.replicated and equal and all(b - a == size for a, b, _, size in segments)
 
 
 class Accumulator(Reducer):
@@ -170,11 +205,15 @@ class Accumulator(Reducer):
     # (:class:`~dopplertof.tracing.sink.PhasorGrid`), once a pass brought some; no checkpoint holds them
     record_sum = None
 
-    def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates):
-        super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates)
+    def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps):
+        super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps)
         c, n = color_channels + n_cameras, n_pixels
         self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int32)}
-        if self.replicated:
+        if self.replicated and self.within:  # the open stratum's sums, and the closed strata's Q_s
+            self.state.update(open_sum=np.zeros((c, n)), open_sq=np.zeros((c, n)), within_sq=np.zeros((c, n)), strata_closed=np.zeros(n, np.int32))
+            if self.pairs:
+                self.state.update(open_cross=np.zeros((len(self.pairs), n)), within_cross=np.zeros((len(self.pairs), n)))
+        elif self.replicated:
             self.state.update(open_sum=np.zeros((c, n)), rep_sum=np.zeros((c, n)), rep_sq=np.zeros((c, n)), reps_closed=np.zeros(n, np.int32))
             if self.pairs:
                 self.state["rep_cross"] = np.zeros((len(self.pairs), n))
@@ -187,7 +226,13 @@ class Accumulator(Reducer):
         self.applying = True
         s = self.state
         pix = slice(p.pixel_start, p.pixel_start + p.n_pixels)
-        if "rep_sum" in inc:
+        if "within_sq" in inc:
+            s["group_sum"][:, pix] += inc["group_sum"]
+            s["within_sq"][:, pix] += inc["within_sq"]
+            for k, x in enumerate(inc["within_cross"]):
+                s["within_cross"][k, pix] += x
+            s["strata_closed"][pix] += len(self.segments(p))
+        elif "rep_sum" in inc:
             segments = self.segments(p)
             size, count = segments[0][1] - segments[0][0], len(segments)
             s["group_sum"][:, pix] += inc["rep_sum"] * size
@@ -200,10 +245,16 @@ class Accumulator(Reducer):
             parts = inc["parts"]
             s["group_sum"][:, pix] += parts.sum(axis=2)
             if self.replicated:
-                for k, (a, b, end) in enumerate(self.segments(p)):
+                for k, (a, b, end, size) in enumerate(self.segments(p)):
                     s["open_sum"][:, pix] += parts[:, :, k]
-                    if b == end:  # the replicate is complete: its mean is one independent unit
-                        self._close(pix, (s["open_sum"][:, pix] / self.sizes[end])[:, :, None])
+                    if self.within:
+                        s["open_sq"][:, pix] += inc["parts_sq"][:, :, k]
+                        for j, x in enumerate(inc["parts_cross"]):
+                            s["open_cross"][j, pix] += x[:, k]
+                        if b == end:
+                            self._close_stratum(pix, size)
+                    elif b == end:  # the replicate is complete: its mean is one independent unit
+                        self._close(pix, (s["open_sum"][:, pix] / size)[:, :, None])
                         s["open_sum"][:, pix] = 0.0
         g0, g1 = self.groups(p)
         s["groups_done"][pix] += g1 - g0
@@ -229,6 +280,22 @@ class Accumulator(Reducer):
             s["rep_cross"][j, pix] += np.einsum("pr,pr->p", cams[i1], cams[i2])
         s["reps_closed"][pix] += rep_means.shape[2]
 
+    def _close_stratum(self, pix, n):
+        """Add the open stratum of ``n`` groups, complete: its Q_s (class docstring), from
+        the sums of its groups, squares and camera products, which restart at zero."""
+        s = self.state
+        total = s["open_sum"][:, pix]
+        if n >= 2:  # a lone group (G = 1) says nothing about the variance
+            scale = n / (n - 1)
+            s["within_sq"][:, pix] += scale * (s["open_sq"][:, pix] - total * total / n)
+            cams = total[self.color_channels :]
+            for j, (i1, i2) in enumerate(self.pairs):
+                s["within_cross"][j, pix] += scale * (s["open_cross"][j, pix] - cams[i1] * cams[i2] / n)
+            s["strata_closed"][pix] += 1
+        for name in ("open_sum", "open_sq", "open_cross"):
+            if name in s:
+                s[name][:, pix] = 0.0
+
     def finish(self, height, width, n_cameras) -> dict:
         """The result's maps (float32). Consumes the state: each Float64 sum is freed as soon
         as its maps are made, so the peak is the sums or the maps, not both."""
@@ -240,10 +307,12 @@ class Accumulator(Reducer):
             return rows[0].reshape(height, width) if len(rows) == 1 else np.stack(rows, axis=-1).reshape(height, width, len(rows))
 
         with np.errstate(invalid="ignore", divide="ignore"):
-            groups = s.pop("groups_done")
+            groups = s.pop("groups_done").astype(np.float64)
             mean = [(row / groups).astype(np.float32) for row in s.pop("group_sum")]
-            del groups
-            if "rep_sum" in s:
+            if "within_sq" in s:  # Var(μ̂) = Σ_s Q_s / G² (class docstring)
+                closed = s.pop("strata_closed") >= 1
+                err = np.where(closed, np.sqrt(np.maximum(s.pop("within_sq"), 0.0)) / groups, np.nan).astype(np.float32)
+            elif "rep_sum" in s:
                 n = s.pop("reps_closed").astype(np.float64)
                 rep_mean = s.pop("rep_sum") / n
                 var = np.maximum(s.pop("rep_sq") / n - rep_mean * rep_mean, 0.0) * n / (n - 1)
@@ -252,14 +321,18 @@ class Accumulator(Reducer):
             else:
                 err = np.full((len(mean), n_pix), np.nan, np.float32)
             covariance = None
-            if self.pairs:  # covariance of the cameras' means, from the same replicates
+            if self.pairs:  # covariance of the cameras' means, from the same strata or replicates
                 covariance = np.zeros((n_cameras, n_cameras, n_pix), np.float32)
                 for i in range(n_cameras):
                     covariance[i, i] = err[cc + i].astype(np.float64) ** 2
                 for k, (i, j) in enumerate(self.pairs):
-                    cross = (s["rep_cross"][k] / n - rep_mean[cc + i] * rep_mean[cc + j]) * n / (n - 1) / n
-                    covariance[i, j] = covariance[j, i] = np.where(n >= 2, cross, np.nan)
-                del s["rep_cross"]
+                    if self.within:
+                        cross = np.where(closed, s["within_cross"][k] / (groups * groups), np.nan)
+                    else:
+                        cross = np.where(n >= 2, (s["rep_cross"][k] / n - rep_mean[cc + i] * rep_mean[cc + j]) * n / (n - 1) / n, np.nan)
+                    covariance[i, j] = covariance[j, i] = cross
+                s.pop("within_cross" if self.within else "rep_cross")
+            del groups
             hits = s.pop("hits")
             truth_rows = [(row / hits).astype(np.float32) for row in s.pop("truth_sum")]
             coverage = (hits / s.pop("samples")).astype(np.float32)
@@ -314,7 +387,7 @@ class PassTracer:
         width, height = self.scene.resolution
         setup = LaneSetup(
             width=width, height=height, pixel_start=p.pixel_start, n_pixels=p.n_pixels, first_sample=p.first_sample,
-            samples=p.samples, spp_total=s.spp, n_times=s.group_size, replicates=s.replicates,
+            samples=p.samples, spp_total=s.spp, n_times=s.group_size,
             exposure_start_s=float(s.exposure_start), exposure_s=float(s.exposure_s), seed=s.seed, grid=self.grid,
         )  # fmt: skip
         return self.reducer.reduce(p, trace_pass(self.scene, s, setup, self.tables))

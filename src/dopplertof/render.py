@@ -7,9 +7,11 @@ kernel (:func:`dopplertof.tracing.trace_pass`) and is added, in Float64 on the h
 per-pixel sums:
 
 * estimates (:data:`~dopplertof.outputs.OUTPUTS` of kind ``estimate``): the sum of the
-  group means (a group of correlated samples counts once), and the sums and squares of
-  the means of the pixel's independent *replicates* (:mod:`dopplertof.tracing.lanes`),
-  whose spread gives the standard error;
+  group means (a group of correlated samples counts once), and, for the standard errors
+  and the cameras' covariance, where the times are stratified the sums of the squares and
+  camera products of the differences within the pixel's strata, else the sums, squares
+  and camera products of the means of its independent *replicates*
+  (:mod:`dopplertof.tracing.lanes`, :class:`~dopplertof.passes.Reducer`);
 * ground truth: sums of value × hit and of hits.
 
 Capture schedules: cameras whose exposure windows differ
@@ -134,7 +136,7 @@ def sums_bytes_per_pixel(n_cameras: int) -> int:
     estimates = 3 + n_cameras
     truth = sum(o.channels for o in TRUTH)
     pairs = n_cameras * (n_cameras - 1) // 2 if 2 <= n_cameras <= MAX_COVARIANCE_CAMERAS else 0
-    return 8 * (4 * estimates + truth + pairs) + 4 * 5
+    return 8 * (4 * estimates + truth + 2 * pairs) + 4 * 5  # stratified times: open and closed camera products
 
 
 def host_bytes_per_pixel(n_cameras: int) -> int:
@@ -393,8 +395,9 @@ def render(
         noise in 95 % of its pixels (:mod:`dopplertof.design.convergence`); ``spp`` is
         then the most it may take, ``result.spp`` what it took and ``result.info["until_noise"]``
         the ratio reached and the spp of each window, and the (spp, ratio) after each pass.
-        A pass then holds at most one replicate (``lanes_per_pass`` lowered to it where
-        larger, as ``result.settings`` says), so that the ratio is checked as the render goes.
+        A pass then holds at most spp / ``replicates`` samples of each pixel (one replicate;
+        with stratified times a few strata), ``lanes_per_pass`` lowered to it where larger
+        (as ``result.settings`` says), so that the ratio is checked as the render goes.
 
     Returns
     -------
@@ -459,10 +462,10 @@ def render(
             raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...)")
         if not until_noise > 0:
             raise ValueError(f"until_noise={until_noise!r}: must be > 0")
-        # The ratio is checked after each pass: a pass of more than one replicate (on a small
-        # film, one pass may hold the whole render) would check too late to save anything.
-        one_replicate = math.prod(scene.resolution) * max(settings.group_size, settings.spp // settings.replicates)
-        settings = dataclasses.replace(settings, lanes_per_pass=min(settings.lanes_per_pass, one_replicate))
+        # The ratio is checked after each pass: a pass of a large share of the render (on a
+        # small film, one pass may hold all of it) would check too late to save anything.
+        pass_lanes = math.prod(scene.resolution) * max(settings.group_size, settings.spp // settings.replicates)
+        settings = dataclasses.replace(settings, lanes_per_pass=min(settings.lanes_per_pass, pass_lanes))
     if record is not None and record is not False:
         from .design.record import as_spec, by_probes, first_grid
         from .design.record import check_memory as check_record_memory

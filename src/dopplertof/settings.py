@@ -32,7 +32,7 @@ import numpy as np
 
 from .correlation import MODES, PAIRED, Correlation
 from .modulation import Camera, checked_exposure
-from .timesampling import ANALYTIC, METHODS
+from .timesampling import ANALYTIC, METHODS, group_cuts, stratifies, wrap_points
 from .validation import checked
 
 DEFAULT_EXPOSURE_S = 1.5e-3
@@ -70,7 +70,7 @@ class RenderSettings:
         None, "float", "T", "antithetic shift a (default 0.5 for antithetic, 0 for antithetic_mirror)",
         follows="time_sampling", optional=True,
     )  # fmt: skip
-    stratify_intervals: bool = _setting(True, "bool", "", "stratify each time interval over the pixel's groups (within each replicate)")
+    stratify_intervals: bool = _setting(True, "bool", "", "stratify each time interval over the pixel's groups, two groups per stratum")
     correlation: str = _setting("replay", "str", "", "how the paths of a group are correlated", choices=MODES)
     correlation_depth: int | None = _setting(
         None, "int", "", "replay cut-off: 0 none, 1 pixel, k: pixel + k-1 bounces (replay only)",
@@ -80,7 +80,7 @@ class RenderSettings:
         None, "float", "", "adaptive: reconnect where both surfaces are rougher than this GGX/Beckmann alpha (default 0.5)",
         minimum=0.0, follows="correlation", optional=True,
     )  # fmt: skip
-    replicates: int = _setting(16, "int", "", "independent replicates per pixel that the standard errors are estimated from", minimum=2)
+    replicates: int = _setting(16, "int", "", "independent replicates per pixel that the standard errors are estimated from, where the times are not stratified (uniform, analytic, or stratify_intervals off; stratified times use their strata)", minimum=2)
     lanes_per_pass: int = _setting(DEFAULT_LANES_PER_PASS, "int", "lanes", "lanes per kernel launch: bounds the tracing memory whatever the film size", minimum=1024)
 
     # ------------------------------------------------------------------------------ build
@@ -166,6 +166,18 @@ class RenderSettings:
         return self.correlation in PAIRED or self.time_sampling == ANALYTIC
 
     @property
+    def stratified(self) -> bool:
+        """Times stratified over the pixel's groups (:func:`dopplertof.timesampling.stratifies`):
+        the standard errors come from the strata, and ``replicates`` does not apply."""
+        return stratifies(self.time_sampling, self.stratify_intervals)
+
+    @property
+    def wraps(self) -> tuple[float, ...]:
+        """Where the stratified times wrap around the exposure's end: the strata are cut
+        there (:func:`dopplertof.timesampling.wrap_points`)."""
+        return wrap_points(self.time_sampling, self.group_size, self.shift)
+
+    @property
     def group_size(self) -> int:
         """Correlated times per group (``n_times`` resolved)."""
         if self.n_times is not None:
@@ -241,7 +253,20 @@ class RenderSettings:
         if self.spp % n:
             raise ValueError(f"spp={self.spp} must be a multiple of the {n} correlated times per group ({self.time_sampling})")
         groups = self.spp // n
-        if self.replicates != FIELDS["replicates"].default and self.replicates > groups:
+        uncut = group_cuts(groups, self.wraps)[1]
+        if self.stratified and groups >= 3 and uncut:
+            warnings.warn(
+                f"spp={self.spp} gives {groups} groups of {n} times: {self.time_sampling}'s times wrap around the exposure's end at "
+                f"{', '.join(f'{w:g}' for w in uncut)} T, inside a stratum, so the standard errors at heterodyne cameras are less reliable "
+                f"(an spp that puts those points between groups avoids it: for antithetic pairs at shift 0.5, a multiple of 4)", stacklevel=2,
+            )  # fmt: skip
+        if self.replicates != FIELDS["replicates"].default and self.stratified:
+            warnings.warn(
+                f"replicates={self.replicates} has no effect: time_sampling={self.time_sampling!r} with stratify_intervals stratifies the "
+                f"times over the pixel's groups, two per stratum, and the standard errors come from the strata "
+                f"(stratify_intervals=False for independent replicates)", stacklevel=2,
+            )  # fmt: skip
+        elif self.replicates != FIELDS["replicates"].default and self.replicates > groups:
             warnings.warn(
                 f"replicates={self.replicates} exceeds the {groups} group(s) of correlated times per pixel (spp={self.spp} / n_times={n}): "
                 f"the standard errors come from {groups} replicate(s){'' if groups >= 2 else ', so they are NaN'}", stacklevel=2,

@@ -3,14 +3,14 @@ sensor's own noise (``dopplertof.render(..., sensor=S, until_noise=RATIO)``).
 
 A tap's electrons are linear in the render's measurements, A = Σ_i C_i M_i
 (:meth:`~dopplertof.sensors.Sensor.raw`), so the Monte Carlo standard error of A is at most
-Σ_i |C_i| σ_i, σ_i the measurements' standard errors (their replicates' spread; the bound
+Σ_i |C_i| σ_i, σ_i the measurements' standard errors (their strata's or replicates' spread; the bound
 holds whatever their correlation). The sensor's own noise is √σ²(μ) of the tap's mean
 charge μ (:meth:`~dopplertof.sensors.noise.Silicon.tap_variance_e2`: shot, read and
 quantisation noise). :func:`noise_ratio` is the worst tap's ratio per pixel, and a render
 stops after the first pass at which its :data:`UNTIL_NOISE_QUANTILE` quantile over the
-window's pixels is at most RATIO. Standard errors exist once two replicates of every pixel
-are closed (``replicates``), and change as replicates close: the check runs after every
-pass, and can stop a render at the pass that closes a replicate.
+window's pixels is at most RATIO. Standard errors exist once a stratum (two replicates,
+where the times are not stratified) of every pixel is closed, and change as more close:
+the check runs after every pass, and can stop a render at any pass that closes one.
 """
 
 from __future__ import annotations

@@ -30,6 +30,7 @@ from ..modulation import Camera
 from ..outputs import OUTPUTS
 from ..render import RenderResult, render
 from ..settings import FIELDS, RenderSettings
+from ..timesampling import stratifies
 
 CACHE_ENV_VAR = "DOPPLERTOF_CACHE"
 N_TIMES = 2
@@ -46,13 +47,11 @@ render of many cameras (220 for four waveforms × 11 h × 5 ψ) at the default 2
 pass took 3.4× as long and 2.5× the memory as at 0.5 M (64², 512 spp, measured)."""
 
 SWEEP_REPLICATES = 2
-"""Replicates per pixel of the sweeps' renders (the render default is 16). Per-interval
-stratification spreads a pixel's times over the groups of one replicate
-(:mod:`dopplertof.tracing.lanes`), so 16 replicates of a 64-spp render stratify each
-interval in only 2 strata, too few for mirrored sampling, whose pair mean at h = 1 varies
-as cos 2πt, to gain anything. The original scripts stratify over all spp/2 groups of a
-render; 2 replicates stratify over half of them and still give an unbiased image-average
-standard error (``stderr_rms``), which is all the sweeps use."""
+"""Replicates per pixel of the sweeps' renders whose times are not stratified (uniform, or
+no further stratification): only the image-average standard error (``stderr_rms``) is
+used. Stratified renders (:func:`dopplertof.timesampling.stratifies`) stratify over all
+of a pixel's groups whatever this is, and take their standard errors from the strata
+(:func:`timed_render` passes it only to the others)."""
 
 _DEFAULT_SHIFT = {"antithetic": 0.5, "antithetic_mirror": 0.0}
 """The original scripts' antithetic shift per method (a = T/2, and the plain mirror 1 − t)."""
@@ -316,7 +315,8 @@ def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int
     progress : bool, default False
         Show a progress bar.
     replicates, lanes_per_pass : int or None, default None
-        The render's (None: the render default).
+        The render's (None: the render default); ``replicates`` only where the estimator's
+        times are not stratified (the others take their errors from their strata).
     **executor
         :func:`~dopplertof.render.render`'s ``executor``, ``address``, ``workers``.
 
@@ -331,6 +331,8 @@ def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int
         The render was interrupted.
     """
     start = time.perf_counter()
+    if stratifies(estimator.time_sampling, estimator.stratified):
+        replicates = None  # stratified times take their standard errors from their strata
     given = {"replicates": replicates, "lanes_per_pass": lanes_per_pass}
     extra = {k: v for k, v in given.items() if v is not None}
     result = render(

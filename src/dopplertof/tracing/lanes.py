@@ -16,10 +16,12 @@ Windows of a capture schedule (:attr:`dopplertof.settings.RenderSettings.windows
 traced with seeds of their own (:func:`window_seed`), so their estimates are independent;
 the first window keeps the render's seed.
 
-Replicates: the G = spp / N groups of a pixel are split into R contiguous runs of nearly
-equal size (:func:`replicate_layout`); each run is stratified over its own groups
-(:mod:`dopplertof.timesampling`), so the R run means are independent and their spread
-is an honest standard error even where stratification makes groups dependent.
+Strata and replicates: where the times are stratified
+(:func:`dopplertof.timesampling.stratifies`) the G = spp / N groups of a pixel form strata
+of two contiguous groups (some of three; :class:`StrataLayout`), each group jittered
+independently in its stratum, so the within-stratum differences give honest standard
+errors. Otherwise the groups are independent and are split into R contiguous runs of
+nearly equal size (:func:`replicate_layout`), whose means' spread is the standard error.
 """
 
 from __future__ import annotations
@@ -52,8 +54,6 @@ class LaneSetup:
         Samples per pixel of the whole render.
     n_times : int
         Correlated times per group (N).
-    replicates : int
-        Requested replicates R (fewer where the pixel has fewer groups).
     exposure_start_s, exposure_s : float, s
         The exposure window.
     seed : int
@@ -71,7 +71,6 @@ class LaneSetup:
     samples: int  # samples of each pixel in this pass (a multiple of n_times)
     spp_total: int
     n_times: int  # correlated times per group (N)
-    replicates: int  # requested R (fewer where the pixel has fewer groups)
     exposure_start_s: float
     exposure_s: float
     seed: int
@@ -81,12 +80,6 @@ class LaneSetup:
     def n_groups(self) -> int:
         """Groups of correlated times per pixel: spp / n_times (at least 1)."""
         return max(self.spp_total // self.n_times, 1)
-
-    @property
-    def layout(self) -> tuple[int, int, int]:
-        """(R, base, extra) of a pixel's groups: :func:`replicate_layout` of
-        :attr:`n_groups` and ``replicates``."""
-        return replicate_layout(self.n_groups, self.replicates)
 
 
 def replicate_layout(n_groups: int, replicates: int) -> tuple[int, int, int]:
@@ -273,29 +266,106 @@ def pixel_and_index(setup: LaneSetup, per_pixel: int):
     return lane // per + opaque_u32(setup.pixel_start), lane % per
 
 
-def stratum(setup: LaneSetup, group):
-    """(replicate, index in it, its group count) of per-lane ``group`` (UInt32).
+class StrataLayout:
+    """The strata of a pixel's G groups (:mod:`dopplertof.timesampling`), in group order.
+
+    The interval, in units of 1/G, is cut at the ``wraps`` that fall between groups (none
+    where a piece would hold fewer than 2 groups); each piece is split into pairs, the last
+    holding three where the piece has an odd number (one where G = 1). A stratum's
+    *place* is its first unit in the interval; the pieces' strata take turns in group order
+    (round i holds the i-th stratum of each piece), so every prefix of the groups spreads
+    over the pieces. Per pixel the pairs of a piece (its first ``span`` units) are rotated
+    by a whole number of pairs (:func:`stratum`), so each group's time is uniform over them
+    on its own: a render stopped before its last pass is unbiased (but for a piece's
+    three-group stratum). Computed, not listed: a render of 10⁹ spp has 10⁸ strata.
+
+    Parameters
+    ----------
+    n_groups : int
+        Groups G of a pixel, at least 1.
+    wraps : sequence of float, default ()
+        Cut points in (0, 1) (:func:`dopplertof.timesampling.wrap_points`).
+    """
+
+    def __init__(self, n_groups: int, wraps=()):
+        from ..timesampling import group_cuts
+
+        self.n_groups = n_groups
+        edges = sorted({0, n_groups} | {c for c in group_cuts(n_groups, wraps)[0] if 0 < c < n_groups})
+        if any(b - a < 2 for a, b in zip(edges, edges[1:])):
+            edges = [0, n_groups]
+        # per piece: (start, length, strata); its last stratum holds length - 2 (strata - 1) groups
+        self.pieces = [(a, b - a, max((b - a) // 2, 1)) for a, b in zip(edges, edges[1:])]
+
+    def _round_start(self, i: int) -> int:
+        """The first group of round ``i``."""
+        return sum(2 * min(i, n) + (length - 2 * n if i >= n else 0) for _, length, n in self.pieces)
+
+    def units(self, g0: int, g1: int) -> list[tuple[int, int, int, int, int]]:
+        """(first group, group count, place, piece start, piece span) of the strata that
+        hold groups of [g0, g1), in group order.
+
+        Parameters
+        ----------
+        g0, g1 : int
+            A range of groups.
+
+        Returns
+        -------
+        list of tuple of (int, int, int, int, int)
+        """
+        lo, hi = 0, max(n for *_, n in self.pieces)
+        while lo < hi:  # the round that holds g0: the last whose start is <= g0
+            mid = (lo + hi + 1) // 2
+            lo, hi = (mid, hi) if self._round_start(mid) <= g0 else (lo, mid - 1)
+        out, first, i = [], self._round_start(lo), lo
+        while first < g1:
+            for start, length, n in self.pieces:
+                if i < n:
+                    size = 2 if i < n - 1 else length - 2 * (n - 1)
+                    span = length if length % 2 == 0 else max(length - 3, 0)
+                    if g0 < first + size and first < g1:
+                        out.append((first, size, start + 2 * i, start, span))
+                    first += size
+            i += 1
+        return out
+
+
+def stratum(setup: LaneSetup, group, wraps, rotation):
+    """(place, group count) of the stratum of per-lane ``group`` (UInt32, in the pass),
+    its place rotated by ``rotation`` (:class:`StrataLayout`).
 
     Parameters
     ----------
     setup : LaneSetup
     group : mi.UInt32
         Each lane's group in its pixel.
+    wraps : sequence of float
+        Cut points in (0, 1).
+    rotation : mi.Float
+        A uniform per lane (per pixel, or per pixel and member): picks the rotation.
 
     Returns
     -------
-    tuple of mi.UInt32
+    tuple of (mi.Float64, mi.UInt32)
     """
     import drjit as dr
+    import mitsuba as mi
+    import numpy as np
 
-    _, base, extra = setup.layout
-    base_u, extra_n = opaque_u32(base), opaque_u32(extra)  # base >= 1: R <= G
-    cut = extra_n * (base_u + 1)
-    big = group < cut
-    g_rest = group - cut
-    replicate = dr.select(big, group // (base_u + 1), extra_n + g_rest // base_u)
-    index = dr.select(big, group % (base_u + 1), g_rest % base_u)
-    return replicate, index, dr.select(big, base_u + 1, base_u)
+    g0 = setup.first_sample // setup.n_times
+    g1 = g0 + setup.samples // setup.n_times
+    table = np.zeros((4, g1 - g0), np.uint32)  # per group of the pass: count, place, piece start, piece span
+    for first, n, place, start, span in StrataLayout(setup.n_groups, wraps).units(g0, g1):
+        a, b = max(first, g0) - g0, min(first + n, g1) - g0
+        table[:, a:b] = np.array([n, place, start, span], np.uint32)[:, None]
+    local = group - opaque_u32(g0)
+    count, place, start, span = (dr.gather(mi.UInt32, mi.UInt32(row), local) for row in table)  # data, not code
+    F = mi.Float64
+    offset = F(place - start)
+    rotated = offset + 2.0 * dr.floor(F(rotation) * F(span) * 0.5)
+    rotated = dr.select(rotated >= F(span), rotated - F(span), rotated)
+    return F(start) + dr.select(offset < F(span), rotated, offset), count
 
 
 def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared, r_own):
@@ -322,11 +392,13 @@ def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared
 
     from ..timesampling import sample_times
 
-    replicate, index, n_strata = stratum(setup, group)
-    rotation = seeded_pcg(seed, STREAM_ROTATION, pixel, replicate * setup.n_times + member).next_float32()
+    # stratified decorrelates its members' strata; the antithetic members share r
+    key = mi.UInt32(member) if settings.time_sampling == "stratified" else mi.UInt32(0)
+    rotation = seeded_pcg(seed, STREAM_ROTATION, pixel, key).next_float32()
+    place, count = stratum(setup, group, settings.wraps, rotation)
     return sample_times(
-        settings.time_sampling, r_shared, r_own, index, n_strata, mi.UInt32(member), setup.n_times,
-        settings.shift, settings.stratify_intervals, rotation,
+        settings.time_sampling, r_shared, r_own, place, count, setup.n_groups, mi.UInt32(member), setup.n_times,
+        settings.shift, settings.stratify_intervals,
     )  # fmt: skip
 
 
