@@ -236,7 +236,7 @@ TOPICS = [
         ("config key … must not be negative, got …", "a negative value", "0 or more"),
         ("config key 'render.spp' must be a multiple of 2 with paired times", "paired time sampling renders pairs", "an even spp"),
         ("config key 'render.spp' must be at least … (…, …: two independent groups", "one group of correlated times per pixel leaves no replicates: no standard errors, no camera covariance", "at least twice the group (4 with paired times, 2 with uniform)"),
-        ("… lists no sensor, got …; leave it out (or '') for a dataset without a sensor", "`sensor.model` is an empty list or table", "name at least one sensor, or leave the key out"),
+        ("… lists no sensor, got …; leave it out (or '') for a dataset without a sensor", "`sensor.model` is an empty list", "name at least one sensor, or leave the key out"),
         ("… must be a sensor (preset name or .toml file), a list of them or a table {name = weight}", "`sensor.model` is of another form", "a preset name, a sensor TOML path, a list of them, or `{name = weight}`"),
         ("…: sensor … has a …-bit ADC", "a drawn sensor's digital numbers do not fit the field's 16 bits", "a sensor with an ADC of 16 bits or fewer"),
         ("field … needs a sensor: set the config key 'sensor.model'", "`raw_electrons`/`raw_dn` come from a sensor's raw frames", "set `sensor.model`, or drop the field from `fields`"),

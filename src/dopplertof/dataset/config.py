@@ -293,9 +293,9 @@ def _check_weights(where: str, weights: dict) -> None:
 def _check_sensors(where: str, value) -> dict:
     """``{name: weight}`` of the sensors ``value`` names (kind ``sensors``), each loaded once
     to refuse what cannot be rendered or stored."""
-    if value == "":
+    if value in ("", {}):  # {}: the validated form of "no sensor", as dataset.json keeps it
         return {}
-    if value in ([], {}):  # an empty list or table is a mistake more likely than a way to say "no sensor"
+    if value == []:  # an empty list is a mistake more likely than a way to say "no sensor"
         raise ValueError(f"{where} lists no sensor, got {value!r}; leave it out (or '') for a dataset without a sensor")
     if isinstance(value, str):
         table = {value: 1.0}
