@@ -19,6 +19,10 @@ CORRELATIONS = ("replay", "reconnection")
 # with replicates − 1 degrees of freedom; 8 keeps a whole run's false alarms rare.
 Z_BOUND = 8.0
 MIN_SPP = 16  # 8 antithetic groups: 8 replicates, so per-pixel standard errors mean something
+# Independent replicates, not the render's default strata: at a few spp two groups per stratum
+# give the errors only G/2 degrees of freedom, and a moving edge caught by both groups of one
+# stratum (or by neither) makes a pixel's error far too small; the check needs calibrated z.
+REPLICATES = MIN_SPP // 2
 MIN_BODY_PIXELS = 3  # a body on at least this many CPU pixels must show on the GPU
 
 
@@ -39,7 +43,8 @@ def render_half(variant: str, resolution: int, spp: int, seed: int, out: str) ->
         scene = dt.scenes.build(name, resolution=resolution)
         start = 0.5 * dt.scenes.clip_duration(name)
         for correlation in CORRELATIONS:
-            r = dt.render(scene, cameras, spp=spp, seed=seed, max_depth=3, correlation=correlation, exposure_start=start)
+            r = dt.render(scene, cameras, spp=spp, seed=seed, max_depth=3, correlation=correlation, exposure_start=start,
+                          stratify_intervals=False, replicates=REPLICATES)  # fmt: skip
             key = f"{name}/{correlation}"
             for field in ("intensity", "stderr", "measurements", "measurement_stderr", "instance_id"):
                 arrays[f"{key}/{field}"] = np.asarray(getattr(r, field))
