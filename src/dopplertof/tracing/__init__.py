@@ -43,9 +43,26 @@ def trace_pass(scene, settings, setup, tables):
         Name → per-lane Dr.Jit array, not yet evaluated.
     """
     if settings.paired:
-        from .paired import trace_pair
+        from .paired import trace_pair as trace
+    else:
+        from .single import trace
+    try:
+        return trace(scene, settings, setup, tables)
+    except RuntimeError as exc:
+        # A signal handled while Dr.Jit traced the loop body raised there; Dr.Jit hands it on
+        # wrapped in a RuntimeError. Whoever stops on a KeyboardInterrupt must see it as one.
+        interrupt = _interrupt_in(exc)
+        if interrupt is None:
+            raise
+        raise interrupt from None
 
-        return trace_pair(scene, settings, setup, tables)
-    from .single import trace
 
-    return trace(scene, settings, setup, tables)
+def _interrupt_in(exc: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt in ``exc``'s chain of causes and contexts, if any."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
