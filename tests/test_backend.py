@@ -7,6 +7,7 @@ system directories, no ``ldconfig`` outside that ``PATH``.
 
 import os
 import re
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -255,7 +256,10 @@ def test_a_ctrl_c_while_dr_jit_starts_arrives_after_it():
         "except KeyboardInterrupt:\n    print('interrupted after the import:', 'mitsuba' in sys.modules and 'drjit' in sys.modules)\n"
         "import mitsuba as mi\nprint(backend.set_variant('llvm_ad_rgb'), mi.variant())\n"
     )
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    # SIGINT's default back in the child: a shell without job control starts background commands
+    # (this suite too, where so run) with SIGINT ignored, and Python then installs no handler.
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip
     assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
     assert run.stdout.splitlines() == ["interrupted after the import: True", "llvm_ad_rgb llvm_ad_rgb"], run.stdout
 

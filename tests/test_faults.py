@@ -538,7 +538,10 @@ def _sigint_while_dr_jit_loads(args):
     command's own code runs, no pass has started); (exit status, stderr)."""
     import time
 
-    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # A shell without job control starts background commands with SIGINT ignored, and Python
+    # then installs no handler of its own: the child gets SIGINT's default back here.
+    proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip
     maps = f"/proc/{proc.pid}/maps"
     if not os.path.exists(maps):
         proc.kill()
