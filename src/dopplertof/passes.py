@@ -130,45 +130,20 @@ class Reducer:
 
         g0, g1 = self.groups(p)
         segments = self.segments(p)
-        n_groups = p.n_pixels * (g1 - g0)
-        first = dr.arange(mi.UInt32, n_groups) * lanes_per_group
-
-        def group_means(x):
-            total = mi.Float64(dr.gather(mi.Float, x, first))
-            for k in range(1, lanes_per_group):
-                total += mi.Float64(dr.gather(mi.Float, x, first + k))
-            return total * (1.0 / lanes_per_group)
-
-        means = [group_means(x) for x in channels]
-        truth64 = [mi.Float64(x) for x in truth]
-        dr.eval(means, truth64)  # one kernel for every channel, not one per reduction
-        truth_sums = [dr.block_sum(x, lanes_per_pixel) for x in truth64]
         inc = {}
-        if self.whole(segments) and self.within:  # the usual stratified pass: complete pairs
-            count = len(segments)
-            first_of_pair = dr.arange(mi.UInt32, p.n_pixels * count) * 2
-            diffs = [dr.gather(mi.Float64, m, first_of_pair) - dr.gather(mi.Float64, m, first_of_pair + 1) for m in means]
-            cams = diffs[self.color_channels :]
-            sums = [dr.block_sum(m, 2 * count) for m in means]
-            squares = [dr.block_sum(d * d, count) for d in diffs]
-            cross = [dr.block_sum(cams[i] * cams[j], count) for i, j in self.pairs]
-            dr.eval(sums, squares, cross, truth_sums)
-            inc["group_sum"] = np.stack([np.asarray(x.numpy()) for x in sums])
-            inc["within_sq"] = np.stack([np.asarray(x.numpy()) for x in squares])
-            inc["within_cross"] = [np.asarray(x.numpy()) for x in cross]
-        elif self.whole(segments):  # the usual pass: complete replicates of one size, reduced to per-pixel sums
+        if self.whole(segments):  # the usual pass: complete units (pairs of groups, or replicates of one size)
             size, count = segments[0][1] - segments[0][0], len(segments)
-            reps = [dr.block_sum(m, size) * (1.0 / size) if size > 1 else m for m in means]
-            cams = reps[self.color_channels :]
-            sums = [dr.block_sum(r, count) for r in reps]
-            squares = [dr.block_sum(r * r, count) for r in reps]
-            cross = [dr.block_sum(cams[i] * cams[j], count) for i, j in self.pairs]
-            dr.eval(sums, squares, cross, truth_sums)
-            inc["rep_sum"] = np.stack([np.asarray(x.numpy()) for x in sums])
-            inc["rep_sq"] = np.stack([np.asarray(x.numpy()) for x in squares])
-            inc["rep_cross"] = [np.asarray(x.numpy()) for x in cross]
+            sums, squares, cross, truth_sums = self._unit_sums(channels, truth, p.n_pixels, lanes_per_pixel, count, size)
+            prefix = "within" if self.within else "rep"
+            inc["group_sum" if self.within else "rep_sum"] = np.stack([np.asarray(x.numpy()) for x in sums])
+            inc[f"{prefix}_sq"] = np.stack([np.asarray(x.numpy()) for x in squares])
+            inc[f"{prefix}_cross"] = [np.asarray(x.numpy()) for x in cross]
         else:
-            dr.eval(means, truth_sums)
+            n_groups = p.n_pixels * (g1 - g0)
+            first = dr.arange(mi.UInt32, n_groups) * lanes_per_group
+            means = [self._group_mean(x, first) for x in channels]
+            truth_sums = [dr.block_sum(mi.Float64(x), lanes_per_pixel) for x in truth]
+            dr.eval(means, truth_sums)  # one kernel for every channel, not one per reduction
             host = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in means])  # (channels, pixels, groups)
             inc["parts"] = np.stack([host[:, :, a - g0 : b - g0].sum(axis=2) for a, b, *_ in segments], axis=2)
             if self.within and self.replicated:  # (channels, pixels, segments) sums of squares and of camera products
@@ -184,6 +159,87 @@ class Reducer:
         if record is not None:  # (channels, pixels) sums over the pass's lanes
             inc["record"] = np.asarray(record.numpy()).reshape(p.n_pixels, -1).T
         return inc
+
+    def _group_mean(self, x, first):
+        """Float64 mean of the lanes of the groups whose first lanes are ``first`` (UInt32),
+        of per-lane Float32 ``x``, summed in lane order."""
+        import drjit as dr
+        import mitsuba as mi
+
+        total = mi.Float64(dr.gather(mi.Float, x, first))
+        for k in range(1, self.lanes_per_group):
+            total += mi.Float64(dr.gather(mi.Float, x, first + k))
+        return total * (1.0 / self.lanes_per_group)
+
+    def _unit_sums(self, channels, truth, n_pixels, lanes_per_pixel, count, size):
+        """Per-pixel Float64 sums of a pass made of ``count`` complete units of ``size``
+        groups per pixel (:meth:`reduce`): (sums, squares, camera products, truth sums),
+        lists of Float64 arrays (one value per pixel), computed in one kernel.
+
+        Strata (pairs of groups): the sums of the group means, and of the squares and camera
+        products of the pairs' differences. Replicates: of the replicates' means, their
+        squares and camera products. Truth: of every lane's value.
+
+        A symbolic loop per pixel walks its units in group order and adds in the order of
+        Dr.Jit's block sums (one after another from 0), so the sums are bit-identical to
+        those of block sums over per-group arrays, without the Float64 per-lane and
+        per-group arrays or one reduction kernel per channel. The unit count and size
+        are kernel data: any spp reuses the kernel.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        F = mi.Float64
+        lanes_per_group, cc = self.lanes_per_group, self.color_channels
+        groups = mi.UInt32(count * size)
+        per_pixel = mi.UInt32(lanes_per_pixel)
+        inv_size = F(1.0 / size)
+        unit_size = mi.UInt32(size)
+        dr.make_opaque(groups, per_pixel, inv_size, unit_size)
+        base = dr.arange(mi.UInt32, n_pixels) * per_pixel
+        n_channels, n_truth, n_pairs = len(channels), len(truth), len(self.pairs)
+
+        def zeros(n):
+            return [dr.zeros(F, n_pixels) for _ in range(n)]
+
+        def add_truth(truth_sums, first_lane):
+            for k in range(lanes_per_group):
+                truth_sums = [t + F(dr.gather(mi.Float, x, first_lane + k)) for t, x in zip(truth_sums, truth)]
+            return truth_sums
+
+        if self.within:  # units are pairs of groups: one iteration per pair
+
+            def body(g, sums, squares, cross, truth_sums):
+                first_a = base + g * lanes_per_group
+                first_b = first_a + lanes_per_group
+                a = [self._group_mean(x, first_a) for x in channels]
+                b = [self._group_mean(x, first_b) for x in channels]
+                sums = [s + ma + mb for s, ma, mb in zip(sums, a, b)]
+                d = [ma - mb for ma, mb in zip(a, b)]
+                squares = [q + x * x for q, x in zip(squares, d)]
+                cross = [c + d[cc + i] * d[cc + j] for c, (i, j) in zip(cross, self.pairs)]
+                truth_sums = add_truth(add_truth(truth_sums, first_a), first_b)
+                return g + 2, sums, squares, cross, truth_sums
+
+            state = (mi.UInt32(0), zeros(n_channels), zeros(n_channels), zeros(n_pairs), zeros(n_truth))
+            _, sums, squares, cross, truth_sums = dr.while_loop(state, lambda g, *_: g < groups, body, label="dopplertof strata sums")
+        else:  # units are replicates of `size` groups: one iteration per group, a replicate closed every `size`
+
+            def body(g, open_sums, sums, squares, cross, truth_sums):
+                first = base + g * lanes_per_group
+                open_sums = [o + self._group_mean(x, first) for o, x in zip(open_sums, channels)]
+                closing = (g % unit_size) == unit_size - 1
+                r = [o * inv_size for o in open_sums]
+                sums = [dr.select(closing, s + x, s) for s, x in zip(sums, r)]
+                squares = [dr.select(closing, q + x * x, q) for q, x in zip(squares, r)]
+                cross = [dr.select(closing, c + r[cc + i] * r[cc + j], c) for c, (i, j) in zip(cross, self.pairs)]
+                open_sums = [dr.select(closing, 0.0, o) for o in open_sums]
+                return g + 1, open_sums, sums, squares, cross, add_truth(truth_sums, first)
+
+            state = (mi.UInt32(0), zeros(n_channels), zeros(n_channels), zeros(n_channels), zeros(n_pairs), zeros(n_truth))
+            _, _, sums, squares, cross, truth_sums = dr.while_loop(state, lambda g, *_: g < groups, body, label="dopplertof replicate sums")
+        dr.eval(sums, squares, cross, truth_sums)
+        return sums, squares, cross, truth_sums
 
     def whole(self, segments) -> bool:
         """Whether a pass's segments are complete units of one size (pairs, where stratified)."""
