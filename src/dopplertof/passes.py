@@ -107,11 +107,25 @@ class Reducer:
         """One pass's per-lane outputs (Dr.Jit arrays), reduced in Float64 on the device to
         per-pixel host increments (numpy), which :meth:`Accumulator.apply` adds.
 
-        Group sums are gathers (Dr.Jit's block reductions over blocks of 2 lanes cost
-        several times the reduction itself); units that lie wholly in the pass are
-        reduced to per-pixel sums there too (replicates: of their means, squares and camera
-        products; strata of two groups: of the groups and of their differences' squares and
-        camera products), so only per-pixel arrays reach the host.
+        A pass of whole units (the usual one) is reduced to per-pixel sums in one kernel
+        (:meth:`_unit_sums`: replicates: of their means, squares and camera products; strata
+        of two groups: of the groups and of their differences' squares and camera products;
+        the truth), so only per-pixel arrays reach the host. Otherwise the group means
+        (gathers: Dr.Jit's block reductions over blocks of 2 lanes cost several times the
+        reduction itself) reach the host, which splits them at the units' ends.
+
+        Parameters
+        ----------
+        p : Pass
+            The pass.
+        out : dict
+            Its per-lane outputs (:meth:`~dopplertof.tracing.sink.Sink.outputs`), not yet
+            evaluated.
+
+        Returns
+        -------
+        dict
+            Name → numpy increments of :attr:`Accumulator.state`.
         """
         import drjit as dr
         import mitsuba as mi
@@ -161,8 +175,8 @@ class Reducer:
         return inc
 
     def _group_mean(self, x, first):
-        """Float64 mean of the lanes of the groups whose first lanes are ``first`` (UInt32),
-        of per-lane Float32 ``x``, summed in lane order."""
+        """Float64 mean of per-lane ``x`` (mi.Float) over the groups whose first lanes are
+        ``first`` (mi.UInt32), summed in lane order (mi.Float64, one value per group)."""
         import drjit as dr
         import mitsuba as mi
 
@@ -185,6 +199,21 @@ class Reducer:
         those of block sums over per-group arrays, without the Float64 per-lane and
         per-group arrays or one reduction kernel per channel. The unit count and size
         are kernel data: any spp reuses the kernel.
+
+        Parameters
+        ----------
+        channels, truth : list of mi.Float
+            Per-lane estimates (colour channels, then cameras) and truth values (the last
+            the hit count), evaluated.
+        n_pixels, lanes_per_pixel : int
+            The pass's pixels and each one's consecutive lanes.
+        count, size : int
+            Units per pixel and groups per unit (2 for strata).
+
+        Returns
+        -------
+        tuple of lists of mi.Float64
+            (sums, squares, camera products, truth sums), each one value per pixel.
         """
         import drjit as dr
         import mitsuba as mi
