@@ -125,7 +125,8 @@ class Reducer:
         Returns
         -------
         dict
-            Name → numpy increments of :attr:`Accumulator.state`.
+            Name → numpy increments of :attr:`Accumulator.state` (arrays, or lists of
+            per-pixel rows).
         """
         import drjit as dr
         import mitsuba as mi
@@ -149,8 +150,8 @@ class Reducer:
             size, count = segments[0][1] - segments[0][0], len(segments)
             sums, squares, cross, truth_sums = self._unit_sums(channels, truth, p.n_pixels, lanes_per_pixel, count, size)
             prefix = "within" if self.within else "rep"
-            inc["group_sum" if self.within else "rep_sum"] = np.stack([np.asarray(x.numpy()) for x in sums])
-            inc[f"{prefix}_sq"] = np.stack([np.asarray(x.numpy()) for x in squares])
+            inc["group_sum" if self.within else "rep_sum"] = [np.asarray(x.numpy()) for x in sums]
+            inc[f"{prefix}_sq"] = [np.asarray(x.numpy()) for x in squares]
             inc[f"{prefix}_cross"] = [np.asarray(x.numpy()) for x in cross]
         else:
             n_groups = p.n_pixels * (g1 - g0)
@@ -166,7 +167,7 @@ class Reducer:
                 cc = self.color_channels
                 inc["parts_cross"] = [np.stack([(x[cc + i] * x[cc + j]).sum(axis=1) for x in pieces], axis=1) for i, j in self.pairs]
         truth_sums = [np.asarray(x.numpy()) for x in truth_sums]
-        inc["truth_sum"] = np.stack(truth_sums[:-1])
+        inc["truth_sum"] = truth_sums[:-1]
         inc["hits"] = np.rint(truth_sums[-1]).astype(np.int32)  # counts of hits: whole numbers
         if p.first_sample == 0:  # the label of the pixel's first sample
             inc["instance_id"] = np.asarray(out["instance_id"].numpy()).reshape(p.n_pixels, lanes_per_pixel)[:, 0].astype(np.int32)
@@ -312,17 +313,17 @@ class Accumulator(Reducer):
         s = self.state
         pix = slice(p.pixel_start, p.pixel_start + p.n_pixels)
         if "within_sq" in inc:
-            s["group_sum"][:, pix] += inc["group_sum"]
-            s["within_sq"][:, pix] += inc["within_sq"]
+            _add_rows(s["group_sum"], pix, inc["group_sum"])
+            _add_rows(s["within_sq"], pix, inc["within_sq"])
             for k, x in enumerate(inc["within_cross"]):
                 s["within_cross"][k, pix] += x
             s["strata_closed"][pix] += len(self.segments(p))
         elif "rep_sum" in inc:
             segments = self.segments(p)
             size, count = segments[0][1] - segments[0][0], len(segments)
-            s["group_sum"][:, pix] += inc["rep_sum"] * size
-            s["rep_sum"][:, pix] += inc["rep_sum"]
-            s["rep_sq"][:, pix] += inc["rep_sq"]
+            _add_rows(s["group_sum"], pix, [x * size for x in inc["rep_sum"]])
+            _add_rows(s["rep_sum"], pix, inc["rep_sum"])
+            _add_rows(s["rep_sq"], pix, inc["rep_sq"])
             for k, x in enumerate(inc["rep_cross"]):
                 s["rep_cross"][k, pix] += x
             s["reps_closed"][pix] += count
@@ -343,7 +344,7 @@ class Accumulator(Reducer):
                         s["open_sum"][:, pix] = 0.0
         g0, g1 = self.groups(p)
         s["groups_done"][pix] += g1 - g0
-        s["truth_sum"][:, pix] += inc["truth_sum"]
+        _add_rows(s["truth_sum"], pix, inc["truth_sum"])
         s["hits"][pix] += inc["hits"]
         s["samples"][pix] += p.samples
         if "record" in inc:
@@ -437,6 +438,13 @@ class Accumulator(Reducer):
         if covariance is not None:
             maps["measurement_covariance"] = covariance.reshape(n_cameras, n_cameras, height, width)
         return maps
+
+
+def _add_rows(total, pix, rows):
+    """``total[k, pix] += rows[k]`` for every row: per-pixel rows (numpy views of the device's
+    sums) are added where they are, not first stacked into a new array."""
+    for k, row in enumerate(rows):
+        total[k, pix] += row
 
 
 def _components(value, channels):
