@@ -107,11 +107,26 @@ class Reducer:
         """One pass's per-lane outputs (Dr.Jit arrays), reduced in Float64 on the device to
         per-pixel host increments (numpy), which :meth:`Accumulator.apply` adds.
 
-        Group sums are gathers (Dr.Jit's block reductions over blocks of 2 lanes cost
-        several times the reduction itself); units that lie wholly in the pass are
-        reduced to per-pixel sums there too (replicates: of their means, squares and camera
-        products; strata of two groups: of the groups and of their differences' squares and
-        camera products), so only per-pixel arrays reach the host.
+        A pass of whole units (the usual one) is reduced to per-pixel sums in one kernel
+        (:meth:`_unit_sums`: replicates: of their means, squares and camera products; strata
+        of two groups: of the groups and of their differences' squares and camera products;
+        the truth), so only per-pixel arrays reach the host. Otherwise the group means
+        (gathers: Dr.Jit's block reductions over blocks of 2 lanes cost several times the
+        reduction itself) reach the host, which splits them at the units' ends.
+
+        Parameters
+        ----------
+        p : Pass
+            The pass.
+        out : dict
+            Its per-lane outputs (:meth:`~dopplertof.tracing.sink.Sink.outputs`), not yet
+            evaluated.
+
+        Returns
+        -------
+        dict
+            Name → numpy increments of :attr:`Accumulator.state` (arrays, or lists of
+            per-pixel rows).
         """
         import drjit as dr
         import mitsuba as mi
@@ -130,45 +145,20 @@ class Reducer:
 
         g0, g1 = self.groups(p)
         segments = self.segments(p)
-        n_groups = p.n_pixels * (g1 - g0)
-        first = dr.arange(mi.UInt32, n_groups) * lanes_per_group
-
-        def group_means(x):
-            total = mi.Float64(dr.gather(mi.Float, x, first))
-            for k in range(1, lanes_per_group):
-                total += mi.Float64(dr.gather(mi.Float, x, first + k))
-            return total * (1.0 / lanes_per_group)
-
-        means = [group_means(x) for x in channels]
-        truth64 = [mi.Float64(x) for x in truth]
-        dr.eval(means, truth64)  # one kernel for every channel, not one per reduction
-        truth_sums = [dr.block_sum(x, lanes_per_pixel) for x in truth64]
         inc = {}
-        if self.whole(segments) and self.within:  # the usual stratified pass: complete pairs
-            count = len(segments)
-            first_of_pair = dr.arange(mi.UInt32, p.n_pixels * count) * 2
-            diffs = [dr.gather(mi.Float64, m, first_of_pair) - dr.gather(mi.Float64, m, first_of_pair + 1) for m in means]
-            cams = diffs[self.color_channels :]
-            sums = [dr.block_sum(m, 2 * count) for m in means]
-            squares = [dr.block_sum(d * d, count) for d in diffs]
-            cross = [dr.block_sum(cams[i] * cams[j], count) for i, j in self.pairs]
-            dr.eval(sums, squares, cross, truth_sums)
-            inc["group_sum"] = np.stack([np.asarray(x.numpy()) for x in sums])
-            inc["within_sq"] = np.stack([np.asarray(x.numpy()) for x in squares])
-            inc["within_cross"] = [np.asarray(x.numpy()) for x in cross]
-        elif self.whole(segments):  # the usual pass: complete replicates of one size, reduced to per-pixel sums
+        if self.whole(segments):  # the usual pass: complete units (pairs of groups, or replicates of one size)
             size, count = segments[0][1] - segments[0][0], len(segments)
-            reps = [dr.block_sum(m, size) * (1.0 / size) if size > 1 else m for m in means]
-            cams = reps[self.color_channels :]
-            sums = [dr.block_sum(r, count) for r in reps]
-            squares = [dr.block_sum(r * r, count) for r in reps]
-            cross = [dr.block_sum(cams[i] * cams[j], count) for i, j in self.pairs]
-            dr.eval(sums, squares, cross, truth_sums)
-            inc["rep_sum"] = np.stack([np.asarray(x.numpy()) for x in sums])
-            inc["rep_sq"] = np.stack([np.asarray(x.numpy()) for x in squares])
-            inc["rep_cross"] = [np.asarray(x.numpy()) for x in cross]
+            sums, squares, cross, truth_sums = self._unit_sums(channels, truth, p.n_pixels, lanes_per_pixel, count, size)
+            prefix = "within" if self.within else "rep"
+            inc["group_sum" if self.within else "rep_sum"] = [np.asarray(x.numpy()) for x in sums]
+            inc[f"{prefix}_sq"] = [np.asarray(x.numpy()) for x in squares]
+            inc[f"{prefix}_cross"] = [np.asarray(x.numpy()) for x in cross]
         else:
-            dr.eval(means, truth_sums)
+            n_groups = p.n_pixels * (g1 - g0)
+            first = dr.arange(mi.UInt32, n_groups) * lanes_per_group
+            means = [self._group_mean(x, first) for x in channels]
+            truth_sums = [dr.block_sum(mi.Float64(x), lanes_per_pixel) for x in truth]
+            dr.eval(means, truth_sums)  # one kernel for every channel, not one per reduction
             host = np.stack([np.asarray(m.numpy()).reshape(p.n_pixels, g1 - g0) for m in means])  # (channels, pixels, groups)
             inc["parts"] = np.stack([host[:, :, a - g0 : b - g0].sum(axis=2) for a, b, *_ in segments], axis=2)
             if self.within and self.replicated:  # (channels, pixels, segments) sums of squares and of camera products
@@ -177,13 +167,109 @@ class Reducer:
                 cc = self.color_channels
                 inc["parts_cross"] = [np.stack([(x[cc + i] * x[cc + j]).sum(axis=1) for x in pieces], axis=1) for i, j in self.pairs]
         truth_sums = [np.asarray(x.numpy()) for x in truth_sums]
-        inc["truth_sum"] = np.stack(truth_sums[:-1])
+        inc["truth_sum"] = truth_sums[:-1]
         inc["hits"] = np.rint(truth_sums[-1]).astype(np.int32)  # counts of hits: whole numbers
         if p.first_sample == 0:  # the label of the pixel's first sample
             inc["instance_id"] = np.asarray(out["instance_id"].numpy()).reshape(p.n_pixels, lanes_per_pixel)[:, 0].astype(np.int32)
         if record is not None:  # (channels, pixels) sums over the pass's lanes
             inc["record"] = np.asarray(record.numpy()).reshape(p.n_pixels, -1).T
         return inc
+
+    def _group_mean(self, x, first):
+        """Float64 mean of per-lane ``x`` (mi.Float) over the groups whose first lanes are
+        ``first`` (mi.UInt32), summed in lane order (mi.Float64, one value per group)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        total = mi.Float64(dr.gather(mi.Float, x, first))
+        for k in range(1, self.lanes_per_group):
+            total += mi.Float64(dr.gather(mi.Float, x, first + k))
+        return total * (1.0 / self.lanes_per_group)
+
+    def _unit_sums(self, channels, truth, n_pixels, lanes_per_pixel, count, size):
+        """Per-pixel Float64 sums of a pass made of ``count`` complete units of ``size``
+        groups per pixel (:meth:`reduce`): (sums, squares, camera products, truth sums),
+        lists of Float64 arrays (one value per pixel), computed in one kernel.
+
+        Strata (pairs of groups): the sums of the group means, and of the squares and camera
+        products of the pairs' differences. Replicates: of the replicates' means, their
+        squares and camera products. Truth: of every lane's value.
+
+        A symbolic loop per pixel walks its units in group order and adds in the order of
+        Dr.Jit's block sums (one after another from 0), so the sums are bit-identical to
+        those of block sums over per-group arrays, without the Float64 per-lane and
+        per-group arrays or one reduction kernel per channel. The unit count and size
+        are kernel data: any spp reuses the kernel.
+
+        Parameters
+        ----------
+        channels, truth : list of mi.Float
+            Per-lane estimates (colour channels, then cameras) and truth values (the last
+            the hit count), evaluated.
+        n_pixels, lanes_per_pixel : int
+            The pass's pixels and each one's consecutive lanes.
+        count, size : int
+            Units per pixel and groups per unit (2 for strata).
+
+        Returns
+        -------
+        tuple of lists of mi.Float64
+            (sums, squares, camera products, truth sums), each one value per pixel.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        F = mi.Float64
+        lanes_per_group, cc = self.lanes_per_group, self.color_channels
+        groups = mi.UInt32(count * size)
+        per_pixel = mi.UInt32(lanes_per_pixel)
+        inv_size = F(1.0 / size)
+        unit_size = mi.UInt32(size)
+        dr.make_opaque(groups, per_pixel, inv_size, unit_size)
+        base = dr.arange(mi.UInt32, n_pixels) * per_pixel
+        n_channels, n_truth, n_pairs = len(channels), len(truth), len(self.pairs)
+
+        def zeros(n):
+            return [dr.zeros(F, n_pixels) for _ in range(n)]
+
+        def add_truth(truth_sums, first_lane):
+            for k in range(lanes_per_group):
+                truth_sums = [t + F(dr.gather(mi.Float, x, first_lane + k)) for t, x in zip(truth_sums, truth)]
+            return truth_sums
+
+        if self.within:  # units are pairs of groups: one iteration per pair
+
+            def body(g, sums, squares, cross, truth_sums):
+                first_a = base + g * lanes_per_group
+                first_b = first_a + lanes_per_group
+                a = [self._group_mean(x, first_a) for x in channels]
+                b = [self._group_mean(x, first_b) for x in channels]
+                sums = [s + ma + mb for s, ma, mb in zip(sums, a, b)]
+                d = [ma - mb for ma, mb in zip(a, b)]
+                squares = [q + x * x for q, x in zip(squares, d)]
+                cross = [c + d[cc + i] * d[cc + j] for c, (i, j) in zip(cross, self.pairs)]
+                truth_sums = add_truth(add_truth(truth_sums, first_a), first_b)
+                return g + 2, sums, squares, cross, truth_sums
+
+            state = (mi.UInt32(0), zeros(n_channels), zeros(n_channels), zeros(n_pairs), zeros(n_truth))
+            _, sums, squares, cross, truth_sums = dr.while_loop(state, lambda g, *_: g < groups, body, label="dopplertof strata sums")
+        else:  # units are replicates of `size` groups: one iteration per group, a replicate closed every `size`
+
+            def body(g, open_sums, sums, squares, cross, truth_sums):
+                first = base + g * lanes_per_group
+                open_sums = [o + self._group_mean(x, first) for o, x in zip(open_sums, channels)]
+                closing = (g % unit_size) == unit_size - 1
+                r = [o * inv_size for o in open_sums]
+                sums = [dr.select(closing, s + x, s) for s, x in zip(sums, r)]
+                squares = [dr.select(closing, q + x * x, q) for q, x in zip(squares, r)]
+                cross = [dr.select(closing, c + r[cc + i] * r[cc + j], c) for c, (i, j) in zip(cross, self.pairs)]
+                open_sums = [dr.select(closing, 0.0, o) for o in open_sums]
+                return g + 1, open_sums, sums, squares, cross, add_truth(truth_sums, first)
+
+            state = (mi.UInt32(0), zeros(n_channels), zeros(n_channels), zeros(n_channels), zeros(n_pairs), zeros(n_truth))
+            _, _, sums, squares, cross, truth_sums = dr.while_loop(state, lambda g, *_: g < groups, body, label="dopplertof replicate sums")
+        dr.eval(sums, squares, cross, truth_sums)
+        return sums, squares, cross, truth_sums
 
     def whole(self, segments) -> bool:
         """Whether a pass's segments are complete units of one size (pairs, where stratified)."""
@@ -227,17 +313,17 @@ class Accumulator(Reducer):
         s = self.state
         pix = slice(p.pixel_start, p.pixel_start + p.n_pixels)
         if "within_sq" in inc:
-            s["group_sum"][:, pix] += inc["group_sum"]
-            s["within_sq"][:, pix] += inc["within_sq"]
+            _add_rows(s["group_sum"], pix, inc["group_sum"])
+            _add_rows(s["within_sq"], pix, inc["within_sq"])
             for k, x in enumerate(inc["within_cross"]):
                 s["within_cross"][k, pix] += x
             s["strata_closed"][pix] += len(self.segments(p))
         elif "rep_sum" in inc:
             segments = self.segments(p)
             size, count = segments[0][1] - segments[0][0], len(segments)
-            s["group_sum"][:, pix] += inc["rep_sum"] * size
-            s["rep_sum"][:, pix] += inc["rep_sum"]
-            s["rep_sq"][:, pix] += inc["rep_sq"]
+            _add_rows(s["group_sum"], pix, [x * size for x in inc["rep_sum"]])
+            _add_rows(s["rep_sum"], pix, inc["rep_sum"])
+            _add_rows(s["rep_sq"], pix, inc["rep_sq"])
             for k, x in enumerate(inc["rep_cross"]):
                 s["rep_cross"][k, pix] += x
             s["reps_closed"][pix] += count
@@ -258,7 +344,7 @@ class Accumulator(Reducer):
                         s["open_sum"][:, pix] = 0.0
         g0, g1 = self.groups(p)
         s["groups_done"][pix] += g1 - g0
-        s["truth_sum"][:, pix] += inc["truth_sum"]
+        _add_rows(s["truth_sum"], pix, inc["truth_sum"])
         s["hits"][pix] += inc["hits"]
         s["samples"][pix] += p.samples
         if "record" in inc:
@@ -352,6 +438,13 @@ class Accumulator(Reducer):
         if covariance is not None:
             maps["measurement_covariance"] = covariance.reshape(n_cameras, n_cameras, height, width)
         return maps
+
+
+def _add_rows(total, pix, rows):
+    """``total[k, pix] += rows[k]`` for every row: per-pixel rows (numpy views of the device's
+    sums) are added where they are, not first stacked into a new array."""
+    for k, row in enumerate(rows):
+        total[k, pix] += row
 
 
 def _components(value, channels):

@@ -1,0 +1,66 @@
+"""A pass's reduction (:mod:`dopplertof.passes`): the one-kernel per-pixel sums of a pass of
+whole units are the block sums they replaced, bit for bit."""
+
+from __future__ import annotations
+
+import mitsuba as mi
+import numpy as np
+import pytest
+
+from dopplertof.outputs import TRUTH
+from dopplertof.passes import Pass, Reducer
+
+
+def _outputs(rng, lanes, n_cameras):
+    """Per-lane outputs of a pass as the tracer lays them out, random (signed, some exact
+    zeros, wide range), and the same values on the host: (out, channels, truth rows)."""
+
+    def values():  # magnitudes over 2^±40, so that Float64 sums round and their order shows
+        x = (rng.standard_normal(lanes) * np.exp2(rng.integers(-40, 40, lanes))).astype(np.float32)
+        x[rng.random(lanes) < 0.1] = 0.0
+        return x
+
+    channels = [values() for _ in range(3 + n_cameras)]
+    out = {"intensity": mi.Color3f(*[mi.Float(c) for c in channels[:3]]), "measurements": [mi.Float(c) for c in channels[3:]]}
+    truth = []
+    for o in TRUTH:
+        rows = [values() for _ in range(o.channels)]
+        truth += rows
+        out[o.name] = mi.Float(rows[0]) if o.channels == 1 else (mi.Vector3f if o.channels == 3 else mi.Vector2f)(*[mi.Float(r) for r in rows])
+    hits = (rng.random(lanes) < 0.8).astype(np.float32)
+    out["hits"], out["instance_id"] = mi.Float(hits), mi.Float(np.zeros(lanes, np.float32))
+    return out, channels, truth + [hits]
+
+
+def _sequential(x):
+    """Sums over the last axis one after another, as Dr.Jit's block sums add (not numpy's pairwise sum)."""
+    return np.cumsum(x, axis=-1)[..., -1]
+
+
+@pytest.mark.parametrize("within, size", [(True, 2), (False, 1), (False, 4)])
+def test_unit_sums_are_the_block_sums_bit_for_bit(within, size):
+    rng = np.random.default_rng(size + 10 * within)
+    n_pixels, spp, group, n_cameras = 48, 32, 2, 4  # antithetic pairs, one lane each (replay)
+    groups = spp // group
+    reducer = Reducer(3, n_cameras, spp, group, group, groups // size, () if within else None)
+    lanes = n_pixels * spp
+    out, channels, truth_rows = _outputs(rng, lanes, n_cameras)
+    inc = reducer.reduce(Pass(0, spp, 0, n_pixels), out)
+
+    x = np.stack(channels).astype(np.float64).reshape(-1, n_pixels, groups, group)
+    means = (x[..., 0] + x[..., 1]) * (1.0 / group)  # (channels, pixels, groups), lanes in order
+    cams = slice(3, None)
+    pairs = [(i, j) for i in range(n_cameras) for j in range(i + 1, n_cameras)]
+    if within:  # strata of two groups
+        d = means[:, :, 0::2] - means[:, :, 1::2]
+        expected = {"group_sum": _sequential(means), "within_sq": _sequential(d * d)}
+        expected["within_cross"] = [_sequential(d[cams][i] * d[cams][j]) for i, j in pairs]
+    else:
+        reps = means if size == 1 else _sequential(means.reshape(-1, n_pixels, groups // size, size)) * (1.0 / size)
+        expected = {"rep_sum": _sequential(reps), "rep_sq": _sequential(reps * reps)}
+        expected["rep_cross"] = [_sequential(reps[cams][i] * reps[cams][j]) for i, j in pairs]
+    truth = _sequential(np.stack(truth_rows).astype(np.float64).reshape(-1, n_pixels, spp))
+    expected["truth_sum"] = truth[:-1]
+    for name, value in expected.items():
+        assert np.array_equal(np.asarray(inc[name]), np.asarray(value)), name
+    assert np.array_equal(inc["hits"], np.rint(truth[-1]).astype(np.int32))
