@@ -369,33 +369,37 @@ def test_stopping_at_once_inside_an_update_keeps_the_last_checkpoint_not_a_torn_
     np.testing.assert_array_equal(resumed.stderr, whole.stderr)
 
 
-def test_an_interrupt_while_drjit_traces_a_pass_stops_the_render_like_any_other(monkeypatch):
-    """Ctrl-C (or a dataset's SIGTERM) handled while Dr.Jit traces the path loop raises inside
-    the traced body, and Dr.Jit wraps it in a RuntimeError: the render must still see the
-    interrupt and keep its finished passes (CI once saw a traceback and exit 1 here)."""
-    from dopplertof.passes import Accumulator
+@pytest.mark.parametrize("loop", ["path", "reduction"])
+def test_an_interrupt_while_drjit_traces_a_pass_stops_the_render_like_any_other(monkeypatch, loop):
+    """Ctrl-C (or a dataset's SIGTERM) handled while Dr.Jit traces a loop of the pass (the
+    path loop, the reduction's loop) raises inside the traced body, and Dr.Jit wraps it in a
+    RuntimeError: the render must still see the interrupt and keep its finished passes (CI
+    once saw a traceback and exit 1 here)."""
+    from dopplertof.passes import Accumulator, Reducer
 
     scene = dt.scenes.build("cornell-box", resolution=16)
-    applied = []
-    apply, intersect = Accumulator.apply, type(scene).intersect
+    applied, calls = [], []
+    apply = Accumulator.apply
+    # the first intersection of a pass is traced before the path loop, the second inside it;
+    # a group's mean is first taken inside the reduction's loop (whole strata)
+    owner, name, nth = (type(scene), "intersect", 2) if loop == "path" else (Reducer, "_group_mean", 1)
+    original = getattr(owner, name)
 
     def counting(self, p, inc):
         apply(self, p, inc)
         applied.append(p)
 
-    calls = []
-
-    def interrupted_in_the_third_trace(self, *args, **kwargs):
+    def interrupted_in_the_third_pass(self, *args, **kwargs):
         calls.append(len(applied))
-        if calls.count(2) == 2:  # the first intersection of a pass is traced before the loop, the second inside it
+        if calls.count(2) == nth:
             raise KeyboardInterrupt
-        return intersect(self, *args, **kwargs)
+        return original(self, *args, **kwargs)
 
     monkeypatch.setattr(Accumulator, "apply", counting)
-    monkeypatch.setattr(type(scene), "intersect", interrupted_in_the_third_trace)
+    monkeypatch.setattr(owner, name, interrupted_in_the_third_pass)
     partial = dt.render(scene, spp=16, lanes_per_pass=1024)
     assert partial.interrupted and partial.info["passes_done"] == 2
-    monkeypatch.setattr(type(scene), "intersect", intersect)
+    monkeypatch.setattr(owner, name, original)
     stops = iter(range(100))
     np.testing.assert_array_equal(partial.intensity, dt.render(scene, spp=16, lanes_per_pass=1024, stop=lambda: next(stops) >= 2).intensity)
 

@@ -473,7 +473,7 @@ class PassTracer:
         self.reducer = Reducer(*Reducer.layout(settings))
 
     def __call__(self, p: Pass) -> dict:
-        from .tracing import trace_pass
+        from .tracing import interrupts_unwrapped, trace_pass
         from .tracing.lanes import LaneSetup
 
         s = self.settings
@@ -483,4 +483,5 @@ class PassTracer:
             samples=p.samples, spp_total=s.spp, n_times=s.group_size,
             exposure_start_s=float(s.exposure_start), exposure_s=float(s.exposure_s), seed=s.seed, grid=self.grid,
         )  # fmt: skip
-        return self.reducer.reduce(p, trace_pass(self.scene, s, setup, self.tables))
+        with interrupts_unwrapped():  # the path loop and the reduction loop are traced here
+            return self.reducer.reduce(p, trace_pass(self.scene, s, setup, self.tables))

@@ -19,10 +19,13 @@ module         owns
                (reconnection, adaptive, analytic)
 =============  ===========================================================================
 
-:func:`trace_pass` runs one pass with the tracer the settings ask for.
+:func:`trace_pass` runs one pass with the tracer the settings ask for;
+:func:`interrupts_unwrapped` lets an interrupt raised while Dr.Jit traced leave as itself.
 """
 
 from __future__ import annotations
+
+import contextlib
 
 
 def trace_pass(scene, settings, setup, tables):
@@ -46,11 +49,21 @@ def trace_pass(scene, settings, setup, tables):
         from .paired import trace_pair as trace
     else:
         from .single import trace
+    return trace(scene, settings, setup, tables)
+
+
+@contextlib.contextmanager
+def interrupts_unwrapped():
+    """Let a KeyboardInterrupt raised while Dr.Jit traced a loop leave as itself.
+
+    A signal handled while Dr.Jit traces a loop body (the path loop, the pass's reduction)
+    raises there, and Dr.Jit hands it on wrapped in a RuntimeError; whoever stops on a
+    KeyboardInterrupt (a render, a dataset's SIGTERM) must see it as one. Other errors leave
+    unchanged.
+    """
     try:
-        return trace(scene, settings, setup, tables)
+        yield
     except RuntimeError as exc:
-        # A signal handled while Dr.Jit traced the loop body raised there; Dr.Jit hands it on
-        # wrapped in a RuntimeError. Whoever stops on a KeyboardInterrupt must see it as one.
         interrupt = _interrupt_in(exc)
         if interrupt is None:
             raise
