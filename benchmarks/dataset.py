@@ -16,7 +16,8 @@ model) into a fresh folder, shard size 1:
 
 Each configuration renders a different seed's samples, so every one pays the same kind of
 new-scene kernel compilations a real dataset pays (Dr.Jit's kernel cache never hits on new
-scenes). Reported: wall time, samples per hour, and from the workers' own clocks the share
+scenes); the run gets an empty kernel cache, since a second run of the same seeds would find
+the first one's kernels compiled (``--warm-cache`` keeps it). Reported: wall time, samples per hour, and from the workers' own clocks the share
 of time outside ``dopplertof.render`` (drawing the record, building the Mitsuba scene, the
 sensor model, serialising and writing the shard; a worker's one-time start-up, imports and
 backend, is reported apart as ``worker_startup_s``, summed over shards). Targets: Ray / local-2 wall time ≤ 1.1,
@@ -28,6 +29,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -47,6 +49,8 @@ def parse_args(argv):
     p.add_argument("--resolution", type=int, default=None, help="film size (default 128; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel of each render (default 64; quick 16)")
     p.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
+    p.add_argument("--warm-cache", action="store_true",
+                   help="keep Dr.Jit's kernel cache ($HOME/.drjit); by default the run gets an empty one (see _rerun_with_empty_kernel_cache)")
     _common.add_output_options(p, "dataset", quick_help="smoke test: 32x32, 16 spp, 4 samples per configuration", plot=False)
     args = p.parse_args(argv)
     _common.fill_defaults(args, {"samples": 4, "resolution": 32, "spp": 16} if args.quick else {"samples": 8, "resolution": 128, "spp": 64})
@@ -88,8 +92,38 @@ def run_config(name, args, seed, scratch, log):
     return row
 
 
+FRESH_CACHE_ENV = "DOPPLERTOF_BENCH_FRESH_KERNEL_CACHE"  # set in the process _rerun_with_empty_kernel_cache starts
+
+
+def _rerun_with_empty_kernel_cache(argv) -> int:
+    """Run this script again in a process whose Dr.Jit kernel cache is empty.
+
+    Dr.Jit keeps every compiled kernel in ``$HOME/.drjit`` across processes. A dataset of
+    new scenes compiles its kernels (a large share of a sample's time), but a second run of
+    this benchmark draws the same scenes (fixed seeds) and finds them compiled, so without
+    this the figures depend on what ran before: measured 11-12 s against 7.7-8.1 s for the
+    same six samples. The child's ``$HOME`` is a temporary folder (Ray workers inherit it).
+
+    Parameters
+    ----------
+    argv : list of str or None
+        The script's arguments (None: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The child's exit status.
+    """
+    with tempfile.TemporaryDirectory(prefix="dopplertof-dataset-bench-home-") as home:
+        env = {**os.environ, "HOME": home, FRESH_CACHE_ENV: "1"}
+        command = [sys.executable, os.path.abspath(__file__), *(sys.argv[1:] if argv is None else argv)]
+        return subprocess.call(command, env=env)
+
+
 def main(argv=None):
     args = parse_args(argv)
+    if not args.warm_cache and not os.environ.get(FRESH_CACHE_ENV):
+        return _rerun_with_empty_kernel_cache(argv)
     settings = (f"settings: {args.resolution}x{args.resolution}, {args.spp} spp (full GI max_depth 5 + direct), 4 cameras, "
                 f"{args.samples} samples per configuration, shard size 1, default dataset configuration")
     run = _common.Run("dataset", args, argv, settings)

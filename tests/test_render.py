@@ -594,6 +594,32 @@ def test_changing_parameters_does_not_recompile():
         dr.set_flag(dr.JitFlag.KernelHistory, was)
 
 
+@pytest.mark.parametrize("correlation", ["replay", "reconnection"])
+def test_another_path_depth_does_not_recompile(correlation):
+    """``max_depth`` and ``rr_depth`` are data: a dataset's direct-light render (another
+    depth, the same scene) launches the kernels of its full render, so a new scene is
+    compiled once, not twice (``benchmarks/dataset.py``)."""
+    scene = dt.scenes.cornell_box(resolution=16)
+    cams = [dt.Camera(heterodyne=1.0)]
+    was = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        dt.render(scene, cams, spp=8, seed=0, correlation=correlation)
+        dr.kernel_history()  # clear: the first render also uploads scene data
+
+        def kernels():
+            return [k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
+
+        dt.render(scene, cams, spp=8, seed=1, correlation=correlation)
+        reference = kernels()
+        assert reference
+        for depths in [dict(max_depth=2), dict(max_depth=3, rr_depth=1), dict(max_depth=-1)]:
+            dt.render(scene, cams, spp=8, seed=2, correlation=correlation, **depths)
+            assert kernels() == reference, depths
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, was)
+
+
 # ----------------------------------------------------------------------------------------
 # Result shape and simple invariants
 

@@ -137,7 +137,7 @@ def trace_pair(scene, settings, setup, tables):
     threshold = mi.Float({"reconnection": 0.0, "adaptive": correlation.threshold}.get(correlation.mode, math.inf))
     dr.make_opaque(threshold)
     bsdf_ctx = mi.BSDFContext()
-    max_depth = MAX_PAIRED_DEPTH if settings.max_depth < 0 else settings.max_depth
+    max_depth = lanes.opaque_u32(MAX_PAIRED_DEPTH if settings.max_depth < 0 else settings.max_depth)  # data: another depth reuses the kernel
     hide_emitters = settings.hide_emitters
     # Which techniques a member's estimate combines: both roles (MIS), or in analytic mode
     # P1 as primal only and P2 as shifted only (two estimates at the exposure's ends).

@@ -83,7 +83,9 @@ def trace(scene, settings, setup, tables):
     label = truth.pop("instance_id")
 
     bsdf_ctx = mi.BSDFContext()
-    max_depth = 0xFFFFFFFF if settings.max_depth < 0 else settings.max_depth
+    # Data, not literals: a render of another depth (a dataset's direct-light render) reuses the kernel.
+    max_depth = lanes.opaque_u32(0xFFFFFFFF if settings.max_depth < 0 else settings.max_depth)
+    rr_depth = lanes.opaque_u32(settings.rr_depth)
     hide_emitters = settings.hide_emitters
 
     # ---------------------------------------------------------------- loop state
@@ -123,7 +125,7 @@ def trace(scene, settings, setup, tables):
         # ---------------------------------------------------- Russian roulette
         beta_next = beta * bsdf_weight
         beta_max = dr.max(mi.unpolarized_spectrum(beta_next))
-        rr_active = depth >= settings.rr_depth
+        rr_active = depth >= rr_depth
         q = dr.minimum(beta_max * dr.square(index_next), 0.95)
         rr_sample = streams.next_1d(corr_bounce)
         survive = ~rr_active | (rr_sample < q)
