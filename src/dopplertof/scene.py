@@ -50,12 +50,17 @@ import numpy as np
 
 from .motion import Motion
 
-# Above this many bodies ``traversal="auto"`` walks the tree of swept boxes; at or below,
-# the per-body loop is as fast or faster (benchmarks/README.md, "Many moving bodies").
-PER_BODY_MAX_BODIES = 32
+# Above this many bodies ``traversal="auto"`` walks the tree of swept boxes. The per-body
+# loop is unrolled, so its kernel grows with every body and a new scene's first render
+# compiles it: at 16 / 32 / 64 cubes 3.3 / 7.9 / 21 s against the tree's 1.6 / 1.6 / 1.9 s,
+# while renders of a compiled kernel cost the same (1.00×, 0.79×, 0.55× with the tree); at
+# 8 the tree's first render is 0.78-0.91× and later ones 1.06-1.13× (benchmarks/README.md,
+# "The first render of a new scene"; 256², 32 spp, D-ToF with 4 cameras).
+PER_BODY_MAX_BODIES = 8
 # At or below this many bodies :meth:`DynamicScene.poses` evaluates every body's pose up
 # front (a list, selected per lane); above, one pose per lane and use, from the pose table.
-LISTED_POSES_MAX_BODIES = 16
+# The list is code per body too: at 16 bodies it cost the tree's first render 1.0 s more.
+LISTED_POSES_MAX_BODIES = 8
 
 TRAVERSALS = ("auto", "per-body", "tree")
 # Emitter parameters that hold emitted power: their textures' values, an envmap's pixels and scale.
@@ -634,11 +639,16 @@ class DynamicScene:
         if self.bodies:
             si.p = pose.point_to_world(si.p)
             si.n = pose.normal_to_world(si.n)
-            si.sh_frame = mi.Frame3f(
-                dr.normalize(pose.vector_to_world(si.sh_frame.s)),
-                dr.normalize(pose.vector_to_world(si.sh_frame.t)),
-                pose.normal_to_world(si.sh_frame.n),
-            )
+            # A body's scale may differ per axis: tangents then stay tangents but not at
+            # right angles, so the world frame is rebuilt from the normal and one tangent.
+            n = pose.normal_to_world(si.sh_frame.n)
+            tangent = pose.vector_to_world(si.sh_frame.s)
+            tangent = dr.normalize(tangent - n * dr.dot(n, tangent))
+            si.sh_frame = mi.Frame3f(tangent, dr.cross(n, tangent), n)
+            # Mitsuba set wi from the ray in the body's frame, whose direction a scale
+            # stretches (not a unit vector, bent where the scale differs per axis): BSDFs
+            # other than diffuse read it (a glass body gave NaN).
+            si.wi = si.to_local(-ray.d)
             si.dp_du = pose.vector_to_world(si.dp_du)
             si.dp_dv = pose.vector_to_world(si.dp_dv)
         return Hit(si=si, body=body_index, p_local=p_local, n_local=n_local, plane_local=plane_local)
