@@ -4,6 +4,7 @@ the share of time outside the renderer, and the scaling from 1 to 2 workers.
 
     python benchmarks/dataset.py            # 128x128, 64 spp, 4 cameras, 8 samples per configuration (~2-4 min, 2 cores)
     python benchmarks/dataset.py --quick    # smoke test: 32x32, 16 spp, 4 samples per configuration (< 1 min)
+    python benchmarks/dataset.py --street-bodies 20   # street samples with 20-24 moving bodies (issue 17's case)
 
 Configurations, each generating its own dataset (default configuration: random rooms and
 streets, capture set h ∈ {0, 1} × ψ ∈ {0°, 90°}, full and direct-light renders, sensor
@@ -49,21 +50,31 @@ def parse_args(argv):
     p.add_argument("--resolution", type=int, default=None, help="film size (default 128; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel of each render (default 64; quick 16)")
     p.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
+    p.add_argument("--street-bodies", type=int, default=None, metavar="N",
+                   help="street scenes only, N to N+4 bodies, all moving (default: the default dataset configuration)")
     p.add_argument("--warm-cache", action="store_true",
                    help="keep Dr.Jit's kernel cache ($HOME/.drjit); by default the run gets an empty one (see _rerun_with_empty_kernel_cache)")
     _common.add_output_options(p, "dataset", quick_help="smoke test: 32x32, 16 spp, 4 samples per configuration", plot=False)
     args = p.parse_args(argv)
     _common.fill_defaults(args, {"samples": 4, "resolution": 32, "spp": 16} if args.quick else {"samples": 8, "resolution": 128, "spp": 64})
-    _common.require_positive(p, args, ["samples", "resolution", "spp"])
+    _common.require_positive(p, args, ["samples", "resolution", "spp"] + ([] if args.street_bodies is None else ["street_bodies"]))
     _common.default_output_paths(args, "dataset")
     return args
+
+
+def dataset_config(args):
+    """The dataset configuration (None: the default one) of ``--street-bodies``."""
+    if args.street_bodies is None:
+        return None
+    n = args.street_bodies
+    return {"scene": {"kinds": {"street": 1.0}}, "bodies": {"count": [n, n + 4], "moving_probability": 1.0}}
 
 
 def run_config(name, args, seed, scratch, log):
     from dopplertof.dataset import generate
 
     folder = os.path.join(scratch, name)
-    kwargs = dict(resolution=args.resolution, spp=args.spp, shard_size=1, variant=args.variant or _common.DEFAULT_VARIANT)
+    kwargs = dict(resolution=args.resolution, spp=args.spp, shard_size=1, variant=args.variant or _common.DEFAULT_VARIANT, config=dataset_config(args))
     if name == "ray-2":
         import ray
 
@@ -125,7 +136,8 @@ def main(argv=None):
     if not args.warm_cache and not os.environ.get(FRESH_CACHE_ENV):
         return _rerun_with_empty_kernel_cache(argv)
     settings = (f"settings: {args.resolution}x{args.resolution}, {args.spp} spp (full GI max_depth 5 + direct), 4 cameras, "
-                f"{args.samples} samples per configuration, shard size 1, default dataset configuration")
+                f"{args.samples} samples per configuration, shard size 1, "
+                + ("default dataset configuration" if args.street_bodies is None else f"street scenes with {args.street_bodies}-{args.street_bodies + 4} moving bodies"))
     run = _common.Run("dataset", args, argv, settings)
     rows = []
     with tempfile.TemporaryDirectory(prefix="dopplertof-dataset-bench-") as scratch:

@@ -1,0 +1,116 @@
+#!/usr/bin/env python
+"""The first render of a new scene, compilation included: per-body loop against the tree.
+
+    python benchmarks/first_render.py            # 256x256, 32 spp, 2/8/16/32/64 moving cubes (~4 min, 2 cores)
+    python benchmarks/first_render.py --quick    # smoke test: 32x32, 8 spp, 2 and 16 cubes (< 1 min)
+
+``throughput.py`` times renders whose kernels are compiled already (its warm-up run is not
+timed); a new scene's first render also compiles its kernel, which with the per-body loop
+grows with the number of bodies (the loop is unrolled: each body's queries are code) and
+with the tree does not (the bodies are reached through one ``dr.switch``). Every new scene
+pays it: each sample of a dataset, each scene of a design study. This script renders each
+scene of ``throughput.py`` (D-ToF, 4 cameras, antithetic + replay) with each traversal in
+a process of its own whose Dr.Jit kernel cache is empty (a temporary ``$HOME``), and
+reports per render: the first render's wall time, the part of it Dr.Jit spent compiling
+(kernel history), and a second render's wall time (another seed: the kernel cached).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets the libLLVM path)
+
+import _common
+import throughput
+
+TRAVERSALS = ("per-body", "tree")
+SCENES = ("2-moving", "8-moving", "16-moving", "32-moving", "64-moving")
+CSV_FIELDS = ["scene", "bodies", "traversal", "resolution", "spp", "first_s", "compile_s", "warm_s", "first_vs_per_body", "warm_vs_per_body"]
+
+
+def parse_args(argv):
+    p = _common.argument_parser(__doc__)
+    p.add_argument("--resolution", type=int, default=None, help="film size (default 256; quick 32)")
+    p.add_argument("--spp", type=int, default=None, help="paths per pixel (default 32; quick 8)")
+    p.add_argument("--scenes", nargs="+", choices=throughput.ALL_SCENES, default=None, help=f"default {' '.join(SCENES)}")
+    p.add_argument("--one", nargs=2, metavar=("SCENE", "TRAVERSAL"), help=argparse_hidden())
+    _common.add_output_options(p, "first_render", quick_help="smoke test: 32x32, 8 spp, 2 and 16 cubes", plot=False)
+    args = p.parse_args(argv)
+    _common.fill_defaults(args, {"resolution": 32, "spp": 8, "scenes": ["2-moving", "16-moving"]} if args.quick
+                          else {"resolution": 256, "spp": 32, "scenes": list(SCENES)})
+    _common.require_positive(p, args, ["resolution", "spp"])
+    _common.default_output_paths(args, "first_render")
+    return args
+
+
+def argparse_hidden():
+    import argparse
+
+    return argparse.SUPPRESS
+
+
+def measure_one(scene_name, traversal, args):
+    """In this process (its kernel cache empty): the first and a second render's wall times
+    and the first's compilation time, as a dict."""
+    import drjit as dr
+    import mitsuba as mi
+
+    dopplertof.set_variant(args.variant or _common.DEFAULT_VARIANT)
+    ours, stock = throughput.scene_dicts(scene_name, args.resolution, 5)
+    scene = dopplertof.load_scene(ours)
+    scene.traversal = traversal
+    render = throughput.make_runners(scene, mi.load_dict(stock), args.spp, 5)["dtof4"]
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    t = time.perf_counter()
+    render(1)
+    first = time.perf_counter() - t
+    compile_s = sum(k.get("backend_time", 0.0) + k.get("codegen_time", 0.0) for k in dr.kernel_history()) / 1e3
+    t = time.perf_counter()
+    render(2)
+    warm = time.perf_counter() - t
+    return {"bodies": len(scene.bodies), "first_s": first, "compile_s": compile_s, "warm_s": warm}
+
+
+def in_fresh_process(scene_name, traversal, args, argv):
+    """:func:`measure_one` in a child process with an empty Dr.Jit kernel cache."""
+    with tempfile.TemporaryDirectory(prefix="dopplertof-first-render-") as home:
+        command = [sys.executable, os.path.abspath(__file__), *(sys.argv[1:] if argv is None else argv), "--one", scene_name, traversal]
+        out = subprocess.run(command, env={**os.environ, "HOME": home}, capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    if args.one:
+        print(json.dumps(measure_one(*args.one, args)))
+        return 0
+    settings = f"settings: {args.resolution}x{args.resolution}, {args.spp} spp, D-ToF 4 cameras (antithetic, replay), max_depth 5, empty kernel cache per process"
+    run = _common.Run("first_render", args, argv, settings)
+    rows = []
+    for name in args.scenes:
+        per_body = None
+        for traversal in TRAVERSALS:
+            r = in_fresh_process(name, traversal, args, argv)
+            per_body = per_body or r
+            row = {"scene": name, "traversal": traversal, "resolution": args.resolution, "spp": args.spp, **r,
+                   "first_vs_per_body": r["first_s"] / per_body["first_s"], "warm_vs_per_body": r["warm_s"] / per_body["warm_s"]}
+            rows.append(row)
+            run.log(f"[{name}] {traversal:<8} first {r['first_s']:7.2f} s (compiling {r['compile_s']:6.2f} s)  second {r['warm_s']:6.2f} s")
+    print()
+    print("| scene | per-body: first render (compiling) | tree: first render (compiling) | tree ÷ per-body: first | tree ÷ per-body: second |")
+    print("|---|---:|---:|---:|---:|")
+    for name in args.scenes:
+        pb, tr = (next(r for r in rows if r["scene"] == name and r["traversal"] == t) for t in TRAVERSALS)
+        print(f"| {name} | {pb['first_s']:.2f} s ({pb['compile_s']:.2f} s) | {tr['first_s']:.2f} s ({tr['compile_s']:.2f} s) | "
+              f"{tr['first_vs_per_body']:.2f} | {tr['warm_vs_per_body']:.2f} |")
+    return run.finish(rows, CSV_FIELDS, total_note=f"; load avg at end {_common.loadavg()}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
