@@ -13,7 +13,9 @@ import csv
 import math
 import os
 import platform
+import subprocess
 import sys
+import tempfile
 import time
 
 import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets the libLLVM path)
@@ -69,6 +71,31 @@ def loadavg():
         return "%.2f %.2f %.2f" % os.getloadavg()
     except OSError:
         return "?"
+
+
+def run_with_empty_kernel_cache(script, args, **run_options):
+    """Run ``python script *args`` in a process whose Dr.Jit kernel cache is empty.
+
+    Dr.Jit keeps every compiled kernel in ``$HOME/.drjit`` across processes, so a run that
+    times new scenes (compilation included) would find an earlier run's kernels: the child's
+    ``$HOME`` is a temporary folder (processes it starts, Ray workers among them, inherit it).
+
+    Parameters
+    ----------
+    script : str
+        The script's path.
+    args : list of str
+        Its arguments.
+    **run_options
+        Passed to ``subprocess.run`` (its ``env`` is this process's with ``HOME`` replaced).
+
+    Returns
+    -------
+    subprocess.CompletedProcess
+    """
+    with tempfile.TemporaryDirectory(prefix="dopplertof-bench-home-") as home:
+        env = {**os.environ, **run_options.pop("env", {}), "HOME": home}
+        return subprocess.run([sys.executable, os.path.abspath(script), *args], env=env, **run_options)
 
 
 # ----------------------------------------------------------------------------------------

@@ -30,7 +30,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -53,7 +52,7 @@ def parse_args(argv):
     p.add_argument("--street-bodies", type=int, default=None, metavar="N",
                    help="street scenes only, N to N+4 bodies, all moving (default: the default dataset configuration)")
     p.add_argument("--warm-cache", action="store_true",
-                   help="keep Dr.Jit's kernel cache ($HOME/.drjit); by default the run gets an empty one (see _rerun_with_empty_kernel_cache)")
+                   help="keep Dr.Jit's kernel cache ($HOME/.drjit); by default the run gets an empty one (_common.run_with_empty_kernel_cache)")
     _common.add_output_options(p, "dataset", quick_help="smoke test: 32x32, 16 spp, 4 samples per configuration", plot=False)
     args = p.parse_args(argv)
     _common.fill_defaults(args, {"samples": 4, "resolution": 32, "spp": 16} if args.quick else {"samples": 8, "resolution": 128, "spp": 64})
@@ -103,38 +102,16 @@ def run_config(name, args, seed, scratch, log):
     return row
 
 
-FRESH_CACHE_ENV = "DOPPLERTOF_BENCH_FRESH_KERNEL_CACHE"  # set in the process _rerun_with_empty_kernel_cache starts
-
-
-def _rerun_with_empty_kernel_cache(argv) -> int:
-    """Run this script again in a process whose Dr.Jit kernel cache is empty.
-
-    Dr.Jit keeps every compiled kernel in ``$HOME/.drjit`` across processes. A dataset of
-    new scenes compiles its kernels (a large share of a sample's time), but a second run of
-    this benchmark draws the same scenes (fixed seeds) and finds them compiled, so without
-    this the figures depend on what ran before: measured 11-12 s against 7.7-8.1 s for the
-    same six samples. The child's ``$HOME`` is a temporary folder (Ray workers inherit it).
-
-    Parameters
-    ----------
-    argv : list of str or None
-        The script's arguments (None: ``sys.argv[1:]``).
-
-    Returns
-    -------
-    int
-        The child's exit status.
-    """
-    with tempfile.TemporaryDirectory(prefix="dopplertof-dataset-bench-home-") as home:
-        env = {**os.environ, "HOME": home, FRESH_CACHE_ENV: "1"}
-        command = [sys.executable, os.path.abspath(__file__), *(sys.argv[1:] if argv is None else argv)]
-        return subprocess.call(command, env=env)
+FRESH_CACHE_ENV = "DOPPLERTOF_BENCH_FRESH_KERNEL_CACHE"  # set in the process main() starts with an empty kernel cache
 
 
 def main(argv=None):
     args = parse_args(argv)
     if not args.warm_cache and not os.environ.get(FRESH_CACHE_ENV):
-        return _rerun_with_empty_kernel_cache(argv)
+        # A second run draws the same scenes (fixed seeds): with the kernels an earlier run
+        # left, measured 7.7-8.1 s against 11-12 s for the same six samples.
+        script_args = sys.argv[1:] if argv is None else argv
+        return _common.run_with_empty_kernel_cache(__file__, script_args, env={FRESH_CACHE_ENV: "1"}).returncode
     settings = (f"settings: {args.resolution}x{args.resolution}, {args.spp} spp (full GI max_depth 5 + direct), 4 cameras, "
                 f"{args.samples} samples per configuration, shard size 1, "
                 + ("default dataset configuration" if args.street_bodies is None else f"street scenes with {args.street_bodies}-{args.street_bodies + 4} moving bodies"))

@@ -17,11 +17,9 @@ reports per render: the first render's wall time, the part of it Dr.Jit spent co
 
 from __future__ import annotations
 
+import argparse
 import json
-import os
-import subprocess
 import sys
-import tempfile
 import time
 
 import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets the libLLVM path)
@@ -39,7 +37,7 @@ def parse_args(argv):
     p.add_argument("--resolution", type=int, default=None, help="film size (default 256; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel (default 32; quick 8)")
     p.add_argument("--scenes", nargs="+", choices=throughput.ALL_SCENES, default=None, help=f"default {' '.join(SCENES)}")
-    p.add_argument("--one", nargs=2, metavar=("SCENE", "TRAVERSAL"), help=argparse_hidden())
+    p.add_argument("--one", nargs=2, metavar=("SCENE", "TRAVERSAL"), help=argparse.SUPPRESS)  # the child of in_fresh_process
     _common.add_output_options(p, "first_render", quick_help="smoke test: 32x32, 8 spp, 2 and 16 cubes", plot=False)
     args = p.parse_args(argv)
     _common.fill_defaults(args, {"resolution": 32, "spp": 8, "scenes": ["2-moving", "16-moving"]} if args.quick
@@ -47,12 +45,6 @@ def parse_args(argv):
     _common.require_positive(p, args, ["resolution", "spp"])
     _common.default_output_paths(args, "first_render")
     return args
-
-
-def argparse_hidden():
-    import argparse
-
-    return argparse.SUPPRESS
 
 
 def measure_one(scene_name, traversal, args):
@@ -79,9 +71,8 @@ def measure_one(scene_name, traversal, args):
 
 def in_fresh_process(scene_name, traversal, args, argv):
     """:func:`measure_one` in a child process with an empty Dr.Jit kernel cache."""
-    with tempfile.TemporaryDirectory(prefix="dopplertof-first-render-") as home:
-        command = [sys.executable, os.path.abspath(__file__), *(sys.argv[1:] if argv is None else argv), "--one", scene_name, traversal]
-        out = subprocess.run(command, env={**os.environ, "HOME": home}, capture_output=True, text=True, check=True)
+    script_args = [*(sys.argv[1:] if argv is None else argv), "--one", scene_name, traversal]
+    out = _common.run_with_empty_kernel_cache(__file__, script_args, capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 

@@ -565,6 +565,23 @@ def test_stderr_matches_the_spread_over_seeds():
     assert np.mean(empirical[ok]) / np.mean(reported[ok]) == pytest.approx(1.0, abs=0.1)
 
 
+def _kernels_launched(warm_up, *renders):
+    """The hashes of the JIT kernels each of ``renders`` (callables) launches, after
+    ``warm_up`` (whose kernels are not listed: a first render also uploads scene data)."""
+    was = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        warm_up()
+        dr.kernel_history()  # clear
+        launched = []
+        for render in renders:
+            render()
+            launched.append([k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT])
+        return launched
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, was)
+
+
 def test_changing_parameters_does_not_recompile():
     """Motion values, camera parameters and the seed are data: after a first render, scenes
     with other motion values and other cameras launch exactly the same kernels."""
@@ -575,23 +592,14 @@ def test_changing_parameters_does_not_recompile():
     # Cameras sharing a modulation frequency share its sincos: that grouping is part of
     # the kernel, the values are not.
     other_cams = [dt.Camera(heterodyne=1.0, phase=0.3, modulation_frequency=20e6), dt.Camera(phase=1.5, modulation_frequency=20e6)]
-    was = dr.flag(dr.JitFlag.KernelHistory)
-    dr.set_flag(dr.JitFlag.KernelHistory, True)
-    try:
-        dt.render(a, cams, spp=8, seed=0)
-        dr.kernel_history()  # clear: the first render also uploads scene data
-
-        def kernels():
-            return [k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
-
-        dt.render(a, cams, spp=8, seed=1)
-        reference = kernels()
-        assert reference
-        for scene, cameras, seed in [(b, cams, 0), (c, other_cams, 3), (a, other_cams, 2)]:
-            dt.render(scene, cameras, spp=8, seed=seed)
-            assert kernels() == reference
-    finally:
-        dr.set_flag(dr.JitFlag.KernelHistory, was)
+    reference, *others = _kernels_launched(
+        lambda: dt.render(a, cams, spp=8, seed=0),
+        lambda: dt.render(a, cams, spp=8, seed=1),
+        *(lambda s=scene, c=cameras, k=seed: dt.render(s, c, spp=8, seed=k) for scene, cameras, seed in [(b, cams, 0), (c, other_cams, 3), (a, other_cams, 2)]),
+    )
+    assert reference
+    for kernels in others:
+        assert kernels == reference
 
 
 @pytest.mark.parametrize("correlation", ["replay", "reconnection"])
@@ -601,23 +609,15 @@ def test_another_path_depth_does_not_recompile(correlation):
     compiled once, not twice (``benchmarks/dataset.py``)."""
     scene = dt.scenes.cornell_box(resolution=16)
     cams = [dt.Camera(heterodyne=1.0)]
-    was = dr.flag(dr.JitFlag.KernelHistory)
-    dr.set_flag(dr.JitFlag.KernelHistory, True)
-    try:
-        dt.render(scene, cams, spp=8, seed=0, correlation=correlation)
-        dr.kernel_history()  # clear: the first render also uploads scene data
-
-        def kernels():
-            return [k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
-
-        dt.render(scene, cams, spp=8, seed=1, correlation=correlation)
-        reference = kernels()
-        assert reference
-        for depths in [dict(max_depth=2), dict(max_depth=3, rr_depth=1), dict(max_depth=-1)]:
-            dt.render(scene, cams, spp=8, seed=2, correlation=correlation, **depths)
-            assert kernels() == reference, depths
-    finally:
-        dr.set_flag(dr.JitFlag.KernelHistory, was)
+    depths = [dict(max_depth=2), dict(max_depth=3, rr_depth=1), dict(max_depth=-1)]
+    reference, *others = _kernels_launched(
+        lambda: dt.render(scene, cams, spp=8, seed=0, correlation=correlation),
+        lambda: dt.render(scene, cams, spp=8, seed=1, correlation=correlation),
+        *(lambda d=d: dt.render(scene, cams, spp=8, seed=2, correlation=correlation, **d) for d in depths),
+    )
+    assert reference
+    for d, kernels in zip(depths, others):
+        assert kernels == reference, d
 
 
 # ----------------------------------------------------------------------------------------
