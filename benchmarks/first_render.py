@@ -3,6 +3,7 @@
 
     python benchmarks/first_render.py            # 256x256, 32 spp, 2/8/16/32/64 moving cubes (~4 min, 2 cores)
     python benchmarks/first_render.py --quick    # smoke test: 32x32, 8 spp, 2 and 16 cubes (< 1 min)
+    python benchmarks/first_render.py --scenes 128-moving 1024-moving --traversals tree
 
 ``throughput.py`` times renders whose kernels are compiled already (its warm-up run is not
 timed); a new scene's first render also compiles its kernel, which with the per-body loop
@@ -12,7 +13,10 @@ pays it: each sample of a dataset, each scene of a design study. This script ren
 scene of ``throughput.py`` (D-ToF, 4 cameras, antithetic + replay) with each traversal in
 a process of its own whose Dr.Jit kernel cache is empty (a temporary ``$HOME``), and
 reports per render: the first render's wall time, the part of it Dr.Jit spent compiling
-(kernel history), and a second render's wall time (another seed: the kernel cached).
+(kernel history), and a second render's wall time (another seed: the kernel cached). Before
+them it times loading the scene (``dopplertof.load_scene``: one Mitsuba scene per body,
+each body's swept box over the exposure, the tree) beside stock ``mi.load_dict`` of the
+same geometry baked static, after a warm-up load of one cube.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ import throughput
 
 TRAVERSALS = ("per-body", "tree")
 SCENES = ("2-moving", "8-moving", "16-moving", "32-moving", "64-moving")
-CSV_FIELDS = ["scene", "bodies", "traversal", "resolution", "spp", "first_s", "compile_s", "warm_s", "first_vs_per_body", "warm_vs_per_body"]
+CSV_FIELDS = ["scene", "bodies", "traversal", "resolution", "spp", "load_s", "stock_load_s", "load_vs_stock", "first_s", "compile_s", "warm_s", "first_vs_per_body", "warm_vs_per_body"]
 
 
 def parse_args(argv):
@@ -37,6 +41,8 @@ def parse_args(argv):
     p.add_argument("--resolution", type=int, default=None, help="film size (default 256; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel (default 32; quick 8)")
     p.add_argument("--scenes", nargs="+", choices=throughput.ALL_SCENES, default=None, help=f"default {' '.join(SCENES)}")
+    p.add_argument("--traversals", nargs="+", choices=TRAVERSALS, default=list(TRAVERSALS),
+                   help="default both (the per-body loop compiles for minutes above ~64 bodies)")
     p.add_argument("--one", nargs=2, metavar=("SCENE", "TRAVERSAL"), help=argparse.SUPPRESS)  # the child of in_fresh_process
     _common.add_output_options(p, "first_render", quick_help="smoke test: 32x32, 8 spp, 2 and 16 cubes", plot=False)
     args = p.parse_args(argv)
@@ -55,9 +61,15 @@ def measure_one(scene_name, traversal, args):
 
     dopplertof.set_variant(args.variant or _common.DEFAULT_VARIANT)
     ours, stock = throughput.scene_dicts(scene_name, args.resolution, 5)
+    mi.load_dict({"type": "scene", "warm-up": {"type": "cube"}})
+    t = time.perf_counter()
     scene = dopplertof.load_scene(ours)
+    load = time.perf_counter() - t
+    t = time.perf_counter()
+    stock_scene = mi.load_dict(stock)
+    stock_load = time.perf_counter() - t
     scene.traversal = traversal
-    render = throughput.make_runners(scene, mi.load_dict(stock), args.spp, 5)["dtof4"]
+    render = throughput.make_runners(scene, stock_scene, args.spp, 5)["dtof4"]
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     t = time.perf_counter()
     render(1)
@@ -66,7 +78,8 @@ def measure_one(scene_name, traversal, args):
     t = time.perf_counter()
     render(2)
     warm = time.perf_counter() - t
-    return {"bodies": len(scene.bodies), "first_s": first, "compile_s": compile_s, "warm_s": warm}
+    return {"bodies": len(scene.bodies), "load_s": load, "stock_load_s": stock_load, "load_vs_stock": load / stock_load,
+            "first_s": first, "compile_s": compile_s, "warm_s": warm}
 
 
 def in_fresh_process(scene_name, traversal, args, argv):
@@ -86,20 +99,26 @@ def main(argv=None):
     rows = []
     for name in args.scenes:
         per_body = None
-        for traversal in TRAVERSALS:
+        for traversal in args.traversals:
             r = in_fresh_process(name, traversal, args, argv)
-            per_body = per_body or r
+            per_body = r if traversal == "per-body" else per_body
             row = {"scene": name, "traversal": traversal, "resolution": args.resolution, "spp": args.spp, **r,
-                   "first_vs_per_body": r["first_s"] / per_body["first_s"], "warm_vs_per_body": r["warm_s"] / per_body["warm_s"]}
+                   "first_vs_per_body": r["first_s"] / per_body["first_s"] if per_body else None,
+                   "warm_vs_per_body": r["warm_s"] / per_body["warm_s"] if per_body else None}
             rows.append(row)
-            run.log(f"[{name}] {traversal:<8} first {r['first_s']:7.2f} s (compiling {r['compile_s']:6.2f} s)  second {r['warm_s']:6.2f} s")
+            run.log(f"[{name}] {traversal:<8} load {r['load_s']:6.2f} s ({r['load_vs_stock']:.1f}x stock)  "
+                    f"first {r['first_s']:7.2f} s (compiling {r['compile_s']:6.2f} s)  second {r['warm_s']:6.2f} s")
     print()
-    print("| scene | per-body: first render (compiling) | tree: first render (compiling) | tree ÷ per-body: first | tree ÷ per-body: second |")
-    print("|---|---:|---:|---:|---:|")
+    print("| scene | load (÷ stock) | per-body: first render (compiling) | tree: first render (compiling) | tree ÷ per-body: first | tree ÷ per-body: second |")
+    print("|---|---:|---:|---:|---:|---:|")
     for name in args.scenes:
-        pb, tr = (next(r for r in rows if r["scene"] == name and r["traversal"] == t) for t in TRAVERSALS)
-        print(f"| {name} | {pb['first_s']:.2f} s ({pb['compile_s']:.2f} s) | {tr['first_s']:.2f} s ({tr['compile_s']:.2f} s) | "
-              f"{tr['first_vs_per_body']:.2f} | {tr['warm_vs_per_body']:.2f} |")
+        found = {r["traversal"]: r for r in rows if r["scene"] == name}
+        pb, tr = found.get("per-body"), found.get("tree")
+        first = lambda r: f"{r['first_s']:.2f} s ({r['compile_s']:.2f} s)" if r else "–"  # noqa: E731
+        ratio = lambda key: f"{tr[key]:.2f}" if tr and tr[key] is not None else "–"  # noqa: E731
+        load = next(iter(found.values()))
+        print(f"| {name} | {load['load_s']:.2f} s ({load['load_vs_stock']:.1f}×) | {first(pb)} | {first(tr)} | "
+              f"{ratio('first_vs_per_body')} | {ratio('warm_vs_per_body')} |")
     return run.finish(rows, CSV_FIELDS, total_note=f"; load avg at end {_common.loadavg()}")
 
 

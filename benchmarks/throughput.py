@@ -12,7 +12,7 @@ Scenes (Cornell-like box, point light at the camera):
 * ``static``  -- the short and tall boxes at rest;
 * ``2-moving`` -- the same boxes, each translating 15 mm over the 1.5 ms exposure;
 * ``8-moving`` -- eight small cubes, each with its own 15 mm translation;
-* ``32-moving``, ``128-moving`` (and, with ``--scenes``, ``16-moving``, ``64-moving``) -- that
+* ``32-moving``, ``128-moving`` (and, with ``--scenes``, ``16-moving``, ``64-moving``, ``1024-moving``) -- that
   many cubes on a jittered lattice filling the room
   (some on the floor), each with its own 15 mm translation; their size shrinks as
   1/sqrt(count) so that they show as much surface as the eight;
@@ -61,7 +61,7 @@ CONFIG_LABELS = {
     "dtof4": "D-ToF 4 cameras (antithetic, replay)",
 }
 SCENE_NAMES = ("static", "2-moving", "8-moving", "32-moving", "128-moving", "moving-camera")  # the default run
-LATTICE_SCENES = ("16-moving", "32-moving", "64-moving", "128-moving")
+LATTICE_SCENES = ("16-moving", "32-moving", "64-moving", "128-moving", "1024-moving")
 ALL_SCENES = ("static", "2-moving", "8-moving", *LATTICE_SCENES, "moving-camera")
 # Eight directions of travel, cycled over the cubes.
 DIRECTIONS = [(0, 0, 1), (0, 0, -1), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (0.5**0.5, 0, 0.5**0.5), (-(0.5**0.5), 0, 0.5**0.5), (0.5**0.5, 0.5**0.5, 0)]

@@ -138,6 +138,17 @@ def test_keyframed_matrix_interpolates_like_the_reference(three_keys, keyframed)
         np.testing.assert_allclose(keyframed.matrix(t), three_keys.matrix(t), rtol=0, atol=1e-10, err_msg=f"t={t}")
 
 
+def test_keyframed_matrices_of_many_times_at_once_match_the_reference(three_keys, keyframed):
+    """Times before, between, on and after the keys, unsorted, in one call (swept bounds
+    evaluate their sample times so)."""
+    times = np.array([2.0e-3, -1.0, 0.0, 1.0e-3, 0.3e-3, 2.5e-3, 7.0, 1.7e-3, 2.5e-3 - 1e-12])
+    stacked = keyframed.matrices(times)
+    assert stacked.shape == (len(times), 4, 4)
+    for t, m in zip(times, stacked):
+        np.testing.assert_allclose(m, three_keys.matrix(t), rtol=0, atol=1e-10, err_msg=f"t={t}")
+    assert Keyframed([0.5], three_keys.matrices()[:1]).matrices(times).shape == (len(times), 4, 4)
+
+
 def test_slerp_of_a_quarter_turn_at_half_time_is_an_eighth_turn():
     start = np.eye(4)
     end = trs([0, 0, 0], rodrigues([0, 0, 1], math.pi / 2), [1, 1, 1])
@@ -320,6 +331,9 @@ def test_parametric_matrix_matches_the_reference(case):
     for t in [-2e-3, 0.0, 1e-3, 7.5e-3]:
         ref = parametric_reference(case["v"], case["w"], case["pivot"], case["base"], t)
         np.testing.assert_allclose(motion.matrix(t), ref, atol=1e-12, err_msg=f"t={t}")
+    times = np.array([7.5e-3, -2e-3, 0.0, 1e-3])
+    for t, m in zip(times, motion.matrices(times)):
+        np.testing.assert_allclose(m, parametric_reference(case["v"], case["w"], case["pivot"], case["base"], t), atol=1e-12, err_msg=f"t={t}")
 
 
 @pytest.mark.parametrize("case", PARAMETRIC_CASES)

@@ -699,26 +699,33 @@ def _shared_placement_as_base(motion: Motion, members):
     return motion, [(key, shape if p is None else {**shape, "to_world": mi.ScalarTransform4d(p)}) for key, shape, p in members]
 
 
-def _referenced(entries: dict, scene_dict: dict) -> dict:
-    """The top-level entries of ``scene_dict`` that ``entries`` refer to by
-    ``{"type": "ref", "id": ...}``, directly or through each other.
+def _referencer(scene_dict: dict):
+    """A function of ``entries`` (a dict of scene entries) giving the top-level entries of
+    ``scene_dict`` they refer to by ``{"type": "ref", "id": ...}``, directly or through
+    each other, in the scene's order (a definition before its users).
 
     A moving shape or light is loaded into a scene of its own, which must hold the objects
     it refers to (``mi.cornell_box()``'s boxes refer to its top-level ``"white"`` BSDF), as
-    the XML loader copies the file's definitions into each body's scene."""
+    the XML loader copies the file's definitions into each body's scene. The scene is
+    indexed once, so that a scene of N bodies takes time linear in N."""
     by_id = {(v.get("id", k) if isinstance(v, dict) else k): (k, v) for k, v in scene_dict.items() if k != "type"}
-    found: dict = {}
-    pending = list(entries.values())
-    while pending:
-        value = pending.pop()
-        if isinstance(value, dict):
-            ident = value.get("id") if value.get("type") == "ref" else None
-            if isinstance(ident, str) and ident in by_id and by_id[ident][0] not in found and by_id[ident][0] not in entries:
-                key, target = by_id[ident]
-                found[key] = target
-                pending.append(target)
-            pending.extend(value.values())
-    return {k: v for k, v in scene_dict.items() if k in found}  # the scene's order: a definition before its users
+    order = {k: i for i, k in enumerate(scene_dict)}
+
+    def referenced(entries: dict) -> dict:
+        found: dict = {}
+        pending = list(entries.values())
+        while pending:
+            value = pending.pop()
+            if isinstance(value, dict):
+                ident = value.get("id") if value.get("type") == "ref" else None
+                if isinstance(ident, str) and ident in by_id and by_id[ident][0] not in found and by_id[ident][0] not in entries:
+                    key, target = by_id[ident]
+                    found[key] = target
+                    pending.append(target)
+                pending.extend(value.values())
+        return {k: found[k] for k in sorted(found, key=order.__getitem__)}
+
+    return referenced
 
 
 def _load_dict(scene_dict: dict) -> DynamicScene:
@@ -770,6 +777,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
         else:
             static_dict[key] = value
     host = pipeline_host(_plugin_types(scene_dict), "<dict>") if moving else None
+    referenced = _referencer(scene_dict)
     guest = {} if host is None else {HOST_KEY: host}
     bodies = []
     for motion, members in _group_by_motion(moving):
@@ -777,7 +785,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
         keys = [key for key, _ in shapes]
         where = f"<dict>: entr{'y' if len(keys) == 1 else 'ies'} {', '.join(repr(k) for k in keys)}"
         try:
-            body_scene = mi.load_dict({"type": "scene", **guest, **_referenced(dict(shapes), scene_dict), **dict(shapes)})
+            body_scene = mi.load_dict({"type": "scene", **guest, **referenced(dict(shapes)), **dict(shapes)})
         except Exception as exc:  # noqa: BLE001
             raise _mitsuba_error(where, exc) from None
         bodies.append(_make_body(", ".join(keys), body_scene, motion))
@@ -790,7 +798,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
 
     def light_scene(emitter, where):
         try:
-            return mi.load_dict({"type": "scene", **_referenced({"light": emitter}, scene_dict), "light": emitter})
+            return mi.load_dict({"type": "scene", **referenced({"light": emitter}), "light": emitter})
         except Exception as exc:  # noqa: BLE001
             raise _mitsuba_error(where, exc) from None
 

@@ -80,15 +80,17 @@ def _quat_from_matrix(r: np.ndarray) -> np.ndarray:
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return np.array(
+    """Hamilton product of quaternions (w, x, y, z) along the last axis (broadcast)."""
+    aw, ax, ay, az = np.moveaxis(np.asarray(a), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.asarray(b), -1, 0)
+    return np.stack(
         [
             aw * bw - ax * bx - ay * by - az * bz,
             aw * bx + ax * bw + ay * bz - az * by,
             aw * by - ax * bz + ay * bw + az * bx,
             aw * bz + ax * by - ay * bx + az * bw,
-        ]
+        ],
+        axis=-1,
     )
 
 
@@ -102,14 +104,14 @@ def _quat_to_axis_angle(q: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4) as (w, x, y, z)."""
+    w, x, y, z = np.moveaxis(np.asarray(q), -1, 0)
+    rows = [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ]
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
 
 
 def decompose(matrix, where: str = "transform") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -144,10 +146,13 @@ def decompose(matrix, where: str = "transform") -> tuple[np.ndarray, np.ndarray,
 
 
 def compose(translation, quaternion, scale) -> np.ndarray:
-    """Inverse of :func:`decompose`: the 4x4 matrix ``T · R · S``."""
-    m = np.eye(4)
-    m[:3, :3] = _quat_to_matrix(np.asarray(quaternion, dtype=np.float64)) * np.asarray(scale)
-    m[:3, 3] = translation
+    """Inverse of :func:`decompose`: the 4x4 matrix ``T · R · S`` (or a stack of them,
+    (..., 4, 4), from stacked translations (..., 3), quaternions (..., 4), scales (..., 3))."""
+    rotation = _quat_to_matrix(np.asarray(quaternion, dtype=np.float64))
+    m = np.zeros((*rotation.shape[:-2], 4, 4))
+    m[..., :3, :3] = rotation * np.asarray(scale)[..., None, :]
+    m[..., :3, 3] = translation
+    m[..., 3, 3] = 1.0
     return m
 
 
@@ -226,6 +231,11 @@ class Motion:
 
     def matrix(self, time_s: float) -> np.ndarray:
         """The 4x4 world transform at one time (host-side, numpy float64)."""
+        return self.matrices(np.array([time_s], dtype=np.float64))[0]
+
+    def matrices(self, times_s) -> np.ndarray:
+        """The world transforms (len(times_s), 4, 4) at each of ``times_s`` (host-side,
+        numpy float64)."""
         raise NotImplementedError
 
     def time_range(self) -> tuple[float, float]:
@@ -264,8 +274,8 @@ class Motion:
         corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
         times = np.union1d(np.linspace(t0, t1, samples), self.breakpoints(t0, t1))
         mids = 0.5 * (times[1:] + times[:-1])
-        at_times = np.array([(self.matrix(t) @ corners.T).T[:, :3] for t in times])  # (times, 8, 3)
-        at_mids = np.array([(self.matrix(t) @ corners.T).T[:, :3] for t in mids]).reshape(-1, 8, 3)
+        at_times = (self.matrices(times) @ corners.T).transpose(0, 2, 1)[..., :3]  # (times, 8, 3)
+        at_mids = (self.matrices(mids) @ corners.T).transpose(0, 2, 1)[..., :3]
         chord_gap = np.abs(at_mids - 0.5 * (at_times[1:] + at_times[:-1])).max(initial=0.0)
         pts = np.concatenate([at_times, at_mids]).reshape(-1, 3)
         # Float32 poses and ray tests round within a few ulps of the coordinates.
@@ -370,18 +380,23 @@ class Keyframed(Motion):
             and np.allclose(self.scales, self.scales[0], atol=0)
         )
 
-    def matrix(self, time_s: float) -> np.ndarray:
+    def matrices(self, times_s) -> np.ndarray:
+        times_s = np.asarray(times_s, dtype=np.float64)
         n = len(self.times)
-        if n == 1 or time_s <= self.times[0]:
-            return compose(self.translations[0], self.quaternions[0], self.scales[0])
-        if time_s >= self.times[-1]:
-            return compose(self.translations[-1], self.quaternions[-1], self.scales[-1])
-        i = int(np.searchsorted(self.times, time_s, side="right") - 1)
-        alpha = (time_s - self.times[i]) / (self.times[i + 1] - self.times[i])
-        half = 0.5 * alpha * self._angles[i]
-        q = _quat_mul(np.array([np.cos(half), *(np.sin(half) * self._axes[i])]), self.quaternions[i])
-        b = (1 - alpha) * self.translations[i] + alpha * self.translations[i + 1]
-        s = (1 - alpha) * self.scales[i] + alpha * self.scales[i + 1]
+        if n == 1:
+            return np.broadcast_to(compose(self.translations[0], self.quaternions[0], self.scales[0]), (len(times_s), 4, 4)).copy()
+        # Before the first key and after the last the pose is that key's, exactly.
+        i = np.clip(np.searchsorted(self.times, times_s, side="right") - 1, 0, n - 2)
+        alpha = np.clip((times_s - self.times[i]) / (self.times[i + 1] - self.times[i]), 0.0, 1.0)
+        last = times_s >= self.times[-1]
+        i, alpha = np.where(last, n - 1, i), np.where(last, 0.0, alpha)
+        nxt = np.minimum(i + 1, n - 1)
+        half = 0.5 * alpha * np.append(self._angles, 0.0)[i]
+        axes = np.vstack([self._axes, [0.0, 0.0, 1.0]])[i]
+        q = _quat_mul(np.column_stack([np.cos(half), np.sin(half)[:, None] * axes]), self.quaternions[i])
+        a = alpha[:, None]
+        b = (1 - a) * self.translations[i] + a * self.translations[nxt]
+        s = (1 - a) * self.scales[i] + a * self.scales[nxt]
         return compose(b, q, s)
 
     def pose(self, time_s, precise: bool = False) -> Pose:
@@ -500,12 +515,13 @@ class Parametric(Motion):
     def is_conformal(self):
         return bool(np.allclose(self.s0, self.s0[0], rtol=1e-6, atol=0))
 
-    def matrix(self, time_s: float) -> np.ndarray:
-        half = 0.5 * self.rate * time_s
-        q_rot = np.array([np.cos(half), *(np.sin(half) * self.axis)])
+    def matrices(self, times_s) -> np.ndarray:
+        times_s = np.asarray(times_s, dtype=np.float64)
+        half = 0.5 * self.rate * times_s
+        q_rot = np.column_stack([np.cos(half), np.sin(half)[:, None] * self.axis])
         rot = _quat_to_matrix(q_rot)
-        b = self.pivot + self.linear_velocity * time_s + rot @ (self.b0 - self.pivot)
-        return compose(b, _quat_mul(q_rot, self.q0), self.s0)
+        b = self.pivot + self.linear_velocity * times_s[:, None] + rot @ (self.b0 - self.pivot)
+        return compose(b, _quat_mul(q_rot, self.q0), np.broadcast_to(self.s0, b.shape))
 
     def pose(self, time_s, precise: bool = False) -> Pose:
         import drjit as dr
