@@ -431,8 +431,10 @@ def test_a_resume_with_other_settings_is_refused(tmp_path):
     calls = iter(range(100))
     partial = dt.render(scene, spp=8, lanes_per_pass=1024, checkpoint=checkpoint, stop=lambda: next(calls) >= 1)
     assert partial.interrupted and os.path.exists(checkpoint)
-    with pytest.raises(ValueError, match="other settings"):
+    with pytest.raises(ValueError, match=r"other settings or another scene \(seed: 0 in the checkpoint, 1 now\)"):
         dt.render(scene, spp=8, seed=1, lanes_per_pass=1024, checkpoint=checkpoint)
+    with pytest.raises(ValueError, match=r"\(spp: 8 in the checkpoint, 16 now\)"):
+        dt.render(scene, spp=16, lanes_per_pass=1024, checkpoint=checkpoint)
     resumed = dt.render(scene, spp=8, lanes_per_pass=1024, checkpoint=checkpoint)
     whole = dt.render(scene, spp=8, lanes_per_pass=1024)
     np.testing.assert_array_equal(resumed.intensity, whole.intensity)

@@ -195,9 +195,27 @@ def warn_if_long(width: int, height: int, spp: int, n_windows: int = 1) -> None:
 
 
 def fingerprint(scene, settings: RenderSettings) -> str:
-    """What a checkpoint must match to be continued: the settings, the film and the scene."""
-    text = json.dumps({"settings": settings.as_dict(), "film": list(scene.resolution), "scene": scene.source, "motions": len(scene.motions())}, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
+    """What a checkpoint must match to be continued: the settings, the film and the scene,
+    as JSON text (the checkpoint keeps it, and its hash)."""
+    return json.dumps({"settings": settings.as_dict(), "film": list(scene.resolution), "scene": scene.source, "motions": len(scene.motions())}, sort_keys=True, default=str)
+
+
+def _digest(key: str) -> str:
+    return hashlib.sha256(key.encode()).hexdigest()
+
+
+def _differences(stored_key: str, key: str) -> str:
+    """What differs between two :func:`fingerprint` texts, as ``"spp: 64 in the checkpoint,
+    128 now"`` items (empty where the stored one cannot be read: older checkpoints)."""
+    try:
+        old, new = json.loads(stored_key), json.loads(key)
+        old = {**old.pop("settings", {}), **old}
+        new = {**new.pop("settings", {}), **new}
+    except (ValueError, AttributeError, TypeError):
+        return ""
+    short = lambda v: (lambda t: t if len(t) <= 40 else t[:37] + "...")(json.dumps(v, default=str))  # noqa: E731
+    items = [f"{k}: {short(old.get(k))} in the checkpoint, {short(new.get(k))} now" for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
+    return "; ".join(items[:3]) + ("; …" if len(items) > 3 else "")
 
 
 def _checkpoint_names(accs: list) -> list[tuple[str, Accumulator, str]]:
@@ -217,8 +235,12 @@ def _load_checkpoint(path, accs: list, key: str):
             stored = {name: data[name] for name in data.files}
     except _UNREADABLE as exc:
         raise ValueError(f"{path}: the checkpoint cannot be read ({exc}); remove it to render from the start") from None
-    if str(stored.get("fingerprint")) != key:
-        raise ValueError(f"{path}: the checkpoint belongs to a render with other settings or another scene; remove it or render into another folder")
+    if str(stored.get("fingerprint")) != _digest(key):
+        differences = _differences(str(stored.get("fingerprint_text", "")), key)
+        raise ValueError(
+            f"{path}: the checkpoint belongs to a render with other settings or another scene"
+            f"{f' ({differences})' if differences else ''}; remove it or render into another folder"
+        )
     for name_in_file, acc, name in _checkpoint_names(accs):
         if name_in_file not in stored or stored[name_in_file].shape != acc.state[name].shape:
             raise ValueError(f"{path}: the checkpoint is damaged ({name_in_file!r} missing or of another shape)")
@@ -243,7 +265,7 @@ def save_checkpoint(path, accs: list, key: str):
     arrays = {stored: acc.state[name] for stored, acc, name in _checkpoint_names(accs)}
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
-            np.savez(f, fingerprint=np.array(key), **arrays)
+            np.savez(f, fingerprint=np.array(_digest(key)), fingerprint_text=np.array(key), **arrays)
 
 
 def _passes_in(path) -> int | None:
