@@ -289,7 +289,10 @@ def _install_hint() -> str:
 _DRJIT_OLD_LLVM_MESSAGE = "jit_llvm_init(): the located LLVM version"
 
 
-_HELD_SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s is not None)
+STOP_SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s is not None)
+"""The signals that stop work (those of SIGINT, SIGTERM, SIGHUP this platform has): a render
+stops after its pass (:class:`dopplertof.clitools.StopOnSignal`), a dataset at once
+(:mod:`dopplertof.dataset.generate`), and loading the backend holds them."""
 
 
 @contextlib.contextmanager
@@ -301,7 +304,7 @@ def _signals_held():
         yield
         return
     received = []
-    saved = {s: signal.getsignal(s) for s in _HELD_SIGNALS}
+    saved = {s: signal.getsignal(s) for s in STOP_SIGNALS}
     saved = {s: h for s, h in saved.items() if callable(h)}
     for s in saved:
         signal.signal(s, lambda signum, frame: received.append(signum))

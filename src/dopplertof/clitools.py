@@ -16,6 +16,7 @@ import sys
 
 import click
 
+from .backend import STOP_SIGNALS
 from .settings import FIELDS
 
 EXIT_BAD_INPUT = 2
@@ -43,7 +44,7 @@ def show_warning(message, category, filename, lineno, file=None, line=None):
 class StopOnSignal:
     """A ``stop()`` callable for :func:`dopplertof.render` that turns true on a signal."""
 
-    SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s is not None)
+    SIGNALS = STOP_SIGNALS
 
     def __init__(self):
         self.signum = None

@@ -12,6 +12,7 @@ import signal
 import threading
 import time
 
+from ..backend import STOP_SIGNALS
 from . import config as config_mod
 from . import execute, schema, shards
 
@@ -109,7 +110,7 @@ class Stopped(KeyboardInterrupt):
         self.signum = signum
 
 
-_STOP_SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGTERM", "SIGHUP")) if s is not None)
+_STOP_SIGNALS = tuple(s for s in STOP_SIGNALS if s != signal.SIGINT)  # SIGINT is Python's KeyboardInterrupt already
 
 
 @contextlib.contextmanager
