@@ -405,6 +405,23 @@ def test_info_prints_statistics_and_a_contact_sheet(reference, tmp_path):
     assert picture.ndim == 3 and picture.shape[0] >= 2 * 128
 
 
+def test_info_that_cannot_write_its_contact_sheet_prints_the_report_then_one_error(reference, tmp_path):
+    """A dataset on read-only storage (here a sheet path under a file, which no user can
+    create): the report is printed, then one ``error:`` line, exit 2 (was a traceback)."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    res = CliRunner().invoke(main, ["dataset", "info", str(reference), "--sheet", str(blocker / "sheet.png"), "--sheet-samples", "1"])
+    assert res.exit_code == 2, res.output
+    assert "depth (m)" in res.output and "Traceback" not in res.output
+    assert res.output.strip().splitlines()[-1].startswith("error: the contact sheet")
+
+
+@pytest.mark.parametrize("option", ["--sheet-samples", "--max-samples"])
+def test_info_refuses_a_count_below_one(reference, option):
+    res = CliRunner().invoke(main, ["dataset", "info", str(reference), option, "-1", "--sheet", "none"])
+    assert res.exit_code == 2 and res.output.strip().startswith("error:") and "got -1" in res.output, res.output
+
+
 def test_sample_streams_are_counter_based():
     cfg = config_mod.validate({})
     forward = [make_record(cfg, 11, i, "llvm_ad_rgb") for i in range(4)]

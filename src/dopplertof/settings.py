@@ -38,6 +38,9 @@ from .validation import checked
 DEFAULT_EXPOSURE_S = 1.5e-3
 DEFAULT_LANES_PER_PASS = 1 << 21
 DEFAULT_CHECKPOINT_INTERVAL_S = 60.0
+# The most paths per pixel one render takes: the strata tables index a pixel's groups in
+# UInt32 (and a render of more would run for years); average several renders for more.
+MAX_SPP = 1 << 31
 PLUGIN_NAMES = ("dopplertof", "dopplertofpath")
 
 
@@ -250,6 +253,8 @@ class RenderSettings:
             raise ValueError(f"'reconnection_threshold' applies to adaptive correlation, not {self.correlation!r}")
         if self.correlation in PAIRED and n != 2:
             raise ValueError(f"correlation={self.correlation!r} pairs two times (n_times=2), got n_times={n}")
+        if self.spp > MAX_SPP:
+            raise ValueError(f"spp={self.spp} exceeds {MAX_SPP}, the most paths per pixel one render takes; average several renders (different seeds) for more")
         if self.spp % n:
             raise ValueError(f"spp={self.spp} must be a multiple of the {n} correlated times per group ({self.time_sampling})")
         groups = self.spp // n

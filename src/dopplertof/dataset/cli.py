@@ -127,3 +127,5 @@ def info_command(folder, sheet, sheet_samples, max_samples):
         _fail(str(exc))
     for line in report["lines"]:
         click.echo(line)
+    if report["sheet_error"]:
+        _fail(report["sheet_error"])

@@ -49,8 +49,13 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
     dict
         ``lines`` (the printable report) and ``stats`` (numbers: samples, shards, scene
         kinds, sensors drawn, depth and velocity ranges, moving fractions, body speeds, moving
-        cameras).
+        cameras), ``sheet_error``: why the contact sheet could not be written (a read-only
+        or full folder), else None.
     """
+    if isinstance(sheet_samples, bool) or not isinstance(sheet_samples, int) or sheet_samples < 1:
+        raise ValueError(f"sheet_samples must be an integer >= 1, got {sheet_samples!r}")
+    if max_samples is not None and (isinstance(max_samples, bool) or not isinstance(max_samples, int) or max_samples < 1):
+        raise ValueError(f"max_samples must be an integer >= 1, got {max_samples!r}")
     ds = open_dataset(folder)
     m = ds.manifest
     depths, speeds, body_speeds, spins, ego_speeds = [], [], [], [], []
@@ -58,6 +63,7 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
     sensors: Counter = Counter()  # the sensor model of each sample (config key sensor.model), if any
     moving_px = total_px = sees_motion_px = 0
     rows = []
+    sheet_error = None
     n = 0
     for sample in ds:
         if max_samples is not None and n >= max_samples:
@@ -128,9 +134,12 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
 
         width = max(r.shape[1] for r in rows)
         padded = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in rows]
-        viz.save_png(sheet, np.concatenate(padded, axis=0))
-        lines.append(f"contact sheet: {sheet} (per row: intensity, measurements {_camera_labels(m)}, ground-truth velocity)")
-    return {"lines": [line for line in lines if line], "stats": stats}
+        try:
+            viz.save_png(sheet, np.concatenate(padded, axis=0))
+            lines.append(f"contact sheet: {sheet} (per row: intensity, measurements {_camera_labels(m)}, ground-truth velocity)")
+        except OSError as exc:
+            sheet_error = f"the contact sheet {sheet} cannot be written ({exc.strerror or exc}); the report above is complete: pass --sheet PATH elsewhere or --sheet none"
+    return {"lines": [line for line in lines if line], "stats": stats, "sheet_error": sheet_error}
 
 
 def _camera_labels(manifest) -> str:
