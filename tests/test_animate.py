@@ -143,3 +143,13 @@ def test_frames_and_fps_checks_accept_only_positive_numbers():
     for frames, fps in [(2.5, 30), (True, 30), (1, float("inf")), (1, "30")]:
         with pytest.raises(ValueError):
             animate.check_frames_and_fps(frames, fps)
+
+
+def test_exposure_option_sets_the_default_cameras_and_is_checked(tmp_path):
+    """``--exposure`` without ``--camera`` was accepted and dropped (even -1)."""
+    code, output = run_animate("rotating", "--frames", "1", "--resolution", "8", "--spp", "4", "--quiet", "--exposure", "0.0005", "-o", tmp_path / "a")
+    assert code == 0, output
+    meta = json.loads((tmp_path / "a" / "frame_0000" / "metadata.json").read_text())
+    assert [c["exposure"] for c in meta["settings"]["cameras"]] == [0.0005] * 4
+    result = CliRunner().invoke(cli.main, ["animate", "rotating", "--frames", "1", "--resolution", "8", "--spp", "4", "--exposure", "-1", "-o", str(tmp_path / "b")])
+    assert result.exit_code == 2 and result.output.strip() == "error: Camera: 'exposure' must be in (0, 60] s, got -1.0", result.output

@@ -427,7 +427,10 @@ def animate_command(scene, frames, fps, resolution, defines, output, camera_spec
         base.pop("exposure_start", None)  # each frame sets its own
         cameras = cameras_layer(camera_specs, options.get("exposure"), base)
         if not cameras:  # the scene's camera (or shutter) gives f_g, T and the waveform of the default set
-            cameras = {"cameras": default_cameras(scene_camera(base))}
+            defaults = default_cameras(scene_camera(base))
+            if options.get("exposure") is not None:
+                defaults = [dataclasses.replace(c, exposure=options["exposure"]) for c in defaults]
+            cameras = {"cameras": defaults}
         settings = RenderSettings.build(base, given_settings(options), cameras, where=scene)
         if frames is None:
             duration = scenes.clip_duration(scene) if scene in scenes.SCENES else motion_duration(dyn)
