@@ -326,3 +326,12 @@ def test_plugin_renders_only_the_first_sensor():
     scene = _grey_room(4)
     with pytest.raises(ValueError, match="first sensor only, got sensor 1"):
         render_image(render_settings({}), scene, sensor=1)
+
+
+def test_output_channels_follow_the_active_variant(monkeypatch):
+    """In a mono variant the film has one colour channel, and the names say so unasked."""
+    import mitsuba as mi
+
+    assert output_channels() == output_channels(mono=False)
+    monkeypatch.setattr(mi, "is_rgb", False)
+    assert output_channels() == output_channels(mono=True) and output_channels()[0] == "measurement.Y"

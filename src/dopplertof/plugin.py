@@ -82,10 +82,27 @@ from .settings import PLUGIN_NAMES, RenderSettings, integrator_layer
 # Rendering a Mitsuba scene
 
 
-def output_channels(mono: bool = False, n_cameras: int = 1) -> list[str]:
+def output_channels(mono: bool | None = None, n_cameras: int = 1) -> list[str]:
     """Names of the channels of the plugin's output tensor, in order (module docstring):
     the first camera's measurement in the film's colour layout, then every output of
-    :data:`dopplertof.outputs.OUTPUTS` and the standard errors, channel by channel."""
+    :data:`dopplertof.outputs.OUTPUTS` and the standard errors, channel by channel.
+
+    Parameters
+    ----------
+    mono : bool or None, default None
+        One colour channel (``Y``) instead of ``R, G, B``; None: as the active Mitsuba
+        variant renders (a ``*_mono`` variant: one).
+    n_cameras : int, default 1
+        Cameras rendered (one measurement channel and one standard error each).
+
+    Returns
+    -------
+    list of str
+    """
+    if mono is None:
+        import mitsuba as mi
+
+        mono = mi.variant() is not None and not mi.is_rgb
     colours = ("Y",) if mono else ("R", "G", "B")
     names = [f"measurement.{c}" for c in colours]
     for o in OUTPUTS:
