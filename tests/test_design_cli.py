@@ -172,3 +172,24 @@ def test_design_interrupted_writes_nothing_and_says_so(tmp_path, signame):
     assert process.returncode == 128 + getattr(signal, signame), stderr
     assert stderr.strip().splitlines()[-1] == "error: interrupted before the record was finished; nothing written"
     assert not (out / "record.npz").exists() and not (out / "sweep.csv").exists()
+
+
+def test_design_interrupted_in_its_sweep_stops_at_once_and_names_what_is_kept(tmp_path):
+    """SIGTERM while the sweep runs (the record read from a file): it was ignored until the
+    end, or killed the process silently; now exit 143 and one line."""
+    import signal
+    import time
+
+    sweeps = ["--sweep", "f=10e6:100e6:91", "--sweep", "T=0.5e-3:1.5e-3:101"]
+    made = _run("design", "cornell-box", "--sensor", "dtof-prototype", *sweeps, "--resolution", "8", "--spp", "8", "-o", "r", cwd=tmp_path)
+    assert made.returncode == 0, made.stderr
+    process = subprocess.Popen(
+        [sys.executable, "-m", "dopplertof.cli", "design", "cornell-box", "--sensor", "dtof-prototype", *sweeps, "--record", "r/record.npz", "-o", "s"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+    )  # fmt: skip
+    time.sleep(4.0)  # imports and reading the record take ~2 s, the sweep ~8 s more
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 143, stderr
+    assert stderr.strip().splitlines()[-1] == "error: interrupted after the records were read; nothing written"
+    assert not (tmp_path / "s" / "sweep.csv").exists()

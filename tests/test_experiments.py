@@ -399,3 +399,23 @@ def test_full_correlation_costs_about_root_two_at_h_0(cache_dir):
     ratios = np.mean([_correlation_ratios(seed, ReferenceCache(cache_dir)) for seed in (0, 1)], axis=0)
     assert 1.15 < ratios[0] < 1.75, ratios
     assert ratios[1] < 0.3, ratios
+
+
+def test_an_experiment_stopped_by_sigterm_says_so_and_exits_143(tmp_path):
+    """It was killed silently (exit -15) while every other command stops with a line."""
+    import signal
+    import time
+
+    process = subprocess.Popen(
+        [sys.executable, "-m", "dopplertof.cli", "experiment", "time-sampling", "cornell-box", "--resolution", "32", "--spp", "16",
+         "--reference-spp", "65536", "--h-steps", "3", "--phases", "2", "-o", str(tmp_path / "e"), "--cache", str(tmp_path / "cache")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    deadline = time.time() + 120
+    while time.time() < deadline and "reference: rendering" not in process.stdout.readline():
+        pass
+    time.sleep(1.0)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 143, stderr
+    assert stderr.strip().splitlines()[-1].startswith("SIGTERM: stopped; no table was written")

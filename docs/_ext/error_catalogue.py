@@ -33,6 +33,8 @@ TOPICS = [
         ("--camera and --sensor exclude each other", "a sensor's raw frames define the cameras", "give `--camera` options or `--sensor`, not both"),
         ("aborted", "the command was interrupted at a prompt or before it started work", "run it again"),
         ("interrupted before the first pass finished; nothing written", "Ctrl-C (or SIGTERM, SIGHUP) before any pass was done", "run the command again; a later interruption keeps the finished passes"),
+        ("interrupted after the record was written…: the same command with … -o ANOTHER_FOLDER sweeps it without rendering", "`dopplertof design` was stopped in its sweep, after writing the record(s)", "the `--record` options it names, with another output folder"),
+        ("interrupted after the records were read", "`dopplertof design --record …` was stopped in its sweep", "run it again"),
         ("interrupted before the record was finished", "`dopplertof design` was stopped (Ctrl-C, SIGTERM, SIGHUP) while it rendered a record; the message lists the records of earlier scenes it kept, else says nothing was written", "run it again (`--record` reuses the kept records)"),
         ("…; free space, then continue with the same command and --resume", "a checkpoint could not be written (a full disk); the earlier checkpoint is kept", "free space, then rerun the same command with `--resume`"),
         ("cannot write …: …", "an output file could not be written (a full disk, no permission); the message names the file and the reason", "free space or fix the permission; where the message says the sums are kept, rerun with `--resume`"),

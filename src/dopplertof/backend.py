@@ -295,6 +295,47 @@ stops after its pass (:class:`dopplertof.clitools.StopOnSignal`), a dataset at o
 (:mod:`dopplertof.dataset.generate`), and loading the backend holds them."""
 
 
+class Stopped(KeyboardInterrupt):
+    """SIGTERM or SIGHUP turned into a KeyboardInterrupt.
+
+    Parameters
+    ----------
+    signum : int
+        The signal received; the command line exits with 128 + it.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(f"signal {signum}")
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def signals_as_interrupt():
+    """SIGTERM (e.g. from Slurm) and SIGHUP stop like Ctrl-C (a dataset keeps its finished
+    shards, an experiment its cached results). What leaves is a :class:`Stopped` naming the
+    signal, also where a render in progress caught it and raised a KeyboardInterrupt of
+    its own."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received = []
+
+    def handler(signum, frame):
+        received.append(signum)
+        raise Stopped(signum)
+
+    previous = {s: signal.signal(s, handler) for s in STOP_SIGNALS if s != signal.SIGINT}  # SIGINT is one already
+    try:
+        yield
+    except KeyboardInterrupt as exc:
+        if received and not isinstance(exc, Stopped):
+            raise Stopped(received[-1]) from None
+        raise
+    finally:
+        for s, handler_before in previous.items():
+            signal.signal(s, handler_before)
+
+
 @contextlib.contextmanager
 def _signals_held():
     """Hold the Python-level handlers of SIGINT, SIGTERM and SIGHUP, and deliver what came

@@ -6,13 +6,10 @@ See :func:`generate`. The layout on disk is in :mod:`dopplertof.dataset.shards`,
 
 from __future__ import annotations
 
-import contextlib
 import os
-import signal
-import threading
 import time
 
-from ..backend import STOP_SIGNALS
+from ..backend import Stopped, signals_as_interrupt  # noqa: F401  (Stopped: what generate raises)
 from . import config as config_mod
 from . import execute, schema, shards
 
@@ -94,49 +91,6 @@ def _variant(variant) -> str:
     if name not in RGB_VARIANTS:
         raise ValueError(f"datasets are rendered with an RGB variant ({', '.join(RGB_VARIANTS)}), not {name!r}")
     return name
-
-
-class Stopped(KeyboardInterrupt):
-    """SIGTERM or SIGHUP turned into a KeyboardInterrupt.
-
-    Parameters
-    ----------
-    signum : int
-        The signal received; the command line exits with 128 + it.
-    """
-
-    def __init__(self, signum: int):
-        super().__init__(f"signal {signum}")
-        self.signum = signum
-
-
-_STOP_SIGNALS = tuple(s for s in STOP_SIGNALS if s != signal.SIGINT)  # SIGINT is Python's KeyboardInterrupt already
-
-
-@contextlib.contextmanager
-def _signals_as_interrupt():
-    """SIGTERM (e.g. from Slurm) and SIGHUP stop like Ctrl-C: finished shards are kept. What
-    leaves is a :class:`Stopped` naming the signal, also where a render in progress caught
-    it and raised a KeyboardInterrupt of its own."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    received = []
-
-    def handler(signum, frame):
-        received.append(signum)
-        raise Stopped(signum)
-
-    previous = {s: signal.signal(s, handler) for s in _STOP_SIGNALS}
-    try:
-        yield
-    except KeyboardInterrupt as exc:
-        if received and not isinstance(exc, Stopped):
-            raise Stopped(received[-1]) from None
-        raise
-    finally:
-        for s, handler_before in previous.items():
-            signal.signal(s, handler_before)
 
 
 def header_for(cfg: dict, samples: int, seed: int, shard_size: int, variant: str) -> dict:
@@ -311,7 +265,7 @@ def generate(
             bar.update(record["count"])
 
     try:
-        with _signals_as_interrupt():
+        with signals_as_interrupt():
             if jobs and ray:
                 execute.run_ray(jobs, on_done, address=address, max_retries=max_retries)
             elif jobs:

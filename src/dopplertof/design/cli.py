@@ -56,6 +56,7 @@ KEY_UNITS = {"modulation_frequency": "Hz", "exposure": "s", "heterodyne": "beat 
 def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, record_paths, rmse_draws, dataset_config, samples, dataset_seed, output, overwrite, resolution, defines, **options):
     """Sweep and optimise SENSOR's parameters on SCENES (one or more, or a dataset's: the
     objective averaged over them) from one render of each (its response record)."""
+    from ..backend import signals_as_interrupt
     from ..io import read_record, write_exr, write_record
     from ..render import render
     from ..scene import SceneError
@@ -65,79 +66,91 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     from .search import check_moving, optimize, parse_sweep, record_spec, sweep, variant
 
     written = []
+    records_done = False
     stop = StopOnSignal()
     try:
-        if not sweep_specs and not optimize_keys:
-            raise ValueError("give --sweep KEY=LO:HI:N and/or --optimize KEY")
-        scenes = _scene_sources(scenes, dataset_config, samples, dataset_seed, resolution, defines)
-        sensor = load_sensor(sensor_spec)
-        sweeps = [parse_sweep(s) for s in sweep_specs]
-        if len({k for k, _ in sweeps}) != len(sweeps):
-            raise ValueError("--sweep: each key once")
-        if record_paths and len(record_paths) != len(scenes):
-            raise ValueError(f"--record: give one per scene ({len(scenes)} scene(s), {len(record_paths)} record(s))")
+        with signals_as_interrupt():  # the sweep and the optimiser stop at once, a render after its pass (stop)
+            if not sweep_specs and not optimize_keys:
+                raise ValueError("give --sweep KEY=LO:HI:N and/or --optimize KEY")
+            scenes = _scene_sources(scenes, dataset_config, samples, dataset_seed, resolution, defines)
+            sensor = load_sensor(sensor_spec)
+            sweeps = [parse_sweep(s) for s in sweep_specs]
+            if len({k for k, _ in sweeps}) != len(sweeps):
+                raise ValueError("--sweep: each key once")
+            if record_paths and len(record_paths) != len(scenes):
+                raise ValueError(f"--record: give one per scene ({len(scenes)} scene(s), {len(record_paths)} record(s))")
 
-        def named(name, index):  # record.npz, or record_<index>.npz for several scenes
-            stem, ext = os.path.splitext(name)
-            return name if len(scenes) == 1 else f"{stem}_{index}{ext}"
+            def named(name, index):  # record.npz, or record_<index>.npz for several scenes
+                stem, ext = os.path.splitext(name)
+                return name if len(scenes) == 1 else f"{stem}_{index}{ext}"
 
-        per_scene = ("record.npz", "velocity_crb.exr", "depth_crb.exr", "velocity_rmse.exr")
-        names = [named(n, i) if n in per_scene else n for n in OUTPUTS for i in (range(len(scenes)) if n in per_scene else (0,))]
-        earlier = [name for name in names if os.path.exists(os.path.join(output, name))]
-        earlier += sorted(os.path.basename(p) for p in glob.glob(os.path.join(glob.escape(output), "sweep_*.png")))
-        if earlier and not overwrite:
-            raise ValueError(f"{output!r} holds an earlier design run ({', '.join(earlier)}); choose another folder or --overwrite")
-        os.makedirs(output, exist_ok=True)  # before the render: an unwritable folder fails first
-        if record_paths:
-            records = [read_record(path) for path in record_paths]
-        else:
-            spec, cameras = record_spec(sensor, sweeps, optimize=optimize_keys)
-            records = []
-            for index, (scene, load) in enumerate(scenes):
-                dyn = load()
-                settings = RenderSettings.build(scene_layer(dyn, scene), {**given_settings(options), "cameras": cameras}, where=scene)
-                click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp", err=True)
-                with stop:  # SIGINT, SIGTERM, SIGHUP end the render after its pass in progress
-                    record = render(dyn, settings=settings, record=spec, stop=stop).record
-                if record is None:  # a render stopped early keeps no record
-                    raise KeyboardInterrupt
-                records.append(record)
-                written.append(str(write_record(os.path.join(output, named("record.npz", index)), records[-1])))
-        check_moving(records, [name for name, _ in scenes])
-        unit = "m/s" if objective == "velocity_crb" else "m"
-        best = sensor
-        if sweeps:
-            rows = sweep(records, sensor, sweeps, objective)
-            written.append(_write_csv(os.path.join(output, "sweep.csv"), rows))
-            written += _plots(output, rows, [k for k, _ in sweeps], objective, unit)
-            good = [r for r in rows if r["status"] == "ok" and r["objective"] == r["objective"]]
-            if not good:
-                raise ValueError("every point of the sweep was refused or has an infinite bound (see sweep.csv)")
-            top = min(good, key=lambda r: r["objective"])
-            best = variant(sensor, {k: top[k] for k, _ in sweeps})
-            click.echo("best of the sweep: " + ", ".join(f"{k}={top[k]:g}" for k, _ in sweeps) + f": {objective} {top['objective']:.4g} {unit}")
-        if optimize_keys:
-            best, history = optimize(records, best, optimize_keys, objective)
-            written.append(_write_csv(os.path.join(output, "optimize.csv"), [{**h, "phases": " ".join(f"{p:.6g}" for p in h["phases"])} for h in history]))
-            click.echo(f"optimised ({', '.join(optimize_keys)}): {objective} {history[0]['objective']:.4g} -> {history[-1]['objective']:.4g} {unit} in {len(history) - 1} step(s); modulation_frequency={best.frames[0].modulation_frequency:g} Hz")
-        path = os.path.join(output, "best_sensor.toml")
-        with open(path, "w", encoding="utf-8") as f:
-            f.write(sensor_toml(best))
-        written.append(path)
-        for index, record in enumerate(records):
-            precision = crb(record, best)
-            written += [str(write_exr(os.path.join(output, named(f"{name}.exr", index)), getattr(precision, name))) for name in ("velocity_crb", "depth_crb")]
-            values = precision.summary()
-            line = f"best sensor{'' if len(records) == 1 else f' on {scenes[index][0]}'}: velocity_crb {values['velocity_crb_median']:.4g} m/s, depth_crb {values['depth_crb_median']:.4g} m (medians over {values['moving_pixels']} moving pixels)"
-            if rmse_draws:
-                rmse = achieved_rmse(record, best, draws=rmse_draws)
-                written.append(str(write_exr(os.path.join(output, named("velocity_rmse.exr", index)), rmse)))
-                line += f"; estimator RMSE {float(np.nanmedian(rmse[precision.moving])):.4g} m/s over {rmse_draws} draws"
-            click.echo(line)
-    except KeyboardInterrupt:
+            per_scene = ("record.npz", "velocity_crb.exr", "depth_crb.exr", "velocity_rmse.exr")
+            names = [named(n, i) if n in per_scene else n for n in OUTPUTS for i in (range(len(scenes)) if n in per_scene else (0,))]
+            earlier = [name for name in names if os.path.exists(os.path.join(output, name))]
+            earlier += sorted(os.path.basename(p) for p in glob.glob(os.path.join(glob.escape(output), "sweep_*.png")))
+            if earlier and not overwrite:
+                raise ValueError(f"{output!r} holds an earlier design run ({', '.join(earlier)}); choose another folder or --overwrite")
+            os.makedirs(output, exist_ok=True)  # before the render: an unwritable folder fails first
+            if record_paths:
+                records = [read_record(path) for path in record_paths]
+            else:
+                spec, cameras = record_spec(sensor, sweeps, optimize=optimize_keys)
+                records = []
+                for index, (scene, load) in enumerate(scenes):
+                    dyn = load()
+                    settings = RenderSettings.build(scene_layer(dyn, scene), {**given_settings(options), "cameras": cameras}, where=scene)
+                    click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp", err=True)
+                    with stop:  # SIGINT, SIGTERM, SIGHUP end the render after its pass in progress
+                        record = render(dyn, settings=settings, record=spec, stop=stop).record
+                    if record is None:  # a render stopped early keeps no record
+                        raise KeyboardInterrupt
+                    records.append(record)
+                    written.append(str(write_record(os.path.join(output, named("record.npz", index)), records[-1])))
+            records_done = True
+            if stop():  # the signal came during the last pass: the record is whole, stop here
+                raise KeyboardInterrupt
+            check_moving(records, [name for name, _ in scenes])
+            unit = "m/s" if objective == "velocity_crb" else "m"
+            best = sensor
+            if sweeps:
+                rows = sweep(records, sensor, sweeps, objective)
+                written.append(_write_csv(os.path.join(output, "sweep.csv"), rows))
+                written += _plots(output, rows, [k for k, _ in sweeps], objective, unit)
+                good = [r for r in rows if r["status"] == "ok" and r["objective"] == r["objective"]]
+                if not good:
+                    raise ValueError("every point of the sweep was refused or has an infinite bound (see sweep.csv)")
+                top = min(good, key=lambda r: r["objective"])
+                best = variant(sensor, {k: top[k] for k, _ in sweeps})
+                click.echo("best of the sweep: " + ", ".join(f"{k}={top[k]:g}" for k, _ in sweeps) + f": {objective} {top['objective']:.4g} {unit}")
+            if optimize_keys:
+                best, history = optimize(records, best, optimize_keys, objective)
+                written.append(_write_csv(os.path.join(output, "optimize.csv"), [{**h, "phases": " ".join(f"{p:.6g}" for p in h["phases"])} for h in history]))
+                click.echo(f"optimised ({', '.join(optimize_keys)}): {objective} {history[0]['objective']:.4g} -> {history[-1]['objective']:.4g} {unit} in {len(history) - 1} step(s); modulation_frequency={best.frames[0].modulation_frequency:g} Hz")
+            path = os.path.join(output, "best_sensor.toml")
+            with open(path, "w", encoding="utf-8") as f:
+                f.write(sensor_toml(best))
+            written.append(path)
+            for index, record in enumerate(records):
+                precision = crb(record, best)
+                written += [str(write_exr(os.path.join(output, named(f"{name}.exr", index)), getattr(precision, name))) for name in ("velocity_crb", "depth_crb")]
+                values = precision.summary()
+                line = f"best sensor{'' if len(records) == 1 else f' on {scenes[index][0]}'}: velocity_crb {values['velocity_crb_median']:.4g} m/s, depth_crb {values['depth_crb_median']:.4g} m (medians over {values['moving_pixels']} moving pixels)"
+                if rmse_draws:
+                    rmse = achieved_rmse(record, best, draws=rmse_draws)
+                    written.append(str(write_exr(os.path.join(output, named("velocity_rmse.exr", index)), rmse)))
+                    line += f"; estimator RMSE {float(np.nanmedian(rmse[precision.moving])):.4g} m/s over {rmse_draws} draws"
+                click.echo(line)
+    except KeyboardInterrupt as exc:
         kept = f"; kept {', '.join(os.path.basename(w) for w in written)}" if written else "; nothing written"
-        click.echo(f"error: interrupted before the record was finished{kept}", err=True)
-        sys.exit(stop.exit_status)
+        if records_done and not record_paths:
+            recs = " ".join(f"--record {os.path.join(output, named('record.npz', i))}" for i in range(len(records)))
+            click.echo(f"error: interrupted after the record was written{kept}: the same command with {recs} -o ANOTHER_FOLDER sweeps it without rendering", err=True)
+        else:
+            if records_done:
+                click.echo(f"error: interrupted after the records were read{kept}", err=True)
+            else:
+                click.echo(f"error: interrupted before the record was finished{kept}", err=True)
+        sys.exit(128 + exc.signum if hasattr(exc, "signum") else stop.exit_status)
     except (ValueError, SceneError, FileNotFoundError) as exc:
         fail(str(exc))
     except OSError as exc:

@@ -8,6 +8,8 @@ finishes in seconds). Bad input prints one line ``error: ...`` and exits with st
 from __future__ import annotations
 
 import contextlib
+import signal
+import sys
 import functools
 import os
 
@@ -37,13 +39,21 @@ class _ExperimentGroup(click.Group):
 
 @contextlib.contextmanager
 def _one_line_errors():
-    from ..backend import BackendError
+    """Bad input becomes one ``error:`` line (exit 2); SIGINT, SIGTERM and SIGHUP one line
+    saying what is kept (exit 128 + the signal)."""
+    from ..backend import BackendError, signals_as_interrupt
     from ..scene import SceneError
 
     try:
-        yield
+        with signals_as_interrupt():
+            yield
     except (ValueError, SceneError, BackendError, OSError) as exc:
         fail(str(exc))
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", signal.SIGINT)
+        click.echo(f"{signal.Signals(signum).name}: stopped; no table was written; a reference already rendered is "
+                   "cached, and the same command again does not render it again", err=True)
+        sys.exit(128 + signum)
 
 
 _DEPTH_HELP = "Path depth (default: the scene's, else the render default 5)."
