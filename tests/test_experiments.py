@@ -223,7 +223,11 @@ def test_default_cache_dir_follows_the_environment(monkeypatch, tmp_path):
         (["time-sampling", "no-such-scene", "--quick"], "no-such-scene"),
         (["velocity", "no-such-scene.xml", "--quick"], "no-such-scene.xml"),
         (["time-sampling", "cornell-box", "--quick", "--spp", "3"], "spp must be a positive multiple of 2"),
-        (["velocity", "cornell-box", "--quick", "--reference-spp", "0"], "reference spp"),
+        (["velocity", "cornell-box", "--quick", "--reference-spp", "0"], "--reference-spp must be an integer >= 1, got 0"),
+        (["shifts", "cornell-box", "--quick", "--h-steps", "-2"], "--h-steps must be an integer >= 2, got -2"),
+        (["shifts", "cornell-box", "--quick", "--phases", "0"], "--phases must be an integer >= 1, got 0"),
+        (["shifts", "cornell-box", "--quick", "--spp", "0"], "--spp must be an integer >= 1, got 0"),
+        (["paper-fig12", "cornell-box", "--quick", "--max-depth", "0"], "--max-depth must be >= 1 or -1"),
         (["time-sampling", "cornell-box", "--quick", "--time-sampling", "bogus"], "unknown time_sampling 'bogus'"),
         (["time-sampling", "cornell-box", "--quick", "--correlation", "bogus"], "unknown correlation 'bogus'"),
         (["time-sampling", "cornell-box", "--quick", "--h-steps", "1"], "--h-steps"),
@@ -238,6 +242,8 @@ def test_bad_input_is_one_error_line(tmp_path, args, words):
     lines = [line for line in result.output.splitlines() if line.startswith("error:")]
     assert len(lines) == 1 and words in lines[0], result.output
     assert "Traceback" not in result.output
+    if "must be an" in words:  # checked before anything is announced or made
+        assert result.output.strip() == lines[0] and not (tmp_path / "out").exists(), result.output
 
 
 # ---------------------------------------------------------------------------------- metrics

@@ -209,6 +209,8 @@ TOPICS = [
     ("Experiments", "`dopplertof experiment`.", [
         ("… must be a positive multiple of … (paths of an antithetic pair), got …", "the experiments render antithetic pairs", "an even spp"),
         ("… must be an integer >= 2, got …", "a sweep needs at least two values", "2 or more"),
+        ("--… must be an integer >= …, got …", "an `experiment` count (`--spp`, `--reference-spp`, `--resolution`, `--h-steps`, `--phases`, `--shift-steps`, `--phase-steps`) below its least value", "the least value named or more"),
+        ("--max-depth must be >= 1 or -1 (unbounded), got …", "an `experiment` path depth of 0 or below -1", "1 or more, or -1"),
         ("phases must be an integer >= 1, got …", "a sweep needs at least one phase", "1 or more"),
         ("need at least one h and one phase, got h=…, psi=…", "an empty sweep grid", "give h values and phases"),
         ("the shift experiment needs an antithetic time sampling", "only antithetic sampling has a shift", "`antithetic` or `antithetic_mirror`"),

@@ -129,6 +129,27 @@ def _report(written):
         click.echo(f"  {path}")
 
 
+# Options every experiment checks before it loads a scene or writes anything: the least value.
+_LEAST = {"spp": 1, "reference_spp": 1, "resolution": 1, "h_steps": 2, "phases": 1, "shift_steps": 2, "phase_steps": 1}
+
+
+def _check_counts(options: dict) -> None:
+    """Counts below their least value, ``--max-depth`` not >= 1 or -1, and a signal that is
+    not > 0 are refused before a scene loads or a folder is made (some were refused after
+    the first renders, under a line announcing the run)."""
+    for name, least in _LEAST.items():
+        value = options.get(name)
+        if value is not None and value < least:
+            raise ValueError(f"--{name.replace('_', '-')} must be an integer >= {least}, got {value}")
+    depth = options.get("max_depth")
+    if depth is not None and depth != -1 and depth < 1:
+        raise ValueError(f"--max-depth must be >= 1 or -1 (unbounded), got {depth}")
+    if options.get("signal_electrons") is not None:
+        from .velocity import check_signal_electrons
+
+        check_signal_electrons(options["signal_electrons"])
+
+
 def _experiment_command(name, defaults=(NORMAL, QUICK), depth_help=_DEPTH_HELP):
     """Register ``name`` on the group with the common options; bad input becomes one error line.
 
@@ -139,6 +160,7 @@ def _experiment_command(name, defaults=(NORMAL, QUICK), depth_help=_DEPTH_HELP):
         @functools.wraps(function)
         def run(**kwargs):
             with _one_line_errors():
+                _check_counts(kwargs)
                 function(**kwargs)
 
         return experiment.command(name)(_common_options(run, defaults, depth_help))

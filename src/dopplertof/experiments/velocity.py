@@ -118,7 +118,13 @@ def _luminance(intensity: np.ndarray) -> np.ndarray:
     return luminance(intensity) if intensity.ndim == 3 else np.asarray(intensity, dtype=np.float64)
 
 
-def _check_signal_electrons(signal_electrons: float) -> None:
+def check_signal_electrons(signal_electrons: float) -> None:
+    """Refuse a signal that is not a finite number > 0 (photo-electrons).
+
+    Parameters
+    ----------
+    signal_electrons : float
+    """
     if not (math.isfinite(signal_electrons) and signal_electrons > 0):
         raise ValueError(f"signal electrons must be a finite number > 0, got {signal_electrons!r}")
 
@@ -148,7 +154,7 @@ def sensor_for(reference, camera, signal_electrons: float) -> SensorModel:
     ValueError
         ``signal_electrons`` is not a finite number > 0, or the reference is black.
     """
-    _check_signal_electrons(signal_electrons)
+    check_signal_electrons(signal_electrons)
     bright = float(np.percentile(_luminance(reference.intensity), 99))
     if not bright > 0:
         raise ValueError("the reference image is black: no light reaches the camera, so there is no velocity to measure")
@@ -210,7 +216,7 @@ def run_velocity(
     """
     check_spp("spp", spp)
     check_spp("reference spp", reference_spp)
-    _check_signal_electrons(signal_electrons)
+    check_signal_electrons(signal_electrons)
     folder = Path(folder)
     cameras = velocity_cameras(scene.base_camera)
     reference = reference_render(scene, cameras, reference_spp, seed, max_depth, cache, echo)
