@@ -331,3 +331,11 @@ def test_an_spp_beyond_what_one_render_holds_is_refused_before_any_work(tmp_path
     proc = cli("render", "cornell-box", "--resolution", "1", "--spp", "20000000000", "-o", tmp_path / "out", "--quiet")
     assert proc.returncode == 2 and proc.stderr.strip().startswith("error:") and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("command", ["render", "animate"])
+def test_an_empty_output_folder_name_is_refused(tmp_path, command):
+    """``-o "$UNSET"`` wrote to the default folder without a word."""
+    proc = cli(command, "cornell-box", "--resolution", "8", "--spp", "4", "--quiet", "-o", "", cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stderr.strip().startswith("error: -o/--output is empty"), proc.stderr
+    assert not (tmp_path / "out").exists()

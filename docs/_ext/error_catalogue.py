@@ -126,6 +126,7 @@ TOPICS = [
         ("output folder … holds …; use --overwrite to replace them, or another folder", "another render's files are there", "`--overwrite` replaces them (only them), or use another folder; `--resume` continues an interrupted render"),
         ("output folder … is not writable (…)", "the folder is read-only or not yours", "use another folder"),
         ("cannot write to output folder …: …", "the dataset folder cannot be created or written", "use another folder"),
+        ("-o/--output is empty; leave it out for the default folder (…)", "`-o \"\"` (an unset shell variable, say)", "a folder name, or no `-o` for the default"),
         ("spp=… exceeds …, the most paths per pixel one render takes; average several renders (different seeds) for more", "`spp` above 2³¹", "render several times with different seeds and average"),
         ("sheet_samples must be an integer >= 1, got …", "`dataset info --sheet-samples` below 1", "1 or more, or `--sheet none` for no sheet"),
         ("max_samples must be an integer >= 1, got …", "`dataset info --max-samples` below 1", "1 or more; leave it out for all samples"),

@@ -44,7 +44,7 @@ import time
 import click
 import numpy as np
 
-from .clitools import StopOnSignal, cameras_layer, fail, given_settings, settings_options
+from .clitools import StopOnSignal, cameras_layer, fail, given_settings, output_folder, settings_options
 
 from . import io, viz
 from .modulation import Camera
@@ -418,7 +418,7 @@ def animate_command(scene, frames, fps, resolution, defines, output, camera_spec
     from .scene import SceneError
     from .settings import RenderSettings, scene_camera, scene_layer
 
-    output = output or os.path.join("out", f"{os.path.splitext(os.path.basename(scene))[0]}-animation")
+    output = output_folder(output, os.path.join("out", f"{os.path.splitext(os.path.basename(scene))[0]}-animation"))
     stop = StopOnSignal()
     try:
         check_frames_and_fps(1 if frames is None else frames, fps)  # before the scene loads

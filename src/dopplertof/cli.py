@@ -14,7 +14,7 @@ import sys
 import click
 
 from . import __version__
-from .clitools import StopOnSignal, cameras_layer, fail, given_settings, settings_options, show_warning
+from .clitools import StopOnSignal, cameras_layer, fail, given_settings, output_folder, settings_options, show_warning
 from .settings import DEFAULT_CHECKPOINT_INTERVAL_S
 
 
@@ -144,7 +144,7 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
     from .scenes import open_scene
     from .settings import RenderSettings, checked_checkpoint_interval, scene_layer
 
-    output = output or os.path.join("out", os.path.splitext(os.path.basename(scene))[0])
+    output = output_folder(output, os.path.join("out", os.path.splitext(os.path.basename(scene))[0]))
     checkpoint = os.path.join(output, out_folder.CHECKPOINT)
     result = None
     try:

@@ -28,6 +28,14 @@ def fail(message: str):
     sys.exit(EXIT_BAD_INPUT)
 
 
+def output_folder(output: str | None, default: str) -> str:
+    """``-o/--output``, else ``default``; an empty name (an unset shell variable, say) is
+    refused with one ``error:`` line instead of writing to the default folder."""
+    if output is not None and not output.strip():
+        fail(f"-o/--output is empty; leave it out for the default folder ({default})")
+    return output or default
+
+
 _WARNED: set[str] = set()
 
 

@@ -15,7 +15,7 @@ import os
 
 import click
 
-from ..clitools import fail
+from ..clitools import fail, output_folder
 from ..correlation import MODES
 from ..timesampling import METHODS
 
@@ -101,7 +101,7 @@ def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo,
     if scene_arg in scenes.SCENES:
         resolution = _setting("resolution", resolution, quick, defaults)
     scene = open_scene(scene_arg, resolution)
-    folder = output or os.path.join("out", "experiments", name, scene.label)
+    folder = output_folder(output, os.path.join("out", "experiments", name, scene.label))
     cache_folder = cache or default_cache_dir()
     check_writable(folder)  # before any rendering, not when its results are due
     try:
