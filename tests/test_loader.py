@@ -292,6 +292,7 @@ def test_dict_motion_forms():
         ({"type": "keyframes", "keys": []}, r"at least one keyframe"),
         ({"type": "keyframes", "keys": [(0.0, np.eye(3))]}, r"4x4"),
         ({"type": "parametric", "linear_velocity": [1, 0]}, r"linear_velocity must be 3 finite numbers"),
+        ({"type": "parametric", "linear_velocity": "fast"}, r"entry 'ball': linear_velocity must be 3 finite numbers, got 'fast'"),
     ],
 )
 def test_bad_dict_motion(motion, match):

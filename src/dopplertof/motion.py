@@ -474,8 +474,11 @@ class Parametric(Motion):
 
     def __init__(self, linear_velocity=(0, 0, 0), angular_velocity=(0, 0, 0), pivot=(0, 0, 0), base=None, where="motion"):
         def vec3(name, value):
-            arr = np.asarray(value, dtype=np.float64)
-            if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+            try:
+                arr = np.asarray(value, dtype=np.float64)
+            except (TypeError, ValueError):
+                arr = None
+            if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)):
                 raise ValueError(f"{where}: {name} must be 3 finite numbers, got {value!r}")
             return arr
 
