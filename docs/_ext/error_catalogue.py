@@ -520,7 +520,7 @@ TOPICS = [
         ("…: a light attached to a camera whose motion is a … on top of a to_world is not supported", "this camera motion cannot carry a light", "keyframes that include the placement"),
         ("…: …carries a sensor; a camera moves by its own <animation> (XML) or 'motion' (dict)", "a sensor inside a moving shape", "animate the sensor itself"),
         ("…: … has a motion that scales; cameras and point or spot lights may only move rigidly", "a scaling camera or light motion", "translate and rotate only"),
-        ("…: moving body … carries an emitter and its motion scales the axes differently", "an emitter on a non-uniformly scaled body", "scale it equally on every axis"),
+        ("…: moving body … carries an emitter and its motion's keys scale the axes differently; give the shape its own to_world and a parametric motion, or keys that scale every axis equally", "an emitter on a body whose keyframes scale it per axis", "a parametric motion over the shape's own `to_world`, or keys with one scale on every axis"),
         ("…: the sensor is inside a participating medium; media are not supported", "media", "remove the medium"),
         ("…: …shape … has a participating medium; media are not supported", "media", "remove the `<medium>` or render with stock Mitsuba's volpath"),
         ("…: 'motion' must be a Motion or a dict with type 'keyframes' or 'parametric', got …", "a dict motion of another form", "one of the two types"),

@@ -518,7 +518,10 @@ def _checked_scene(scene: DynamicScene, shutter_given: bool = False) -> DynamicS
             raise SceneError(f"{where}: {label} has a motion that scales; cameras and point or spot lights may only move rigidly")
     for body in scene.bodies:
         if body.scene.emitters() and not body.motion.is_conformal():
-            raise SceneError(f"{where}: moving body {body.name!r} carries an emitter and its motion scales the axes differently; scale it equally on every axis")
+            raise SceneError(
+                f"{where}: moving body {body.name!r} carries an emitter and its motion's keys scale the axes differently; "
+                "give the shape its own to_world and a parametric motion, or keys that scale every axis equally"
+            )
     for sensor in scene.static.sensors():
         if sensor.get_medium() is not None:
             raise SceneError(f"{where}: the sensor is inside a participating medium; media are not supported")
@@ -694,7 +697,9 @@ def _shared_placement_as_base(motion: Motion, members):
         except ValueError:  # sheared: a shape's to_world may be, a rigid motion's base may not
             pass
         else:
-            return based, [(key, {k: v for k, v in shape.items() if k != "to_world"}) for key, shape, _ in members]
+            carries_emitter = any(isinstance(v, dict) and v.get("type") in EMITTER_TYPES for _, shape, _ in members for v in shape.values())
+            if not (carries_emitter and not based.is_conformal()):  # an emitter keeps a per-axis scale in its shape
+                return based, [(key, {k: v for k, v in shape.items() if k != "to_world"}) for key, shape, _ in members]
     # Mitsuba takes a transform object, not the 4x4 arrays a motion's base may be given as.
     return motion, [(key, shape if p is None else {**shape, "to_world": mi.ScalarTransform4d(p)}) for key, shape, p in members]
 
