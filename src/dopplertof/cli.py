@@ -112,7 +112,7 @@ def scenes():
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file (overrides its <default>). Repeatable.")
 @click.option("--overwrite", is_flag=True, help="Replace the files of another render in the output folder (only those).")
-@click.option("--resume", is_flag=True, help="Continue the interrupted render in the output folder (same settings) to the requested spp.")
+@click.option("--resume", is_flag=True, help="Continue the interrupted render in the output folder: the same command (same settings and spp) plus --resume.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--ray", "use_ray", is_flag=True, help="Trace the passes on Ray workers; the result is bit-identical to the local render's.")
 @click.option("--address", default=None, help="Ray cluster address (with --ray; default: the running Ray, else a local one).")
