@@ -572,7 +572,7 @@ def test_sigint_during_start_up_is_one_error_line(tmp_path):
 
 @pytest.mark.parametrize("args, says", [
     (["animate", "cornell-box", "--resolution", "16", "--spp", "4", "--frames", "2", "--quiet"], "interrupted: the finished frames are in"),
-    (["experiment", "velocity", "cornell-box", "--quick"], "error: aborted"),
+    (["experiment", "velocity", "cornell-box", "--quick"], "SIGINT: stopped; no table was written"),
     (["dataset", "generate", "--samples", "2", "--resolution", "8", "--spp", "4"], "interrupted: 0 of"),
 ], ids=["animate", "experiment", "dataset"])
 def test_sigint_during_start_up_of_other_commands_neither_crashes_nor_prints_a_traceback(tmp_path, args, says):
