@@ -9,6 +9,7 @@ from collections import Counter
 
 import numpy as np
 
+from ..validation import checked_in_range
 from .reader import open_dataset
 
 MOVING_PIXEL_SPEED_M_S = 1e-3  # a pixel "sees motion" where |velocity| exceeds this
@@ -52,10 +53,9 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
         cameras), ``sheet_error``: why the contact sheet could not be written (a read-only
         or full folder), else None.
     """
-    if isinstance(sheet_samples, bool) or not isinstance(sheet_samples, int) or sheet_samples < 1:
-        raise ValueError(f"sheet_samples must be an integer >= 1, got {sheet_samples!r}")
-    if max_samples is not None and (isinstance(max_samples, bool) or not isinstance(max_samples, int) or max_samples < 1):
-        raise ValueError(f"max_samples must be an integer >= 1, got {max_samples!r}")
+    sheet_samples = checked_in_range("sheet_samples", sheet_samples, at_least=1, kind="int")
+    if max_samples is not None:
+        max_samples = checked_in_range("max_samples", max_samples, at_least=1, kind="int")
     ds = open_dataset(folder)
     m = ds.manifest
     depths, speeds, body_speeds, spins, ego_speeds = [], [], [], [], []
