@@ -153,3 +153,15 @@ def test_exposure_option_sets_the_default_cameras_and_is_checked(tmp_path):
     assert [c["exposure"] for c in meta["settings"]["cameras"]] == [0.0005] * 4
     result = CliRunner().invoke(cli.main, ["animate", "rotating", "--frames", "1", "--resolution", "8", "--spp", "4", "--exposure", "-1", "-o", str(tmp_path / "b")])
     assert result.exit_code == 2 and result.output.strip() == "error: Camera: 'exposure' must be in (0, 60] s, got -1.0", result.output
+
+
+@pytest.mark.parametrize("exposure", [None, 0.002])
+def test_without_cameras_a_scene_that_declares_one_renders_the_default_set(data_dir, tmp_path, exposure):
+    """Without ``--camera`` the clip renders the default four cameras with the scene's f and
+    T (``--exposure``'s T where given); with ``--exposure`` it rendered the scene's one camera
+    instead."""
+    given = [] if exposure is None else ["--exposure", str(exposure)]
+    code, output = run_animate(str(data_dir / "original_cornell.xml"), "-D", "res=8", "--frames", "1", "--spp", "4", "--quiet", *given, "-o", tmp_path / "a")
+    assert code == 0, output
+    cameras = json.loads((tmp_path / "a" / "frame_0000" / "metadata.json").read_text())["settings"]["cameras"]
+    assert [(c["heterodyne"], c["exposure"], c["modulation_frequency"]) for c in cameras] == [(h, exposure or 0.0015, 30e6) for h in (0.0, 0.0, 1.0, 1.0)]

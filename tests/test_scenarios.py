@@ -194,7 +194,8 @@ def one_ms_shutter(tmp_path_factory):
     "command, exposure_s",
     [
         (["render", "--camera", "h=1,psi=0,T=0.0015"], 1.5e-3),  # the caller's T wins over the shutter's
-        (["render", "--camera", "h=1,psi=0"], 1.5e-3),
+        (["render", "--camera", "h=1,psi=0"], 1e-3),  # a camera without T: the shutter's T
+        (["render", "--camera", "h=1,psi=0", "--exposure", "0.002"], 2e-3),
         (["render"], 1e-3),  # no camera: the shutter's T
         (["animate", "--frames", "1"], 1e-3),  # the default cameras take the shutter's T
         (["experiment", "time-sampling", "--quick"], 1e-3),

@@ -401,7 +401,7 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file. Repeatable.")
 @click.option("-o", "--output", default=None, help="Output folder (default: out/<scene>-animation).")
 @click.option("--camera", "camera_specs", multiple=True,
-              help="A camera as in 'dopplertof render' (repeatable; default h=0 and h=1 at psi=0 and 90deg).")
+              help="A camera as in 'dopplertof render' (repeatable; default h=0 and h=1 at psi=0 and 90deg, with the scene's first camera's f, T and waveform).")
 @click.option("--method", type=click.Choice(["auto", "ratio", "fit"]), default=None,
               help="Velocity reconstruction (default: auto, the fit for sinusoidal cameras, else the ratio).")
 @click.option("--overwrite", is_flag=True, help="Replace a clip with other settings in the output folder.")
@@ -425,8 +425,9 @@ def animate_command(scene, frames, fps, resolution, defines, output, camera_spec
         dyn = scenes.open_scene(scene, resolution, defines)
         base = scene_layer(dyn, scene)
         base.pop("exposure_start", None)  # each frame sets its own
-        cameras = cameras_layer(camera_specs, options.get("exposure"), base)
-        if not cameras:  # the scene's camera (or shutter) gives f_g, T and the waveform of the default set
+        if camera_specs:
+            cameras = cameras_layer(camera_specs, options.get("exposure"), base, dyn)
+        else:  # the scene's camera (or shutter) gives f_g, T and the waveform of the default set
             defaults = default_cameras(scene_camera(base))
             if options.get("exposure") is not None:
                 defaults = [dataclasses.replace(c, exposure=options["exposure"]) for c in defaults]

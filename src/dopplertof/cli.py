@@ -106,7 +106,7 @@ def scenes():
 @main.command()
 @click.argument("scene")
 @click.option("-o", "--output", "output", default=None, help="Output folder (default: out/<scene name>).")
-@click.option("--camera", "camera_specs", multiple=True, help="A camera, e.g. 'h=1,psi=0' or 'h=0,psi=90deg,f=30e6'. Repeatable. Keys: h, psi (rad or 90deg), f (Hz), T (s), start (s: when its exposure opens), waveform, g1, g0, low_pass.")
+@click.option("--camera", "camera_specs", multiple=True, help="A camera, e.g. 'h=1,psi=0' or 'h=0,psi=90deg,f=30e6'. Repeatable. Keys: h, psi (rad or 90deg), f (Hz), T (s; default --exposure, else the scene's shutter interval), start (s: when its exposure opens), waveform, g1, g0, low_pass.")
 @click.option("--sensor", "sensor_spec", default=None, metavar="PRESET|FILE.toml", help="Render a sensor's raw frames instead of --camera: a preset (mlx75027, opt8241, imx556, kinect-v2, dtof-prototype) or a TOML file (dopplertof.sensors.files). Writes raw_electrons.npy, raw_dn.npy and the schedule in metadata.json.")
 @click.option("--until-noise", "until_noise", type=float, default=None, metavar="RATIO", help="With --sensor: stop once the Monte Carlo error of the raw frames is at most RATIO x the sensor's own noise in 95% of the pixels (--spp is then the most it may take).")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
@@ -167,7 +167,7 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
             sensor = load_sensor(sensor_spec)
         dyn = open_scene(scene, resolution, defines)
         base = scene_layer(dyn, scene)
-        cameras = {"cameras": sensor.cameras()} if sensor is not None else cameras_layer(camera_specs, options.get("exposure"), base)
+        cameras = {"cameras": sensor.cameras()} if sensor is not None else cameras_layer(camera_specs, options.get("exposure"), base, dyn)
         layer = {**given_settings(options), **cameras}
         settings = RenderSettings.build(base, layer, where=scene)
         width, height = dyn.resolution

@@ -124,11 +124,19 @@ def given_settings(options: dict) -> dict:
     return {k: v for k, v in options.items() if k in FIELDS and v is not None}
 
 
-def cameras_layer(camera_specs, exposure, scene_layer: dict) -> dict:
-    """``--camera`` specs (T from ``--exposure``), or the scene's cameras with ``--exposure``."""
+def cameras_layer(camera_specs, exposure, scene_layer: dict, scene) -> dict:
+    """``--camera`` specs, or the scene's cameras with ``--exposure``.
+
+    A spec without ``T`` takes ``--exposure``, else the length of ``scene``'s shutter
+    interval, else the default: ``--camera`` replaces the ``<integrator>``'s cameras (and
+    their T), not the sensor's shutter.
+    """
     from .modulation import parse_camera
+    from .settings import shutter_interval
 
     if camera_specs:
+        if exposure is None and (shutter := shutter_interval(scene)) is not None:
+            exposure = shutter[1]
         return {"cameras": [parse_camera(c, exposure) for c in camera_specs]}
     if exposure is not None and scene_layer.get("cameras"):
         return {"cameras": [dataclasses.replace(c, exposure=exposure) for c in scene_layer["cameras"]]}

@@ -568,6 +568,23 @@ def scene_camera(layer: dict) -> Camera:
     return Camera() if layer.get("exposure") is None else Camera(exposure=layer["exposure"])
 
 
+def shutter_interval(scene) -> tuple[float, float] | None:
+    """(opening time, length) in s of the scene's sensor shutter, as written in the file
+    (:func:`float32_decimal`); None where the sensor has none (zero length).
+
+    Parameters
+    ----------
+    scene : DynamicScene
+
+    Returns
+    -------
+    tuple of float, or None
+    """
+    sensor = scene.sensor
+    open_s, length_s = float32_decimal(sensor.shutter_open()), float32_decimal(sensor.shutter_open_time())
+    return (open_s, length_s) if length_s > 0 else None
+
+
 def scene_layer(scene, where: str | None = None) -> dict:
     """The settings a :class:`~dopplertof.scene.DynamicScene` asks for: its integrator's,
     its sampler's ``sample_count`` (spp) and its sensor's shutter interval.
@@ -597,9 +614,8 @@ def scene_layer(scene, where: str | None = None) -> dict:
     layer = integrator_layer(scene.integrator_params, f"{where}: <integrator>") if scene.integrator_params else {}
     if scene.spp_hint is not None:
         layer["spp"] = scene.spp_hint
-    sensor = scene.sensor
-    open_s, length_s = float32_decimal(sensor.shutter_open()), float32_decimal(sensor.shutter_open_time())
-    if length_s > 0:
+    if (shutter := shutter_interval(scene)) is not None:
+        open_s, length_s = shutter
         cameras = layer.get("cameras", ())
         given_t = [k for k in ("time", "exposure") if k in scene.integrator_params]
         # Mitsuba keeps shutter times in float32: agreeing means agreeing to a few of its ulps.
