@@ -270,6 +270,51 @@ def test_any_filter_matches_stock_path_per_pixel(rfilter):
     assert abs(np.mean(z)) < 0.05
 
 
+@pytest.mark.parametrize("sample_border", [False, True])
+def test_a_film_that_samples_its_border_matches_stock_path_per_pixel(sample_border):
+    """``sample_border``: stock Mitsuba also draws samples past the film's edges, so an edge
+    pixel averages the image beyond them (here a light just above the film: its top row is
+    lit with the border, black without); it was ignored (the row came out black)."""
+    T = mi.ScalarTransform4f
+    scene_dict = {
+        "type": "scene", "integrator": {"type": "path", "max_depth": 2},
+        "sensor": {"type": "perspective", "fov": 30, "to_world": T().look_at(origin=[0, 0, 4], target=[0, 0, 0], up=[0, 1, 0]),
+                   "film": {"type": "hdrfilm", "width": 12, "height": 12, "sample_border": sample_border, "rfilter": {"type": "gaussian"}}},
+        "light": {"type": "rectangle", "to_world": T().translate([0.3, 1.6, 0]).scale(0.5), "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [1, 1, 1]}}},
+    }  # fmt: skip
+    stock, stock_var = _stock_mean_and_variance(scene_dict, spp=1024, runs=8)
+    ours = dt.render(dt.load_scene(scene_dict), spp=4096, seed=3, time_sampling="uniform", correlation="none", progress=False)
+    variance = (ours.stderr.astype(np.float64) ** 2 + stock_var)[..., 0]
+    noisy = variance > 0
+    if not sample_border:
+        assert not noisy.any() and stock.max() == 0 and ours.intensity.max() == 0
+        return
+    difference = ours.intensity[..., 0] - stock[..., 0]
+    bright = stock[..., 0] > 0.01  # the top row under the light (the second row's light is rare paths: summed)
+    z = np.concatenate([difference[bright] / np.sqrt(variance[bright]), difference[:2].sum(axis=1) / np.sqrt(variance[:2].sum(axis=1))])
+    assert bright.sum() >= 6 and np.abs(z).max() < 4.5, np.round(z, 1)
+
+
+def test_a_textured_area_light_matches_stock_path():
+    """An area emitter with a texture for its radiance failed to load (the emitter check
+    read the texture's ``to_uv`` transform as numbers)."""
+    T = mi.ScalarTransform4f
+    scene_dict = {
+        "type": "scene", "integrator": {"type": "path", "max_depth": 3},
+        "sensor": {"type": "perspective", "fov": 45, "to_world": T().look_at(origin=[0, 0, 4], target=[0, 0, 0], up=[0, 1, 0]),
+                   "film": {"type": "hdrfilm", "width": 12, "height": 12, "rfilter": {"type": "box"}}},
+        "floor": {"type": "rectangle", "to_world": T().scale(2), "bsdf": {"type": "diffuse"}},
+        "light": {"type": "rectangle", "to_world": T().translate([0.6, 0, 1]).rotate([1, 0, 0], 180).scale(0.5),
+                  "emitter": {"type": "area", "radiance": {"type": "checkerboard", "color0": 0.2, "color1": 3.0}}},
+    }  # fmt: skip
+    stock, stock_var = _stock_mean_and_variance(scene_dict, spp=256, runs=8)
+    ours = dt.render(dt.load_scene(scene_dict), spp=1024, seed=3, time_sampling="uniform", correlation="none", progress=False)
+    variance = (ours.stderr.astype(np.float64) ** 2 + stock_var)[..., 0]
+    assert (variance > 0).sum() > 100
+    z = (ours.intensity[..., 0] - stock[..., 0]).sum() / np.sqrt(variance.sum())  # the image's sum
+    assert abs(z) < 4, z
+
+
 @pytest.mark.parametrize("name", ["mitchell", "catmullrom", "lanczos"])
 def test_filters_with_negative_lobes_are_refused(name):
     with pytest.raises(dt.SceneError, match="has negative lobes"):

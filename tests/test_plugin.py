@@ -197,7 +197,7 @@ def test_bad_reconnection_threshold_is_a_clear_error(params, message):
 
 
 def test_another_integrators_block_gives_only_its_depths():
-    assert integrator_layer({"type": "path", "max_depth": 3, "samples_per_pass": 2}) == {"max_depth": 3}
+    assert integrator_layer({"type": "path", "max_depth": 3, "samples_per_pass": 2}) == {"max_depth": 3, "rr_depth": 5, "hide_emitters": False}
     with pytest.raises(ValueError, match="'max_depth' must be >= 1 or -1"):
         render_settings({"type": "path", "max_depth": 0})
 

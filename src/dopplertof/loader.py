@@ -52,9 +52,10 @@ import numpy as np
 
 from . import mitsuba06
 from .motion import Keyframed, Motion, Parametric
-from .settings import PLUGIN_NAMES, STOCK_PATH_INTEGRATORS, integrator_layer
+from .settings import PLUGIN_NAMES, STOCK_OTHER_INTEGRATORS, STOCK_PATH_INTEGRATORS, integrator_layer
 from .lights import MovingLight
 from .scene import Body, DynamicScene, SceneError
+from .tracing.materials import relative_ior
 from .xmlvalues import property_value
 
 _SHAPE_TAGS = {"shape"}
@@ -63,6 +64,11 @@ _ORIGINAL_SAMPLERS = {"correlated", "timestratified"}
 MOVABLE_EMITTERS = ("point", "spot")
 SHUTTER_PARAMETERS = ("shutter_open", "shutter_close")
 SENSOR_TYPES = {"perspective", "thinlens", "orthographic", "radiancemeter", "irradiancemeter", "distant", "batch"}
+# Sensors Mitsuba loads that the tracer cannot start paths from (class name -> what to call it).
+UNSUPPORTED_SENSORS = {"IrradianceMeter": "irradiancemeter (its rays start on a shape, with no film position)"}
+# Sampler properties kept as the render's defaults (DynamicScene fields); its type is not
+# (dopplertof draws its own stratified pixel positions and times: docs/scene-format.md).
+_SAMPLER_HINTS = {"sample_count": "spp_hint", "seed": "seed_hint"}
 EMITTER_TYPES = {"point", "spot", "area", "constant", "envmap", "directional", "directionalarea", "projector"}
 
 
@@ -360,7 +366,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     scene_dir = os.path.dirname(os.path.abspath(path))
 
     integrator_params: dict = {}
-    spp_hint = None
+    hints = {}  # the sampler's sample_count and seed
     definitions = [el for el in root if el.tag in _DEFINITION_TAGS and "id" in el.attrib]
     moving = []  # (motion, (index, element)) of every animated shape
     moving_lights = []  # (where, element, motion) of every animated emitter
@@ -383,8 +389,8 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
                 el.remove(em)
             for sampler in el.findall("sampler"):
                 for p in sampler:
-                    if p.attrib.get("name") == "sample_count":
-                        spp_hint = property_value(p, where)
+                    if p.attrib.get("name") in _SAMPLER_HINTS:
+                        hints[_SAMPLER_HINTS[p.attrib["name"]]] = property_value(p, where)
                 if sampler.attrib.get("type") in _ORIGINAL_SAMPLERS:
                     sampler.attrib["type"] = "independent"
                     for p in list(sampler):
@@ -452,7 +458,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     if strict_normals:
         mitsuba06.check_flat_shading([static, *(b.scene for b in bodies)], path)
     scene = DynamicScene(
-        static=static, bodies=bodies, integrator_params=integrator_params, spp_hint=spp_hint, source=path,
+        static=static, bodies=bodies, integrator_params=integrator_params, **hints, source=path,
         camera_motion=camera_motion, lights=lights, pipeline_host=host,
     )  # fmt: skip
     return _checked_scene(scene, shutter_given)
@@ -499,6 +505,8 @@ def _checked_scene(scene: DynamicScene, shutter_given: bool = False) -> DynamicS
     n_sensors = len(scene.static.sensors())
     if n_sensors > 1:
         raise SceneError(f"{where}: the scene has {n_sensors} sensors; dopplertof renders one (remove the others)")
+    if scene.sensor.class_name() in UNSUPPORTED_SENSORS:
+        raise SceneError(f"{where}: the sensor is an {UNSUPPORTED_SENSORS[scene.sensor.class_name()]}, which dopplertof does not render; use radiancemeter or a perspective camera")
     open_s, length_s = float(scene.sensor.shutter_open()), float(scene.sensor.shutter_open_time())
     if not (np.isfinite(open_s) and np.isfinite(length_s)):
         raise SceneError(f"{where}: the sensor's shutter_open={open_s!r} and shutter_close={open_s + length_s!r} s must be finite")
@@ -509,6 +517,11 @@ def _checked_scene(scene: DynamicScene, shutter_given: bool = False) -> DynamicS
         )
     for label, mi_scene in [("", scene.static)] + [(f"moving body {b.name!r}: ", b.scene) for b in scene.bodies]:
         for shape in mi_scene.shapes():
+            try:
+                if shape.bsdf() is not None:
+                    relative_ior(shape.bsdf())
+            except ValueError as exc:
+                raise SceneError(f"{where}: {label}shape {shape.id() or shape.class_name()!r}: {exc}") from None
             if shape.interior_medium() is not None or shape.exterior_medium() is not None:
                 raise SceneError(f"{where}: {label}shape {shape.id() or shape.class_name()!r} has a participating medium; media are not supported (remove the <medium> or render with stock Mitsuba's volpath)")
         if label and mi_scene.sensors():
@@ -733,6 +746,19 @@ def _referencer(scene_dict: dict):
     return referenced
 
 
+def _is_integrator(value) -> bool:
+    """Whether a scene dict's entry is an integrator: ours, a stock one (C++ plugins by
+    Mitsuba's plugin registry, the Python ones by name) or any other Mitsuba knows."""
+    import mitsuba as mi
+
+    kind = value.get("type") if isinstance(value, dict) else None
+    if not isinstance(kind, str):
+        return False
+    if kind in PLUGIN_NAMES + STOCK_PATH_INTEGRATORS + STOCK_OTHER_INTEGRATORS:
+        return True
+    return mi.PluginManager.instance().plugin_type(kind) == mi.ObjectType.Integrator
+
+
 def _load_dict(scene_dict: dict) -> DynamicScene:
     import mitsuba as mi
 
@@ -745,15 +771,19 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
     camera_motion = None
     shutter_given = False
     integrator_params = {}
+    hints = {}  # the sampler's sample_count and seed
     for key, value in scene_dict.items():
         where = f"<dict>: entry {key!r}"
-        if isinstance(value, dict) and value.get("type") in PLUGIN_NAMES + STOCK_PATH_INTEGRATORS:
+        if _is_integrator(value):  # kept for the render, which refuses what it cannot honour
             integrator_params = {k: v for k, v in value.items()}
             continue
         kind = value.get("type") if isinstance(value, dict) else None
         if kind in SENSOR_TYPES:
             sensor = dict(value)
             shutter_given |= any(k in sensor for k in SHUTTER_PARAMETERS)
+            sampler = sensor.get("sampler")
+            if isinstance(sampler, dict):
+                hints.update({_SAMPLER_HINTS[k]: v for k, v in sampler.items() if k in _SAMPLER_HINTS})
             if "motion" in sensor:
                 spec = sensor.pop("motion")
                 if isinstance(spec, Motion):
@@ -809,5 +839,5 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
 
     lights = [MovingLight(where, light_scene(light, where), motion) for where, light, motion in moving_lights]
     lights += [MovingLight(where, light_scene(light, where), _camera_light_motion(static, camera_motion, where)) for where, light in attached]
-    scene = DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, camera_motion=camera_motion, lights=lights, pipeline_host=host)
+    scene = DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, **hints, camera_motion=camera_motion, lights=lights, pipeline_host=host)
     return _checked_scene(scene, shutter_given)

@@ -78,7 +78,10 @@ def check_emitters(mi_scene, where: str) -> None:
         for key in params.keys():
             if key.split(".")[0] not in EMITTED_PARAMETERS:
                 continue
-            values = np.asarray(params[key], dtype=np.float64).ravel()
+            try:
+                values = np.asarray(params[key], dtype=np.float64).ravel()
+            except (TypeError, ValueError):  # not numbers: a texture's to_uv, say
+                continue
             bad = ~(np.isfinite(values) & (values >= 0))
             if not bad.any():
                 continue
@@ -375,6 +378,7 @@ class DynamicScene:
     bodies             list      :class:`Body` per rigid motion
     integrator_params  dict      the file's ``<integrator>`` parameters (default none)
     spp_hint           int       the file's sampler ``sample_count`` (None: none given)
+    seed_hint          int       the file's sampler ``seed`` (None: none given)
     source             str       where it was loaded from (a path; ``"<dict>"`` by default)
     traversal          str       how a ray finds the bodies it hits (module docstring):
                                  ``"auto"`` (default), ``"per-body"`` or ``"tree"``
@@ -405,6 +409,7 @@ class DynamicScene:
     bodies: list = field(default_factory=list)
     integrator_params: dict = field(default_factory=dict)
     spp_hint: int | None = None
+    seed_hint: int | None = None
     source: str = "<dict>"
     traversal: str = "auto"
     camera_motion: Motion | None = None

@@ -6,7 +6,7 @@ experiments all build it the same way, from *layers* of given values, later laye
 winning (:meth:`RenderSettings.build`):
 
 1. the scene (:func:`scene_layer`): its ``<integrator>`` (dict ``"integrator"``), the
-   sampler's ``sample_count`` and the sensor's shutter interval;
+   sampler's ``sample_count`` and ``seed`` and the sensor's shutter interval;
 2. what the caller gives (keyword arguments, command-line options).
 
 A layer that sets a setting discards what earlier layers said about the settings that
@@ -440,7 +440,13 @@ _NO_EFFECT_KEYS = {"is_doppler_integrator": "bool", "samples_per_pass": "int", "
 # keys of theirs we honour; any other stock integrator computes something else.
 STOCK_PATH_INTEGRATORS = ("path", "volpath", "volpathmis", "prb", "prb_basic", "prbvolpath")
 _GENERIC_KEYS = ("max_depth", "rr_depth", "hide_emitters")
-_STOCK_OTHER = ("direct", "aov", "depth", "moment", "stokes", "ptracer", "direct_projective", "prb_projective", "adjoint")
+# What a stock path tracer does with a key its file leaves out (Mitsuba 3.9's defaults: the
+# C++ integrators' max_depth is unbounded, the Python prb family's 6), which a file naming
+# that integrator asks for: not dopplertof's own defaults.
+STOCK_PATH_DEFAULTS = {
+    kind: {"max_depth": -1 if kind in ("path", "volpath", "volpathmis") else 6, "rr_depth": 5, "hide_emitters": False} for kind in STOCK_PATH_INTEGRATORS
+}
+STOCK_OTHER_INTEGRATORS = ("direct", "aov", "depth", "moment", "stokes", "ptracer", "direct_projective", "prb_projective", "adjoint")
 
 
 def integrator_layer(params: dict, where: str = "integrator") -> dict:
@@ -449,9 +455,12 @@ def integrator_layer(params: dict, where: str = "integrator") -> dict:
     ``dopplertof``/``dopplertofpath`` take the original M3 names (reference §8.2) and the
     SI names (an SI name together with the original one it replaces is an error); the
     original names accepted are listed in the README. A stock path-tracing integrator
-    (:data:`STOCK_PATH_INTEGRATORS`) gives ``max_depth``, ``rr_depth``,
-    ``hide_emitters`` and nothing else: D-ToF keys on it are an error naming them. Any
-    other integrator type is an error.
+    (:data:`STOCK_PATH_INTEGRATORS`) gives ``max_depth``, ``rr_depth`` and
+    ``hide_emitters``, each Mitsuba's default where the file leaves it out
+    (:data:`STOCK_PATH_DEFAULTS`: ``<integrator type="path"/>`` is unbounded, as in
+    Mitsuba), and nothing else: Mitsuba's scheduling keys (``samples_per_pass``,
+    ``block_size``, ``timeout``) change nothing, D-ToF keys on it are an error naming them.
+    Any other integrator type is an error.
 
     Parameters
     ----------
@@ -475,14 +484,14 @@ def integrator_layer(params: dict, where: str = "integrator") -> dict:
     kind = params.pop("type", PLUGIN_NAMES[0])
     if kind not in PLUGIN_NAMES:
         if kind not in STOCK_PATH_INTEGRATORS:
-            what = "a stock Mitsuba integrator that computes something other than path-traced radiance" if kind in _STOCK_OTHER else "an unknown integrator type"
+            what = "a stock Mitsuba integrator that computes something other than path-traced radiance" if kind in STOCK_OTHER_INTEGRATORS else "an unknown integrator type"
             raise ValueError(
                 f"{where}: <integrator type={kind!r}> is {what}; use type 'dopplertof' (or the original 'dopplertofpath') or one of {', '.join(STOCK_PATH_INTEGRATORS)}"
             )
         foreign = sorted(k for k in params if k not in _GENERIC_KEYS and k not in _NO_EFFECT_KEYS)
         if foreign:
             raise ValueError(f"{where}: <integrator type={kind!r}> does not take {', '.join(map(repr, foreign))}; D-ToF parameters belong to <integrator type=\"dopplertof\">")
-        return {k: checked(k, params[k], _ORIGINAL_KEYS[k][0], where) for k in _GENERIC_KEYS if k in params}
+        return {**STOCK_PATH_DEFAULTS[kind], **{k: checked(k, params[k], _ORIGINAL_KEYS[k][0], where) for k in _GENERIC_KEYS if k in params}}
 
     layer: dict = {}
     camera_params: dict = {}
@@ -587,7 +596,7 @@ def shutter_interval(scene) -> tuple[float, float] | None:
 
 def scene_layer(scene, where: str | None = None) -> dict:
     """The settings a :class:`~dopplertof.scene.DynamicScene` asks for: its integrator's,
-    its sampler's ``sample_count`` (spp) and its sensor's shutter interval.
+    its sampler's ``sample_count`` (spp) and ``seed``, and its sensor's shutter interval.
 
     A shutter interval (``shutter_open``, ``shutter_close``) is the exposure window: it
     sets ``exposure_start`` and T; an ``<integrator>`` exposure that contradicts it is an
@@ -614,6 +623,8 @@ def scene_layer(scene, where: str | None = None) -> dict:
     layer = integrator_layer(scene.integrator_params, f"{where}: <integrator>") if scene.integrator_params else {}
     if scene.spp_hint is not None:
         layer["spp"] = scene.spp_hint
+    if scene.seed_hint is not None:
+        layer["seed"] = scene.seed_hint
     if (shutter := shutter_interval(scene)) is not None:
         open_s, length_s = shutter
         cameras = layer.get("cameras", ())

@@ -5,7 +5,10 @@ filter covers and divides by the splatted weight, so pixel p converges to the
 filter-weighted average of the image over the part of the filter inside the film,
 I(p) = ∫∫_film f(x) f(y) L(p + (x, y)) / ∫∫_film f f. We draw the offset (x, y) from
 that truncated, normalised filter instead (importance sampling: each sample lands in one
-pixel), which has the same expectation, without the ratio's bias. It works for any
+pixel), which has the same expectation, without the ratio's bias. A film with
+``sample_border`` (stock Mitsuba then also draws samples in a border of the filter's radius
+around the film) takes the whole filter at every pixel: I(p) = ∫∫ f(x) f(y) L(p + (x, y))
+/ ∫∫ f f, the image extended past the film's edges. It works for any
 filter Mitsuba has: the 1D filter is tabulated from ``rfilter.eval`` over its radius and
 sampled through ``mi.ContinuousDistribution``, between the CDF values of the pixel's
 offsets to the film's edges. A box filter is the uniform offset over the pixel. Filters
@@ -54,16 +57,18 @@ class FilterSampler:
             )
         self.distribution = mi.ContinuousDistribution(mi.ScalarVector2f(-radius, radius), mi.Float(values.astype(np.float32)))
         width, height = (int(v) for v in film.crop_size())
-        self._axes = [self._axis(n, radius) for n in (width, height)]
+        self._axes = [self._axis(n, radius, bool(film.sample_border())) for n in (width, height)]
 
-    def _axis(self, n_pixels, radius):
-        """Per pixel column (row): CDF bounds of the offsets that stay inside the film."""
+    def _axis(self, n_pixels, radius, border):
+        """Per pixel column (row): CDF bounds of the offsets that stay inside the film (with
+        ``border``, of the whole filter)."""
         import drjit as dr
         import mitsuba as mi
 
         centres = np.arange(n_pixels) + 0.5
-        lo = np.clip(-centres, -radius, radius)
-        hi = np.clip(n_pixels - centres, -radius, radius)
+        reach = np.inf if border else 0.0  # how far past the film's edges a sample may land
+        lo = np.clip(-centres - reach, -radius, radius)
+        hi = np.clip(n_pixels - centres + reach, -radius, radius)
         cdf = np.asarray(self.distribution.eval_cdf_normalized(mi.Float(np.concatenate([lo, hi]).astype(np.float32))), dtype=np.float64)
         arrays = [mi.Float(cdf[:n_pixels].astype(np.float32)), mi.Float(cdf[n_pixels:].astype(np.float32))]
         for a in arrays:

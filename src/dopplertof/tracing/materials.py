@@ -5,7 +5,8 @@ the BSDF's Dr.Jit registry id, the film's filter sampler and the sensor's projec
   = ∞, rough conductor / dielectric / plastic = the mean of their α, anything with a delta
   lobe = 0.
 * ``relative_ior``: η = n_inside / n_outside of a surface that refracts (``dielectric``,
-  ``roughdielectric``), 1 elsewhere (``thindielectric`` does not bend or enter). Crossing
+  ``roughdielectric``), 1 elsewhere (``thindielectric``, ``null`` and ``mask`` pass light
+  straight through; other transmitting BSDFs are refused: :func:`relative_ior`). Crossing
   it multiplies the index of the medium a path travels in by η entering, 1/η leaving;
   the optical length of a segment is that index times its length
   (:func:`dopplertof.tracing.path.segment_index`).
@@ -19,7 +20,6 @@ from dataclasses import dataclass
 import numpy as np
 
 _REFRACTING = ("SmoothDielectric", "RoughDielectric")
-_STRAIGHT_THROUGH = ("ThinDielectric", "MaskBSDF", "NullBSDF")  # transmit without entering a medium
 
 
 @dataclass
@@ -74,7 +74,7 @@ class MaterialTables:
                     continue
                 index = int(dr.reinterpret_array(mi.UInt32, mi.BSDFPtr(bsdf))[0])
                 rough[index] = _roughness(bsdf)
-                ior[index] = _relative_ior(bsdf)
+                ior[index] = relative_ior(bsdf)
         size = max(rough, default=0) + 1
         arrays = []
         for values, fill in ((rough, 0.0), (ior, 1.0)):
@@ -125,15 +125,36 @@ def _roughness(bsdf) -> float:
     return math.inf
 
 
-def _relative_ior(bsdf) -> float:
+def relative_ior(bsdf) -> float:
+    """η of a surface that refracts (``dielectric``, ``roughdielectric``), 1 for any other
+    whose light passes straight through or not at all (``thindielectric``, ``null``,
+    ``mask``: Mitsuba's null transmission).
+
+    Parameters
+    ----------
+    bsdf : mi.BSDF
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        A BSDF that transmits light into the surface other than on its own as a dielectric
+        (``principled`` with ``spec_trans`` > 0, a dielectric inside ``mask`` or
+        ``blendbsdf``, diffuse transmission): the optical length through it is not known.
+    """
     import mitsuba as mi
 
     name = bsdf.class_name()
-    transmits = bsdf.flags() & int(mi.BSDFFlags.Transmission)
-    if transmits and name not in _REFRACTING + _STRAIGHT_THROUGH:
+    through = int(mi.BSDFFlags.DeltaTransmission) | int(mi.BSDFFlags.GlossyTransmission) | int(mi.BSDFFlags.DiffuseTransmission)
+    if bsdf.flags() & through and name not in _REFRACTING:
         raise ValueError(
-            f"BSDF {bsdf.id() or name!r} ({name}) transmits light, and the optical path length through it "
-            f"is not known here; use dielectric, roughdielectric or thindielectric directly (not inside {name})"
+            f"BSDF {bsdf.id() or name!r} ({name}) transmits light through the surface, and the optical path length "
+            "through it is not known here; a transmitting surface must be a dielectric or roughdielectric BSDF of its own "
+            "(not inside mask, blendbsdf or twosided; principled with spec_trans 0); thindielectric, null and mask "
+            "(around an opaque BSDF) pass light straight through and are fine"
         )
     if name not in _REFRACTING:
         return 1.0
