@@ -35,6 +35,13 @@ def test_design_sweeps_optimises_and_writes_a_sensor_that_render_reads(tmp_path)
     assert (tmp_path / "again" / "sweep.csv").read_text() == (out / "sweep.csv").read_text()
     refused = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:120e6:6", "--record", str(out / "record.npz"), "-o", str(out))
     assert refused.returncode == 2 and refused.stderr.strip() == f"error: {str(out)!r} holds an earlier design run (record.npz, sweep.csv, optimize.csv, best_sensor.toml, velocity_crb.exr, depth_crb.exr, velocity_rmse.exr, sweep_modulation_frequency.png); choose another folder or --overwrite"
+    # a record is of its scene and its render: another scene, or render options beside it, are refused
+    for args, says in [
+        (["street"], "error: --record " + str(out / "record.npz") + ": rendered from the built-in scene 'cornell-box', not street (the built-in scene 'street')"),
+        (["cornell-box", "--spp", "64", "--resolution", "32"], "error: --record: the record holds its render; --resolution, --spp would render another"),
+    ]:  # fmt: skip
+        other = _run("design", *args, "--sensor", "dtof-prototype", "--sweep", "f=20e6:120e6:6", "--record", str(out / "record.npz"), "-o", str(tmp_path / "other"))
+        assert other.returncode == 2 and other.stderr.startswith(says), other.stderr
     rendered = _run("render", "cornell-box", "--sensor", str(out / "best_sensor.toml"), "-o", str(tmp_path / "render"), "--quiet", *FAST)
     assert rendered.returncode == 0, rendered.stderr
     assert (tmp_path / "render" / "raw_electrons.npy").exists()

@@ -395,7 +395,7 @@ def test_a_bsdf_that_transmits_other_than_a_dielectric_of_its_own_is_refused_on_
     """A dielectric inside ``mask`` rendered with the index of air (wrong optical lengths);
     the others were refused only when the render began, with a message that said "not
     inside Principled" of a principled BSDF on its own."""
-    with pytest.raises(dt.SceneError, match=rf"shape 'ball': BSDF .* transmits light through the surface"):
+    with pytest.raises(dt.SceneError, match=r"shape 'ball': BSDF .* transmits light through the surface"):
         dt.load_scene(dict_scene(ball={"type": "sphere", "bsdf": bsdf}))
 
 

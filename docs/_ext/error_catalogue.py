@@ -349,6 +349,8 @@ TOPICS = [
         ("gradient: heterodyne of …: the record holds no first moments", "heterodyne gradients need first moments", "render the record with `doppler=True`"),
         ("gradient: a parameter is (kind, frame index), got …", "a parameter given otherwise", "`(\"modulation_frequency\", 0)`"),
         ("--record: give one per scene", "`--record` files and scenes are paired in order", "one `--record` per SCENE, or none"),
+        ("--record: the record holds its render; … would render another (leave … out, or leave out --record)", "render options (`--spp`, `--resolution`, …) beside `--record`", "leave them out to sweep the record, or leave out `--record` to render anew"),
+        ("--record …: rendered from …, not … (…); render the record of … (leave out --record)", "a record of another scene (or the same file changed since, or other `-D` values)", "render the record of this scene"),
         ("--samples applies to --dataset", "`--samples` counts a dataset's scenes", "add `--dataset CONFIG.toml`, or drop `--samples`"),
         ("give SCENE (one or more) or --dataset CONFIG.toml --samples N", "`dopplertof design` has no scene", "name scenes, or a dataset config and how many of its scenes"),
         ("give SCENE… or --dataset, not both", "the scenes come from files or from a dataset, not both", "drop one"),

@@ -93,10 +93,17 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
             os.makedirs(output, exist_ok=True)  # before the render: an unwritable folder fails first
             if record_paths:
                 records = [read_record(path) for path in record_paths]
+                rendering = sorted([f"--{k.replace('_', '-')}" for k in given_settings(options)] + (["--resolution"] if resolution else []))
+                if rendering:
+                    raise ValueError(f"--record: the record holds its render; {', '.join(rendering)} would render another (leave {'them' if len(rendering) > 1 else 'it'} out, or leave out --record)")
+                for path, record, (name, load, identity) in zip(record_paths, records, scenes):
+                    if identity is None:
+                        load()  # its error: no such scene or file
+                    _check_record_scene(path, record, name, identity)
             else:
                 spec, cameras = record_spec(sensor, sweeps, optimize=optimize_keys)
                 records = []
-                for index, (scene, load) in enumerate(scenes):
+                for index, (scene, load, identity) in enumerate(scenes):
                     dyn = load()
                     settings = RenderSettings.build(scene_layer(dyn, scene), {**given_settings(options), "cameras": cameras}, where=scene)
                     click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp", err=True)
@@ -104,12 +111,13 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                         record = render(dyn, settings=settings, record=spec, stop=stop).record
                     if record is None:  # a render stopped early keeps no record
                         raise KeyboardInterrupt
+                    record.info["scene"] = identity  # what a later --record is checked against
                     records.append(record)
                     written.append(str(write_record(os.path.join(output, named("record.npz", index)), records[-1])))
             records_done = True
             if stop():  # the signal came during the last pass: the record is whole, stop here
                 raise KeyboardInterrupt
-            check_moving(records, [name for name, _ in scenes])
+            check_moving(records, [name for name, _, _ in scenes])
             unit = "m/s" if objective == "velocity_crb" else "m"
             best = sensor
             if sweeps:
@@ -160,18 +168,44 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     sys.stdout.flush()
 
 
+def _check_record_scene(path, record, name, identity) -> None:
+    """ValueError where the record at ``path`` was rendered from another scene than
+    ``name`` (its ``identity``: :func:`_scene_sources`); a record that does not say (written
+    by an older version) is taken as it is."""
+    recorded = record.info.get("scene")
+    if recorded is not None and recorded != identity:
+        raise ValueError(f"--record {path}: rendered from {_describe_identity(recorded)}, not {name} ({_describe_identity(identity)}); render the record of {name} (leave out --record)")
+
+
+def _describe_identity(identity: dict) -> str:
+    if "builtin" in identity:
+        return f"the built-in scene {identity['builtin']!r}"
+    if "dataset" in identity:
+        return f"sample {identity['key']!r} of the dataset {identity['dataset']!r} (seed {identity['seed']})"
+    defines = f" with -D {' -D '.join(identity['defines'])}" if identity["defines"] else ""
+    return f"{identity['path']} (sha256 {identity['sha256'][:12]}…){defines}"
+
+
 def _scene_sources(scenes, dataset_config, samples, dataset_seed, resolution, defines) -> list:
-    """[(name, load)] of the design's scenes: SCENES (built-in names or files) or the first
-    ``samples`` scenes of a dataset configuration, ``load()`` building each; ValueError for
-    a contradictory choice."""
-    from ..scenes import open_scene, parse_resolution
+    """[(name, load, identity)] of the design's scenes: SCENES (built-in names or files) or
+    the first ``samples`` scenes of a dataset configuration, ``load()`` building each,
+    ``identity`` what a record of it keeps (built-in name; file, hash and ``-D`` values;
+    dataset, seed and sample); ValueError for a contradictory choice."""
+    from ..cli import scene_description
+    from ..scenes import SCENES, open_scene, parse_resolution
 
     if dataset_config is None:
         if samples is not None:
             raise ValueError("--samples applies to --dataset")
         if not scenes:
             raise ValueError("give SCENE (one or more) or --dataset CONFIG.toml --samples N")
-        return [(scene, lambda scene=scene: open_scene(scene, resolution, defines)) for scene in scenes]
+        out = []
+        for scene in scenes:
+            identity = None  # no such scene: loading it says so
+            if scene in SCENES or os.path.isfile(scene):
+                identity = {k: v for k, v in scene_description(scene, resolution, defines).items() if k != "resolution"}  # the film is the record's own
+            out.append((scene, lambda scene=scene: open_scene(scene, resolution, defines), identity))
+        return out
     from ..backend import ensure_variant
     from ..dataset.config import load_config
     from ..dataset.randomize import build_scene
@@ -189,7 +223,8 @@ def _scene_sources(scenes, dataset_config, samples, dataset_seed, resolution, de
     variant, out = ensure_variant(), []
     for index in range(samples):
         record = make_record(config, dataset_seed, index, variant)  # the scene of sample i, as the dataset draws it
-        out.append((record["key"], lambda scene=record["scene"]: build_scene(scene, size)))
+        identity = {"dataset": os.path.abspath(dataset_config), "seed": dataset_seed, "key": record["key"]}
+        out.append((record["key"], lambda scene=record["scene"]: build_scene(scene, size), identity))
     return out
 
 
