@@ -166,6 +166,18 @@ def test_reconstruct_command_refuses_a_folder_that_is_not_a_render(rendered, tmp
         f"error: {tmp_path}: no measurement file for camera 3 (measurement_3_h*.exr)"]
 
 
+def test_reconstruct_command_refuses_a_folder_that_lost_part_of_its_errors(rendered, tmp_path):
+    """With one camera's standard error (and the covariance) gone it judged validity from
+    the signal alone: every pixel valid, RMSE 27 m/s."""
+    write_result(rendered, tmp_path)
+    (stderr,) = tmp_path.glob("measurement_2_*_stderr.exr")
+    stderr.unlink()
+    code, output = run_reconstruct(tmp_path)
+    assert code == 2 and output.strip().splitlines() == [
+        f"error: {tmp_path}: {stderr.name} missing (the render wrote it: the standard errors judge which pixels are valid); restore it or render again"]
+    assert not (tmp_path / "velocity_reconstructed.exr").exists()
+
+
 # ------------------------------------------------------------------ calibrated validity
 
 

@@ -162,6 +162,7 @@ TOPICS = [
         ("…: … measurement file for camera … (measurement_…_h*.exr)", "a measurement image of the render folder is missing or duplicated", "render the folder again"),
         ("…: no such folder", "the folder does not exist", "give the `-o` folder of `dopplertof render`"),
         ("…: not a 'dopplertof render' output folder (no …)", "the folder holds no render", "give the `-o` folder of `dopplertof render`"),
+        ("…: … missing (the render wrote …: the standard errors judge which pixels are valid); restore … or render again", "a render folder that lost some of its `*_stderr.exr` files or `measurement_covariance.npy`", "restore them, or render again"),
         ("…: the render has no D-ToF camera", "the render has no measurement", "render with `--camera` options (the message lists four)"),
         ("…: measurement images must be single-channel and of one size, got shapes …", "the measurement images were changed", "render the folder again"),
         ("…: shape … differs from the measurements' …", "a map of the folder has another size than the measurements", "render the folder again"),

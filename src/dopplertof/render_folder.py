@@ -308,8 +308,16 @@ def read_render_folder(folder: str):
     if truth is not None and truth.shape != images[0].shape:
         raise ValueError(f"{truth_path}: shape {truth.shape} differs from the measurements' {images[0].shape}")
     stderr_paths = [_measurement_file(folder, i)[: -len(".exr")] + "_stderr.exr" for i in range(len(cameras))]
-    stderr = np.stack([io.read_exr(p) for p in stderr_paths]) if all(os.path.isfile(p) for p in stderr_paths) else None
     covariance_path = os.path.join(folder, "measurement_covariance.npy")
+    # The errors are all there or all absent (a render without them): a part would judge validity from the rest alone.
+    written = set(metadata.get("files", ())) if isinstance(metadata.get("files"), list) else set()
+    expected = [p for p in stderr_paths + [covariance_path] if os.path.basename(p) in written]
+    if not written:
+        expected = stderr_paths if any(os.path.isfile(p) for p in stderr_paths) else []
+    missing = [os.path.basename(p) for p in expected if not os.path.isfile(p)]
+    if missing:
+        raise ValueError(f"{folder}: {', '.join(missing)} missing (the render wrote {'them' if len(missing) > 1 else 'it'}: the standard errors judge which pixels are valid); restore {'them' if len(missing) > 1 else 'it'} or render again")
+    stderr = np.stack([io.read_exr(p) for p in stderr_paths]) if all(os.path.isfile(p) for p in stderr_paths) else None
     covariance = io.read_npy(covariance_path)[: len(cameras), : len(cameras)] if os.path.isfile(covariance_path) else None
     return cameras, np.stack(images), truth, stderr, covariance
 
