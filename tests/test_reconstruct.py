@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 
 import numpy as np
 import pytest
 
+import dopplertof as dt
 from dopplertof import reconstruct as rc
 from dopplertof.reconstruct import SPEED_OF_LIGHT_M_S as C
 
@@ -647,3 +650,15 @@ def test_unwrap_depth_refuses_an_unsure_choice():
     np.testing.assert_allclose(got, truth, atol=1e-12)
     # the 7.5 m depth off by 1.25 m: the phase difference points between two choices of 5 m
     assert np.isnan(rc.frequencies.unwrap_depth(np.array([1.0]), fine, np.array([2.25]), coarse)).all()
+
+
+def test_a_pixel_measured_by_one_sample_is_not_valid():
+    """One contributing sample: each mean is its stderr and the covariance is m mᵀ, so the
+    velocity (unchanged when every measurement is scaled) got a propagated error of zero and
+    the pixel was valid, whatever its answer. Many samples of the same signal stay valid."""
+    cameras = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
+    m = dt.reconstruct.model_measurements([1.0], 2.0, 3.0, cameras)  # (4, 1)
+    one_sample = np.einsum("ip,jp->ijp", m, m)
+    assert not dt.reconstruct.velocity(m, cameras, measurement_covariance=one_sample).valid.any()
+    many = one_sample / 400.0 + np.eye(4)[:, :, None] * 1e-6  # |m| / σ = 20
+    assert dt.reconstruct.velocity(m, cameras, measurement_covariance=many).valid.all()

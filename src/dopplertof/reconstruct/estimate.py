@@ -111,7 +111,10 @@ def velocity(
         With errors given: pixels whose velocity standard error (m/s) exceeds this are
         invalid. Default: a tenth of the scene's speed scale
         (:func:`default_max_velocity_stderr`); the value used is
-        ``result.max_velocity_stderr_m_s``. Valid pixels are calibrated where the model holds
+        ``result.max_velocity_stderr_m_s``. A pixel is also invalid where no camera
+        measures its signal at :data:`MIN_MEASUREMENT_SNR` (3) standard errors or more: too
+        few samples contributed for their errors to bound the velocity's (from a single
+        sample the propagated error is zero). Valid pixels are calibrated where the model holds
         (one path per pixel, direct light): fewer than 2 % of them are off by more than three
         standard errors (``tests/test_reconstruct_render.py``). Multipath biases are not in
         the standard error.
@@ -207,7 +210,7 @@ def velocity(
     else:
         limit, result.threshold_reason = max_velocity_stderr, "given"
     result.max_velocity_stderr_m_s = limit
-    keep = result.valid & np.isfinite(v_err) & (v_err <= limit)
+    keep = result.valid & np.isfinite(v_err) & (v_err <= limit) & _resolved_signal(m, covariance)
     result.valid = keep
     result.velocity = np.where(keep, result.velocity, np.nan)
     result.doppler_hz = np.where(keep, result.doppler_hz, np.nan)
@@ -215,6 +218,32 @@ def velocity(
     result.velocity_stderr = np.where(keep, v_err, np.nan)
     result.depth_stderr = np.where(np.isfinite(result.depth), result.depth_stderr, np.nan)
     return result
+
+
+# A pixel is valid only where some camera measures its signal at this many of its standard
+# errors or more. An error estimated from k contributing samples gives |m| / σ ≤ √k, so this
+# asks for about 9 samples: from one, the covariance is m mᵀ and the velocity (which does not
+# change when every measurement is scaled) gets a propagated error of zero.
+MIN_MEASUREMENT_SNR = 3.0
+
+
+def _resolved_signal(measurements, covariance) -> np.ndarray:
+    """Pixels where some camera's |measurement| is at least :data:`MIN_MEASUREMENT_SNR` of
+    its standard error (or exact: error 0 and a signal).
+
+    Parameters
+    ----------
+    measurements : ndarray, shape (n_cameras, ...)
+    covariance : ndarray, shape (n_cameras, n_cameras, ...)
+
+    Returns
+    -------
+    ndarray of bool, shape (...)
+    """
+    variance = np.stack([covariance[i, i] for i in range(covariance.shape[0])])
+    with np.errstate(invalid="ignore"):
+        resolved = np.abs(measurements) >= MIN_MEASUREMENT_SNR * np.sqrt(np.maximum(variance, 0.0))
+    return (resolved & (np.abs(measurements) > 0)).any(axis=0)
 
 
 def _estimate(m, cams: _CameraSet, covariance, method, min_amplitude, max_doppler_hz):
