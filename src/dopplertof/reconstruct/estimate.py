@@ -44,6 +44,8 @@ class VelocityResult:
         Standard errors (m/s, m) propagated from the measurements' errors (delta method,
         :func:`velocity`); None when no measurement errors were given. Monte Carlo error
         only: a pixel that sees several paths (multipath, a silhouette) is biased by them.
+        ``depth_stderr`` is NaN for cameras that are not all sinusoidal: their depth has the
+        waveform's cyclic (wiggling) error, centimetres, which is not in it.
     max_velocity_stderr_m_s : float or None
         The threshold on ``velocity_stderr`` that ``valid`` applied (m/s); None without
         measurement errors.
@@ -217,6 +219,10 @@ def velocity(
     result.brightness = np.where(keep, result.brightness, np.nan)
     result.velocity_stderr = np.where(keep, v_err, np.nan)
     result.depth_stderr = np.where(np.isfinite(result.depth), result.depth_stderr, np.nan)
+    if any(w != "sinusoidal" for cams in sets for w in cams.waveforms):
+        # Depth inverts the sinusoid's phase: another waveform's cyclic error (centimetres)
+        # is not Monte Carlo error and would be stated as millimetres.
+        result.depth_stderr = np.full_like(result.depth_stderr, np.nan)
     return result
 
 
