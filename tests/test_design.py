@@ -543,6 +543,10 @@ def test_a_sweep_lists_what_the_chip_refuses(recorded):
     rows = sweep(recorded.record, prototype, [("modulation_frequency", np.array([40e6, 110e6]))])
     assert rows[0]["status"] == "ok" and rows[0]["objective"] > 0
     assert rows[1]["status"].startswith("refused") and "1.1e+08 Hz outside" in rows[1]["status"] and math.isnan(rows[1]["objective"])
+    # light enough to saturate every pixel: no moving pixel has a finite bound, and the row says so (it said "ok")
+    blinding = preset("dtof-prototype", frames, radiance_unit=1e9)
+    (row,) = sweep(recorded.record, blinding, [("modulation_frequency", np.array([40e6]))])
+    assert math.isnan(row["objective"]) and row["status"].startswith("no bound: velocity_crb is infinite at every moving pixel"), row
 
 
 @pytest.mark.parametrize("text, message", [("f=1:2", "KEY=LO:HI:N"), ("gain=1:2:3", "unknown key 'gain'"), ("f=2:1:3", "LO <= HI"), ("f10", "expected KEY=LO:HI:N")])

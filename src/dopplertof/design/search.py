@@ -278,7 +278,8 @@ def sweep(records, sensor, sweeps, objective: str = "velocity_crb") -> list[dict
     Returns
     -------
     list of dict, one per combination: the values, ``objective`` (NaN and ``status`` = the
-    reason where the chip refuses the variant, else ``"ok"``) and the mean and median
+    reason where the chip refuses the variant or no moving pixel's bound is finite, else
+    ``"ok"``) and the mean and median
     bounds, averaged over the scenes (:func:`summary`).
 
     Raises
@@ -299,7 +300,9 @@ def sweep(records, sensor, sweeps, objective: str = "velocity_crb") -> list[dict
             rows.append({**row, "objective": float("nan"), "status": f"refused: {exc}"})
             continue
         values = summary(records, candidate)
-        rows.append({**row, "objective": values[f"{objective}_mean"], **values, "status": "ok"})
+        finite = values[f"{objective}_mean"] == values[f"{objective}_mean"]  # NaN: no moving pixel has a finite bound
+        status = "ok" if finite else f"no bound: {objective} is infinite at every moving pixel (the frames carry no information on it)"
+        rows.append({**row, "objective": values[f"{objective}_mean"], **values, "status": status})
     return rows
 
 
