@@ -289,6 +289,8 @@ def test_dict_motion_forms():
         ({"type": "parametric", "spin": 1.0}, r"unknown motion parameter\(s\) \['spin'\]"),
         ({"type": "keyframes", "keys": [(2e-3, np.eye(4)), (1e-3, np.eye(4))]}, r"strictly increasing"),
         ({"type": "keyframes", "keys": [("soon", np.eye(4))]}, r"keyframe time 'soon' is not a number"),
+        ({"type": "keyframes", "keys": [("0", np.eye(4))]}, r"keyframe time '0' is not a number"),
+        ({"type": "keyframes", "keys": [(0.0, np.eye(4), 5), (1.0, np.eye(4))]}, r"a keyframe is a pair \(time_s, transform\), got 3 entries"),
         ({"type": "keyframes", "keys": []}, r"at least one keyframe"),
         ({"type": "keyframes", "keys": [(0.0, np.eye(3))]}, r"4x4"),
         ({"type": "parametric", "linear_velocity": [1, 0]}, r"linear_velocity must be 3 finite numbers"),

@@ -513,6 +513,7 @@ TOPICS = [
         ("…: <animation> may only contain <transform time=\"...\">, found <…>", "other elements in an animation", "keyframes only"),
         ("…: <transform> needs a time=\"seconds\" attribute", "a keyframe without time", "`time=\"0.001\"`"),
         ("…: keyframe time … is not a number", "a keyframe time that does not parse", "seconds"),
+        ("…: a keyframe is a pair (time_s, transform), got …", "a dict keyframe with more or fewer than two entries", "`(time_s, transform)` per key"),
         ("…: <animation> has no keyframes", "an empty animation", "give keyframes"),
         ("…: more than one <animation>", "two animations on one element", "merge them"),
         ("…: has both <transform name=\"to_world\"> and <animation>; keep one", "a static and a keyed placement", "keep one"),

@@ -676,6 +676,11 @@ def _motion_from_dict(spec, has_to_world: bool, where: str) -> Motion:
             keys = spec.get("keys") or []
             times = []
             for k in keys:
+                if not isinstance(k, (tuple, list)) or len(k) != 2:
+                    got = f"{len(k)} entries" if isinstance(k, (tuple, list)) else f"a {type(k).__name__}"
+                    raise SceneError(f"{where}: a keyframe is a pair (time_s, transform), got {got}")
+                if isinstance(k[0], (str, bool)):
+                    raise SceneError(f"{where}: keyframe time {k[0]!r} is not a number")
                 try:
                     times.append(float(k[0]))
                 except (TypeError, ValueError):
