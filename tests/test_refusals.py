@@ -198,6 +198,8 @@ def test_unknown_name_parameters_are_refused_with_the_known_ones(tmp_path):
     with pytest.raises(dt.SceneError, match=r"scene\.xml: unknown parameters \$radus, \$spp; the scene's parameters: \$depth, \$radius"):
         dt.load_scene(path, radus="2", depth="1", spp="4")
     assert_cli_error(cli("render", path, "-D", "radus=2", "-D", "depth=1", "-o", tmp_path / "out"), "unknown parameter $radus", "$depth, $radius")
+    with pytest.raises(dt.SceneError, match=r"unknown parameter \$dep;"):  # a prefix of $depth is not $depth (it was taken for it)
+        dt.load_scene(path, dep="1", depth="1")
 
 
 def test_a_name_used_only_in_an_included_file_is_known(tmp_path):

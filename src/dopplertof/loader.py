@@ -351,9 +351,10 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
 
     found = {"defaults": set(), "texts": []}
     root = _read_scene(path, {k: str(v) for k, v in params.items()}, path, found)
-    unknown = [n for n in params if n not in found["defaults"] and not any(f"${n}" in text for text in found["texts"])]
+    known = found["defaults"] | {m for text in found["texts"] for m in _TOKEN.findall(text)}
+    unknown = [n for n in params if n not in known]  # whole names: -D sp=8 does not set $spp
     if unknown:
-        known = sorted(found["defaults"] | {m for text in found["texts"] for m in _TOKEN.findall(text)})
+        known = sorted(known)
         raise SceneError(
             f"{path}: unknown parameter{'s' if len(unknown) > 1 else ''} {', '.join('$' + n for n in unknown)}; "
             f"the scene's parameters: {', '.join('$' + n for n in known) if known else 'none'}"
