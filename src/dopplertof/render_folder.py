@@ -25,6 +25,10 @@ file                              content
                                   truth, the fraction of wrapped depths
 ================================  ============================================================
 
+Cameras that determine depth but not velocity (homodyne only: an AMCW sensor's frames) give
+``depth_reconstructed.exr/.png``, ``depth_wrapped.png`` and ``reconstruction.json`` (which
+says why there is no velocity) alone.
+
 Validity. A pixel is valid when the estimator determines its velocity and the standard
 error propagated from the render's per-camera errors and ``measurement_covariance.npy``
 is at most ``max_velocity_stderr`` (m/s; default a tenth of the scene's speed scale,
@@ -248,6 +252,29 @@ def write_reconstruction(folder: str, reconstruction: rc.VelocityResult, ground_
     return written
 
 
+def write_depth(folder: str, depth_m, cameras, depth_truth_m=None, no_velocity: str = "") -> tuple[list[str], dict]:
+    """Write the depth of cameras that give no velocity (``depth_reconstructed.exr/.png``,
+    against the ground truth ``depth_wrapped.png``, and ``reconstruction.json``); (paths,
+    the summary written)."""
+    os.makedirs(folder, exist_ok=True)
+    written = [os.path.join(folder, name) for name in ("depth_reconstructed.exr", "depth_reconstructed.png")]
+    depth = np.asarray(depth_m, dtype=np.float32)
+    io.write_exr(written[0], depth)
+    viz.comparison_figure(written[1], {"reconstructed depth": depth}, signed=False, unit="m")
+    frequencies = sorted({float(c.modulation_frequency) for c in cameras})
+    depth_range_m = rc.ambiguity_range_m(frequencies[0] if len(frequencies) == 1 else abs(frequencies[1] - frequencies[0]))
+    info = {"method": "depth only", "no_velocity": no_velocity, "depth_range_m": depth_range_m, "modulation_frequencies_hz": frequencies}
+    if depth_truth_m is not None:
+        hit = np.isfinite(np.asarray(depth_truth_m, dtype=np.float64))
+        wrapped = depth_wrapped(depth_truth_m, depth_range_m)
+        info["depth_wrapped_fraction"] = float(wrapped[hit].mean()) if hit.any() else 0.0
+        written.append(os.path.join(folder, "depth_wrapped.png"))
+        viz.save_png(written[-1], np.where(wrapped, 255, 0).astype(np.uint8))
+    written.append(os.path.join(folder, SUMMARY_FILE))
+    io.write_json(written[-1], info)
+    return written, info
+
+
 def depth_wrapped(depth_truth_m, depth_range_m: float) -> np.ndarray:
     """Where a true distance (m) is at least the unambiguous range c/(2 f_g): the depth read
     there is the distance minus a multiple of the range (a pixel that hits nothing, NaN, is not)."""
@@ -346,10 +373,14 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
     method : {None, "auto", "ratio", "fit"}, see :func:`resolve_method`.
     max_velocity_stderr : float, optional. Validity threshold, m/s (see :func:`reconstruct`).
 
+    Cameras that cannot give velocity but determine depth (homodyne at two phases or more:
+    an AMCW sensor's frames) give the depth alone (:func:`write_depth`).
+
     Returns
     -------
-    (VelocityResult, list of written paths, dict: :func:`summary` with, against the
-    ground truth, :func:`velocity_error` and ``depth_wrapped_fraction``)
+    (VelocityResult, or None for depth alone; list of written paths; dict: :func:`summary`
+    with, against the ground truth, :func:`velocity_error` and ``depth_wrapped_fraction``,
+    or for depth alone ``no_velocity``, why, and the depth range)
 
     Raises
     ------
@@ -361,8 +392,16 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
 
     cameras, measurements, truth, stderr, covariance = read_render_folder(folder)
     check_writable(output or folder)
-    result = reconstruct(measurements, cameras, method, stderr, covariance, max_velocity_stderr)
     depth_truth = read_depth_truth(folder)
+    try:
+        result = reconstruct(measurements, cameras, method, stderr, covariance, max_velocity_stderr)
+    except ValueError as no_velocity:
+        try:
+            depth_m = rc.depth(measurements, cameras)
+        except ValueError:
+            raise no_velocity from None
+        written, info = write_depth(output or folder, depth_m, cameras, depth_truth, str(no_velocity))
+        return None, written, info
     written = write_reconstruction(output or folder, result, truth, depth_truth_m=depth_truth)
     info = summary(result, depth_truth)
     if truth is not None:
@@ -401,7 +440,10 @@ def reconstruct_command(folder, output, method, max_velocity_stderr):
         fail(str(exc))
     except OSError as exc:  # the disk filled, or the folder went away, while writing
         fail(f"cannot write {output or folder!r}: {exc.strerror or exc}")
-    error = f"; {describe_error(info)}" if "n_valid" in info else ""
-    click.echo(f"reconstructed velocity ({result.method}) of {folder}{error}; {describe_summary(info)}")
+    if result is None:
+        click.echo(f"reconstructed the depth of {folder} (modulo {info['depth_range_m']:.4g} m) and no velocity: {info['no_velocity']}")
+    else:
+        error = f"; {describe_error(info)}" if "n_valid" in info else ""
+        click.echo(f"reconstructed velocity ({result.method}) of {folder}{error}; {describe_summary(info)}")
     for path in written:
         click.echo(f"  {path}")
