@@ -582,3 +582,46 @@ def test_dataset_info_stays_a_function_after_its_module_is_imported():
 
     importlib.import_module("dopplertof.dataset.summary")
     assert callable(dataset.info) and dataset.info.__module__ == "dopplertof.dataset"
+
+
+def _children(pid):
+    """PIDs of the processes whose parent is ``pid`` (Linux /proc)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                found.append(int(entry))
+    return found
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs /proc")
+def test_workers_end_when_their_driver_is_killed(tmp_path):
+    """SIGKILL of ``dataset generate --workers 2`` left its two workers (and multiprocessing's
+    resource tracker) rendering, re-parented, for minutes."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    args = [sys.executable, "-m", "dopplertof.cli", "dataset", "generate", "-o", str(tmp_path / "d"), "--samples", "40", "--resolution", "16", "--spp", "8", "--shard-size", "2", "--workers", "2", "--quiet"]
+    driver = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while len(workers := [p for p in _children(driver.pid) if "spawn_main" in open(f"/proc/{p}/cmdline").read()]) < 2:
+        assert driver.poll() is None and time.monotonic() < deadline
+        time.sleep(0.1)
+    everyone = _children(driver.pid)
+    os.kill(driver.pid, signal.SIGKILL)
+    driver.wait()
+    deadline = time.monotonic() + 30
+    while (alive := [p for p in everyone if os.path.exists(f"/proc/{p}") and open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"]):
+        if time.monotonic() > deadline:
+            for p in alive:
+                os.kill(p, signal.SIGKILL)
+            pytest.fail(f"{len(alive)} of the driver's processes outlived it by 30 s")
+        time.sleep(0.2)
+    assert len(workers) == 2

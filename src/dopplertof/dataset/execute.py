@@ -95,10 +95,27 @@ def render_shard(job: dict) -> dict:
 # Local
 
 
-def _ignore_sigint():
-    import signal
+# How often a worker checks that the process that started it is alive, s.
+PARENT_CHECK_S = 1.0
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the driver decides; SIGTERM still kills
+
+def _start_worker(parent: int):
+    """A worker's set-up: SIGINT ignored (the driver decides; SIGTERM still kills), and a
+    thread that ends the worker once its driver (process ``parent``) is gone: a SIGKILL of
+    the driver would otherwise leave it rendering, re-parented, for minutes. The driver
+    passes its PID: it may be gone before this runs (a worker imports for seconds first)."""
+    import signal
+    import threading
+    import time
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(PARENT_CHECK_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="dopplertof: parent watch", daemon=True).start()
 
 
 def run_local(jobs: list[dict], workers: int, on_done, max_retries: int = 3) -> None:
@@ -133,7 +150,7 @@ def run_local(jobs: list[dict], workers: int, on_done, max_retries: int = 3) -> 
     attempts = 0
     context = multiprocessing.get_context("spawn")
     while pending:
-        pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=context, initializer=_ignore_sigint)
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=context, initializer=_start_worker, initargs=(os.getpid(),))
         try:
             futures = {pool.submit(render_shard, job): index for index, job in sorted(pending.items())}
             for future in as_completed(futures):
