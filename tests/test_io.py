@@ -247,3 +247,13 @@ def test_json_errors(tmp_path):
     with pytest.raises(TypeError):
         io.write_json(tmp_path / "complex.json", {"z": 1 + 2j})
     assert not (tmp_path / "complex.json").exists()  # nothing half-written
+
+
+def test_a_file_of_another_kind_is_named_as_such(tmp_path):
+    """numpy's own message for a text file was "This file contains pickled (object) data"."""
+    junk = tmp_path / "record.npz"
+    junk.write_text("hello\n")
+    for read, what in ((io.read_record, "a response record"), (io.read_npy, "a .npy array")):
+        with pytest.raises(ValueError, match=f"as {what}.*: it is not one \\(it starts with b'hel") as info:
+            read(junk)
+        assert "pickled" not in str(info.value)

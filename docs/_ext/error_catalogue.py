@@ -435,6 +435,7 @@ TOPICS = [
         ("channels of '…' have different shapes …; use read_exr_channels", "an EXR whose channels differ in size", "`read_exr_channels`"),
         ("cannot read '…' as an OpenEXR image: …", "the file is not an EXR image or is damaged", "write it again"),
         ("cannot read '…' as a .npy array: …", "the file is not a `.npy` array or is damaged", "write it again"),
+        ("cannot read '…' as …: it is not one (it starts with …)", "a file that is not a `.npy` array or a `.npz` record at all (text, another format)", "give the file the render or `design` wrote"),
         ("cannot read '…' as JSON: …", "the file is not JSON or is damaged", "write it again"),
         ("cannot read '…' as a response record: …", "the file is not a response record", "give a file of `dt.io.write_record`"),
         ("expected a '…' file, got '…'", "a picture path with another suffix", "the suffix named"),

@@ -349,10 +349,23 @@ def read_npy(path: PathLike) -> np.ndarray:
         If the file is not a readable ``.npy`` file.
     """
     path = _existing_file(path, "NPY")
+    _check_magic(path, _NPY_MAGIC, "a .npy array")
     try:
         return np.load(path, allow_pickle=False)
     except Exception as error:
         raise ValueError(f"cannot read '{path}' as a .npy array: {error}") from error
+
+
+_NPY_MAGIC, _ZIP_MAGIC = b"\x93NUMPY", b"PK\x03\x04"
+
+
+def _check_magic(path, magic: bytes, what: str) -> None:
+    """ValueError where the file at ``path`` does not start as ``what`` does (numpy would
+    otherwise say the file "contains pickled (object) data")."""
+    with open(path, "rb") as file:
+        head = file.read(len(magic))
+    if head != magic:
+        raise ValueError(f"cannot read '{path}' as {what}: it is not one (it starts with {head!r})")
 
 
 def write_image(path: PathLike, array: np.ndarray) -> Path:
@@ -515,6 +528,7 @@ def read_record(path: PathLike):
     from .design.record import Record
 
     path = _existing_file(path, "record")
+    _check_magic(path, _ZIP_MAGIC, "a response record (a .npz file)")
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
