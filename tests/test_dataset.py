@@ -386,7 +386,7 @@ def test_unwritable_or_foreign_folder_is_an_error(tmp_path, reference):
     with pytest.raises(ValueError, match="samples must be an integer ≥ 1, got 0"):
         dt.dataset.generate(tmp_path / "x", 0)
     # a folder holding another dataset is refused, naming what differs
-    with pytest.raises(ValueError, match="differs in seed"):
+    with pytest.raises(ValueError, match="differs in seed: 5 there, 6 now"):
         dt.dataset.generate(reference, **{**SMALL, "seed": 6})
     res = CliRunner().invoke(main, ["dataset", "verify", str(tmp_path)])
     assert res.exit_code == 2 and res.output.startswith("error: ") and "dataset.json" in res.output
@@ -569,7 +569,7 @@ def test_a_sensor_file_edited_between_runs_is_not_mixed_in(tmp_path):
     assert "read_noise_e = 5.0" in manifest["sensor_models"][str(sensor_file)]
     assert dt.dataset.generate(tmp_path / "ds", **small)["generated"] == []  # unchanged: resumes
     sensor_file.write_text(CUSTOM_SENSOR.replace("read_noise_e = 5.0", "read_noise_e = 6.0"))
-    with pytest.raises(ValueError, match="holds another dataset \\(it differs in sensor_models\\)"):
+    with pytest.raises(ValueError, match="holds another dataset \\(it differs in sensor_models\\..*sensor.* \\(changed\\)\\)"):
         dt.dataset.generate(tmp_path / "ds", **small)
 
 
