@@ -229,7 +229,8 @@ def _scene_sources(scenes, dataset_config, samples, dataset_seed, resolution, de
 
 
 def _write_csv(path, rows) -> str:
-    names = list(dict.fromkeys(k for r in rows for k in r))
+    names = list(dict.fromkeys(k for r in rows for k in r if k != "status"))
+    names += ["status"] if any("status" in r for r in rows) else []  # last, whichever row comes first
     with open(path, "w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fieldnames=names)
         writer.writeheader()
