@@ -50,20 +50,27 @@ def show_warning(message, category, filename, lineno, file=None, line=None):
 
 
 class StopOnSignal:
-    """A ``stop()`` callable for :func:`dopplertof.render` that turns true on a signal."""
+    """A ``stop()`` callable for :func:`dopplertof.render` that turns true on a signal.
+
+    The render calls it before each pass, so once it has been called a pass may be in
+    progress, and a signal says it stops after that pass; before (during start-up) it says
+    nothing, and the command's one ``error:`` line follows when the render sees the stop.
+    """
 
     SIGNALS = STOP_SIGNALS
 
     def __init__(self):
         self.signum = None
         self._saved = {}
+        self._polled = False
 
     def _handle(self, signum, frame):
         if self.signum == signum:  # asked twice: stop now
             signal.signal(signum, self._saved.get(signum, signal.SIG_DFL))
             raise KeyboardInterrupt
         self.signum = signum
-        click.echo(f"\n{signal.Signals(signum).name}: stopping after the pass in progress (again to stop at once)", err=True)
+        if self._polled:
+            click.echo(f"\n{signal.Signals(signum).name}: stopping after the pass in progress (again to stop at once)", err=True)
 
     def __enter__(self):
         for s in self.SIGNALS:
@@ -76,6 +83,7 @@ class StopOnSignal:
         return False
 
     def __call__(self) -> bool:
+        self._polled = True
         return self.signum is not None
 
     @property
