@@ -165,3 +165,16 @@ def test_without_cameras_a_scene_that_declares_one_renders_the_default_set(data_
     assert code == 0, output
     cameras = json.loads((tmp_path / "a" / "frame_0000" / "metadata.json").read_text())["settings"]["cameras"]
     assert [(c["heterodyne"], c["exposure"], c["modulation_frequency"]) for c in cameras] == [(h, exposure or 0.0015, 30e6) for h in (0.0, 0.0, 1.0, 1.0)]
+
+
+def test_a_rerun_with_another_scene_content_is_refused(data_dir, tmp_path):
+    """Frames of one clip came from two scenes: a rerun with other -D values (or an edited
+    file) skipped the finished frames and rendered the rest of the other scene."""
+    path = tmp_path / "scene.xml"
+    path.write_text((data_dir / "readme_scene.xml").read_text().replace('<rgb name="intensity" value="20"/>', '<rgb name="intensity" value="$power"/>'))
+    common = (str(path), "--resolution", "8", "--spp", "4", "--fps", "1000", "--quiet", "-o", tmp_path / "clip")
+    code, output = run_animate(*common, "--frames", "1", "-D", "power=20")
+    assert code == 0, output
+    code, output = run_animate(*common, "--frames", "2", "-D", "power=30")
+    assert code == 2 and "holds an animation with other settings (scene_identity.content_sha256 (changed))" in output, output
+    assert not (tmp_path / "clip" / "frame_0001").exists()

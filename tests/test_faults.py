@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -310,6 +311,28 @@ def test_a_disk_that_fills_while_the_images_are_written_keeps_the_rendered_sums(
     assert resumed.returncode == 0, resumed.stderr
     assert not (out / "checkpoint.npz").exists()
     _assert_same_as_an_uninterrupted_render(tmp_path, out)
+
+
+def test_a_checkpoint_is_continued_only_by_the_scene_it_was_made_of(tmp_path, monkeypatch):
+    """The checkpoint knew a scene by its source: every built-in is "<dict>" (a render of
+    cornell-box resumed as cornell-box-area mixed the two), a file by its path as typed (an
+    edited file or other -D values were mixed in, the same file by another path refused)."""
+    checkpoint = tmp_path / "c.npz"
+    settings = dict(spp=4, checkpoint=checkpoint, keep_checkpoint=True)
+    dt.render(dt.scenes.build("cornell-box", resolution=8), **settings)
+    with pytest.raises(ValueError, match=r'another scene \(scene.builtin: "cornell-box" in the checkpoint, "cornell-box-area" now; scene.content_sha256 \(changed\)\)'):
+        dt.render(dt.scenes.build("cornell-box-area", resolution=8), **settings)
+    checkpoint.unlink()
+    path = tmp_path / "scene.xml"
+    path.write_text(Path(DATA, "readme_scene.xml").read_text().replace('<rgb name="intensity" value="20"/>', '<rgb name="intensity" value="$power"/>'))
+    dt.render(dt.load_scene(str(path), film_resolution=8, power="20"), **settings)
+    monkeypatch.chdir(tmp_path)  # the same file by another path: continued
+    dt.render(dt.load_scene("scene.xml", film_resolution=8, power="20"), **settings)
+    with pytest.raises(ValueError, match="scene.content_sha256"):  # another $power
+        dt.render(dt.load_scene(str(path), film_resolution=8, power="30"), **settings)
+    path.write_text(path.read_text().replace('value="0.8 0.3 0.2"', 'value="0.8 0.3 0.3"'))
+    with pytest.raises(ValueError, match="scene.content_sha256"):  # the file edited
+        dt.render(dt.load_scene(str(path), film_resolution=8, power="20"), **settings)
 
 
 def test_a_checkpoint_interval_is_honoured_or_refused(tmp_path):

@@ -80,6 +80,8 @@ def test_camera_from_original_parses_boolean_text_strictly(text, expected):
     ({"low_frequency_component_only": 2}, r"'low_frequency_component_only' must be a boolean"),
     ({"time": "soon"}, r"'time' must be a finite number, got 'soon'"),
     ({"g_1": "-1"}, r"'g1' .* must be > 0, got -1.0"),
+    # a misspelt key gave the default (a homodyne camera for a misspelt hetero_frequency)
+    ({"w_g": 30, "hetero_frequnecy": 1.0}, r"unknown camera key 'hetero_frequnecy' \(did you mean 'hetero_frequency'\?\); the keys are time, "),
 ])  # fmt: skip
 def test_camera_from_original_refuses_bad_values(params, match):
     with pytest.raises(ValueError, match=match):

@@ -173,3 +173,16 @@ def test_bad_executor_arguments(kwargs, match):
     scene = dt.scenes.build("cornell-box", resolution=4)
     with pytest.raises(ValueError, match=match):
         dt.render(scene, spp=2, **kwargs)
+
+
+def test_a_worker_refuses_a_scene_file_changed_since_it_was_loaded(local_ray, tmp_path):
+    """The workers load the file again: edited in between (a light 10x brighter), they
+    rendered the edited scene and the driver took it for the loaded one."""
+    path = tmp_path / "scene.xml"
+    path.write_text((DATA / "readme_scene.xml").read_text())
+    scene = dt.load_scene(str(path), film_resolution=8)
+    text = path.read_text()
+    assert text.count('<rgb name="intensity" value="') == 1
+    path.write_text(text.replace('<rgb name="intensity" value="', '<rgb name="intensity" value="1'))  # "5" -> "15": brighter
+    with pytest.raises(ValueError, match=r"a Ray worker on .* built another scene than the one loaded: .*scene.xml changed since"):
+        dt.render(scene, spp=2, executor="ray")

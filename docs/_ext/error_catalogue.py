@@ -70,6 +70,7 @@ TOPICS = [
     ]),
     ("Render settings", "A setting of `dopplertof render` (or of the API's `RenderSettings`), from an option, a scene file's `<integrator>` or a dict. The message names the setting and the values it takes; the settings table of the [command line](cli.md) page lists them all.", [
         ("unknown … …; choose one of …", "a choice setting (time sampling, correlation, …) has a value it does not know", "use one of the choices listed"),
+        ("…: unknown camera key… …; the keys are …", "`Camera.from_original` given a key the original code does not have (a misspelling)", "use one of the keys listed"),
         ("… must be >= …, got …", "a setting is below its minimum", "give a value at or above the minimum (the settings table of the [command line](cli.md) page)"),
         ("… must be …, got …", "a setting is out of its range or of the wrong type (a number where an integer is needed, …)", "give a value in the range the message names"),
         ("… must be true or false, got …", "a boolean setting got another value", "`true` or `false` (also yes/no, 1/0, on/off in files)"),

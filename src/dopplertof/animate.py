@@ -47,6 +47,7 @@ import numpy as np
 from .clitools import StopOnSignal, cameras_layer, fail, given_settings, output_folder, settings_options
 
 from . import io, viz
+from .differences import differences
 from .modulation import Camera
 from .render_folder import describe_error, reconstruct, resolve_method, velocity_error, write_reconstruction
 
@@ -210,9 +211,9 @@ def _prepare_output(output: str, settings: dict, overwrite: bool) -> None:
     elif os.path.isfile(settings_path):
         stored = io.read_json(settings_path)
         ignore = {"frames"}  # a longer clip extends a shorter one
-        differ = sorted(k for k in set(stored) | set(settings) if k not in ignore and stored.get(k) != settings.get(k))
+        differ = differences({k: v for k, v in stored.items() if k not in ignore}, {k: v for k, v in settings.items() if k not in ignore})
         if differ:
-            changes = "; ".join(f"{k}: {stored.get(k)!r} there, {settings.get(k)!r} now" for k in differ)
+            changes = "; ".join(differ)
             raise ValueError(f"{output} holds an animation with other settings ({changes}); "
                              "use another folder, or --overwrite to replace it")
     elif _existing_frames(output):
@@ -370,7 +371,7 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
     method = resolve_method(list(settings.cameras), method)
     width, height = scene.resolution
     record = _jsonable({
-        "scene": scene_label or scene.source, "resolution": [width, height], "frames": frames, "fps": fps,
+        "scene": scene_label or scene.source, "scene_identity": scene.identity(), "resolution": [width, height], "frames": frames, "fps": fps,
         "method": method, **{k: v for k, v in settings.as_dict().items() if k != "exposure_start"},
     })
     _prepare_output(output, record, overwrite)

@@ -45,6 +45,7 @@ from __future__ import annotations
 import re
 
 import copy
+import hashlib
 import os
 import xml.etree.ElementTree as ET
 
@@ -351,6 +352,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
 
     found = {"defaults": set(), "texts": []}
     root = _read_scene(path, {k: str(v) for k, v in params.items()}, path, found)
+    digest = hashlib.sha256(ET.tostring(root)).hexdigest()  # includes expanded, $names substituted
     known = found["defaults"] | {m for text in found["texts"] for m in _TOKEN.findall(text)}
     unknown = [n for n in params if n not in known]  # whole names: -D sp=8 does not set $spp
     if unknown:
@@ -459,7 +461,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     if strict_normals:
         mitsuba06.check_flat_shading([static, *(b.scene for b in bodies)], path)
     scene = DynamicScene(
-        static=static, bodies=bodies, integrator_params=integrator_params, **hints, source=path,
+        static=static, bodies=bodies, integrator_params=integrator_params, **hints, source=path, content_digest=digest,
         camera_motion=camera_motion, lights=lights, pipeline_host=host,
     )  # fmt: skip
     return _checked_scene(scene, shutter_given)

@@ -32,6 +32,7 @@ trapezoidal      sensor sign(cos θ), light   clamp(4 − 8c, −2, 2)
 
 from __future__ import annotations
 
+import difflib
 import math
 import warnings
 from dataclasses import dataclass
@@ -274,7 +275,8 @@ class Camera:
         Accepts ``time``, ``w_g`` (MHz), ``w_s`` (MHz), ``g_1``, ``g_0``, ``hetero_frequency``,
         ``hetero_offset`` (fraction of 2π, overrides ``sensor_phase_offset``),
         ``sensor_phase_offset`` (rad), ``wave_function_type``,
-        ``low_frequency_component_only``. Other keys are ignored here. Values may be
+        ``low_frequency_component_only`` (:data:`ORIGINAL_CAMERA_KEYS`); any other key is a
+        ValueError naming it (a misspelt ``hetero_frequency`` gave a homodyne camera). Values may be
         given as text (as in a scene file), parsed strictly: a boolean is ``true``/``false``
         (``yes``/``no``, ``1``/``0``, ``on``/``off``), anything else is a ValueError naming
         the key.
@@ -296,6 +298,11 @@ class Camera:
             A value that does not parse or is out of range, naming the key.
         """
         from .validation import checked_or_text
+
+        unknown = sorted(set(params) - set(ORIGINAL_CAMERA_KEYS))
+        if unknown:
+            named = [f"{k!r}" + "".join(f" (did you mean {c!r}?)" for c in difflib.get_close_matches(k, ORIGINAL_CAMERA_KEYS, n=1)) for k in unknown]
+            raise ValueError(f"{where}: unknown camera key{'s' if len(unknown) > 1 else ''} {', '.join(named)}; the keys are {', '.join(ORIGINAL_CAMERA_KEYS)}")
 
         def get(key, kind, default):
             return checked_or_text(key, params.get(key, default), kind, where)
@@ -324,6 +331,14 @@ class Camera:
             return cls(**values)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
+
+
+# The original code's camera parameters and their kinds (:meth:`Camera.from_original`).
+ORIGINAL_CAMERA_KEYS = {
+    "time": "float", "w_g": "float", "w_s": "float", "hetero_frequency": "float", "sensor_phase_offset": "float",
+    "hetero_offset": "float", "g_1": "float", "g_0": "float", "wave_function_type": "str",
+    "low_frequency_component_only": "bool",
+}  # fmt: skip
 
 
 # ----------------------------------------------------------------------------------------

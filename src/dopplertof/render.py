@@ -197,7 +197,7 @@ def warn_if_long(width: int, height: int, spp: int, n_windows: int = 1) -> None:
 def fingerprint(scene, settings: RenderSettings) -> str:
     """What a checkpoint must match to be continued: the settings, the film and the scene,
     as JSON text (the checkpoint keeps it, and its hash)."""
-    return json.dumps({"settings": settings.as_dict(), "film": list(scene.resolution), "scene": scene.source, "motions": len(scene.motions())}, sort_keys=True, default=str)
+    return json.dumps({"settings": settings.as_dict(), "film": list(scene.resolution), "scene": scene.identity(), "motions": len(scene.motions())}, sort_keys=True, default=str)
 
 
 def _digest(key: str) -> str:
@@ -207,14 +207,15 @@ def _digest(key: str) -> str:
 def _differences(stored_key: str, key: str) -> str:
     """What differs between two :func:`fingerprint` texts, as ``"spp: 64 in the checkpoint,
     128 now"`` items (empty where the stored one cannot be read: older checkpoints)."""
+    from .differences import differences
+
     try:
         old, new = json.loads(stored_key), json.loads(key)
         old = {**old.pop("settings", {}), **old}
         new = {**new.pop("settings", {}), **new}
     except (ValueError, AttributeError, TypeError):
         return ""
-    short = lambda v: (lambda t: t if len(t) <= 40 else t[:37] + "...")(json.dumps(v, default=str))  # noqa: E731
-    items = [f"{k}: {short(old.get(k))} in the checkpoint, {short(new.get(k))} now" for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
+    items = differences(old, new, "in the checkpoint")
     return "; ".join(items[:3]) + ("; …" if len(items) > 3 else "")
 
 

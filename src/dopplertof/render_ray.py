@@ -36,7 +36,7 @@ NO_RECIPE = (
 class _PassWorker:
     """A Ray actor: the scene built again from its recipe, tracing passes (:class:`PassTracer`)."""
 
-    def __init__(self, recipe, traversal, settings, variant, threads):
+    def __init__(self, recipe, digest, traversal, settings, variant, threads):
         node_local_cache()  # before the first import of Dr.Jit in this worker
         from .backend import set_variant
 
@@ -48,13 +48,17 @@ class _PassWorker:
         from .passes import PassTracer
         from .scenes import from_recipe
 
+        import socket
+
         self.error = None
         try:
             scene = from_recipe(recipe)
         except ValueError as exc:  # e.g. the scene file is not at its path on this node
-            import socket
-
             self.error = f"a Ray worker on {socket.gethostname()} cannot build the scene: {exc}"
+            return
+        if scene.content_digest != digest:  # the file changed since the driver loaded it
+            self.error = (f"a Ray worker on {socket.gethostname()} built another scene than the one loaded: "
+                          f"{recipe[1]} changed since (its content differs); load it again")
             return
         scene.traversal = traversal
         self.tracer = PassTracer(scene, settings)
@@ -98,7 +102,7 @@ def traced_on_ray(scene, settings, passes, address=None, workers=None, max_retri
         threads = max(1, cpus // count)
         resources = {"num_cpus": threads}
     actor = ray.remote(**resources, max_restarts=max_retries, max_task_retries=max_retries)(_PassWorker)
-    actors = [actor.remote(scene.recipe, scene.traversal, settings, variant, threads) for _ in range(min(count, len(passes)))]
+    actors = [actor.remote(scene.recipe, scene.content_digest, scene.traversal, settings, variant, threads) for _ in range(min(count, len(passes)))]
     return _in_pass_order(ray, actors, passes)
 
 

@@ -388,6 +388,9 @@ class DynamicScene:
                                  spot emitter
     recipe             tuple     how to build it again elsewhere
                                  (:func:`dopplertof.scenes.from_recipe`); None: from a dict
+    content_digest     str       SHA-256 of what it was built from: a file's XML with its
+                                 includes and ``$name`` values, a built-in's name and
+                                 arguments; None from a dict (:meth:`identity`)
     pipeline_host      object    the never-traced scene whose OptiX pipeline and SBT the
                                  others share (:mod:`dopplertof.loader`); None without bodies
     =================  ========  ============================================================
@@ -415,6 +418,7 @@ class DynamicScene:
     camera_motion: Motion | None = None
     lights: list = field(default_factory=list)
     recipe: tuple | None = None  # how to build it again elsewhere (scenes.from_recipe); None: from a dict
+    content_digest: str | None = None  # SHA-256 of the file's expanded XML or the built-in's arguments (identity)
     # The never-traced scene whose OptiX pipeline and SBT ``static`` and every body's scene
     # share (loader.pipeline_host); it must outlive them. None without bodies.
     pipeline_host: object = None
@@ -468,6 +472,24 @@ class DynamicScene:
         if self.bodies and key != self._tree_key:
             self._tree = BoxTree.build(np.array([b.swept_box[0] for b in self.bodies]), np.array([b.swept_box[1] for b in self.bodies]))
             self._tree_key = key
+
+    def identity(self) -> dict:
+        """What tells this scene from another, for checkpoints, Ray workers and clips: its
+        :attr:`content_digest`, else (a dict) its shape, emitter and body counts and bounds.
+
+        Returns
+        -------
+        dict (JSON-able)
+        """
+        if self.content_digest is not None:
+            named = {"builtin": self.recipe[1]} if self.recipe is not None and self.recipe[0] == "builtin" else {}
+            return {**named, "content_sha256": self.content_digest}
+        boxes = [m.bbox() for m in [self.static, *(b.scene for b in self.bodies)]]
+        return {
+            "source": self.source, "shapes": [len(m.shapes()) for m in [self.static, *(b.scene for b in self.bodies)]],
+            "emitters": len(self.static.emitters()) + len(self.lights),
+            "bounds": [[round(float(v), 6) for v in (*box.min, *box.max)] for box in boxes],
+        }  # fmt: skip
 
     def set_time_window(self, t0: float, t1: float):
         """Fit every body's swept bounds to the times [t0, t1] s (the exposure): rays

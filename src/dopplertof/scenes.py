@@ -27,7 +27,9 @@ a modified scene gets the matching length.
 
 from __future__ import annotations
 
+import hashlib
 import inspect
+import json
 import math
 import os
 
@@ -871,6 +873,7 @@ def build(name: str, **kwargs):
     _check_name(name)
     scene = SCENES[name][0](**kwargs)
     scene.recipe = ("builtin", name, kwargs)
+    scene.content_digest = hashlib.sha256(json.dumps(["builtin", name, kwargs], sort_keys=True, default=repr).encode()).hexdigest()
     return scene
 
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .correlation import MODES, PAIRED, Correlation
-from .modulation import Camera, checked_exposure
+from .modulation import ORIGINAL_CAMERA_KEYS, Camera, checked_exposure
 from .timesampling import ANALYTIC, METHODS, group_cuts, stratifies, wrap_points
 from .validation import checked
 
@@ -410,12 +410,7 @@ def _unknown(key: str, where: str, known=None) -> ValueError:
 # ----------------------------------------------------------------------------------------
 # The original code's integrator parameters (reference §8.2) -> a layer of settings
 
-# original key -> type; camera keys go through Camera.from_original
-_ORIGINAL_CAMERA_KEYS = {
-    "time": "float", "w_g": "float", "w_s": "float", "hetero_frequency": "float", "sensor_phase_offset": "float",
-    "hetero_offset": "float", "g_1": "float", "g_0": "float", "wave_function_type": "str",
-    "low_frequency_component_only": "bool",
-}  # fmt: skip
+# Camera keys (modulation.ORIGINAL_CAMERA_KEYS) go through Camera.from_original;
 # original key -> (type, our setting)
 _ORIGINAL_KEYS = {
     "time_sampling_method": ("str", "time_sampling"),
@@ -496,8 +491,8 @@ def integrator_layer(params: dict, where: str = "integrator") -> dict:
     layer: dict = {}
     camera_params: dict = {}
     for key, value in params.items():
-        if key in _ORIGINAL_CAMERA_KEYS:
-            camera_params[key] = checked(key, value, _ORIGINAL_CAMERA_KEYS[key], where)
+        if key in ORIGINAL_CAMERA_KEYS:
+            camera_params[key] = checked(key, value, ORIGINAL_CAMERA_KEYS[key], where)
         elif key in _CAMERA_SI_KEYS:
             clash = [k for k in _CAMERA_SI_KEYS[key] if k in params]
             if clash:
@@ -514,7 +509,7 @@ def integrator_layer(params: dict, where: str = "integrator") -> dict:
         elif key in FIELDS and key != "cameras":
             layer[key] = value
         else:
-            raise _unknown(key, where, [*FIELDS, *_ORIGINAL_CAMERA_KEYS, *_ORIGINAL_KEYS, *_CAMERA_SI_KEYS, *_NO_EFFECT_KEYS])
+            raise _unknown(key, where, [*FIELDS, *ORIGINAL_CAMERA_KEYS, *_ORIGINAL_KEYS, *_CAMERA_SI_KEYS, *_NO_EFFECT_KEYS])
     if "path_correlation_depth" in params:
         if "correlation" in params or "correlation_depth" in params:
             raise ValueError(f"{where}: give either 'correlation'/'correlation_depth' or 'path_correlation_depth', not both")

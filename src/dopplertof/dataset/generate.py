@@ -10,6 +10,7 @@ import os
 import time
 
 from ..backend import Stopped, signals_as_interrupt  # noqa: F401  (Stopped: what generate raises)
+from ..differences import differences
 from . import config as config_mod
 from . import execute, schema, shards
 
@@ -143,26 +144,6 @@ def header_for(cfg: dict, samples: int, seed: int, shard_size: int, variant: str
     }
 
 
-def _differences(existing: dict, wanted: dict, keys) -> list[str]:
-    """``keys`` of two dataset headers that differ, each as ``name: old there, new now``;
-    within ``config``, the configuration's own keys (``config.render.spp: 8 there, 16 now``)."""
-
-    def flat(value, prefix):
-        if isinstance(value, dict):
-            return {k: v for name, item in value.items() for k, v in flat(item, f"{prefix}.{name}").items()}
-        return {prefix: value}
-
-    out = []
-    for key in keys:
-        there, now = flat(existing.get(key), key), flat(wanted.get(key), key)
-        for k in sorted(set(there) | set(now)):
-            a, b = there.get(k, "absent"), now.get(k, "absent")
-            if a != b:
-                long = any(isinstance(v, str) and ("\n" in v or len(v) > 60) for v in (a, b))  # a sensor file's text
-                out.append(f"{k} (changed)" if long else f"{k}: {a!r} there, {b!r} now")
-    return out
-
-
 def generate(
     output,
     samples: int,
@@ -254,7 +235,7 @@ def generate(
         if existing is not None:
             differ = [k for k in _IDENTITY_KEYS if existing.get(k) != header.get(k)]
             if differ:
-                raise ValueError(f"{output} holds another dataset (it differs in {', '.join(_differences(existing, header, differ))}); use another folder")
+                raise ValueError(f"{output} holds another dataset (it differs in {', '.join(differences({k: existing.get(k) for k in differ}, {k: header.get(k) for k in differ}))}); use another folder")
         shards.rebuild_manifest(output, header, layout)
 
     todo, skipped = [], []
