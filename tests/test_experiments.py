@@ -203,6 +203,11 @@ def test_cache_round_trip(tmp_path):
     for name in ("intensity", "measurements", "measurement_stderr", "velocity", "depth"):
         np.testing.assert_array_equal(getattr(loaded, name), getattr(result, name))
     assert (loaded.spp, loaded.seed, loaded.settings) == (result.spp, result.seed, result.settings)
+    # a damaged file is rendered again (a truncated one raised BadZipFile from every experiment using it)
+    whole = cache.path("k").read_bytes()
+    for damaged in (whole[:1000], whole[:-40] + bytes(40)):
+        cache.path("k").write_bytes(damaged)
+        assert cache.load("k", cameras) is None
 
 
 def test_default_cache_dir_follows_the_environment(monkeypatch, tmp_path):

@@ -31,6 +31,7 @@ import contextlib
 import json
 import os
 import re
+import zipfile
 from pathlib import Path
 from typing import Any, Sequence, Union
 
@@ -357,6 +358,8 @@ def read_npy(path: PathLike) -> np.ndarray:
 
 
 _NPY_MAGIC, _ZIP_MAGIC = b"\x93NUMPY", b"PK\x03\x04"
+# What np.load raises for a file that is not a whole .npz (truncated, a flipped byte, another format).
+NPZ_READ_ERRORS = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
 
 
 def _check_magic(path, magic: bytes, what: str) -> None:

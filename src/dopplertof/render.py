@@ -45,11 +45,11 @@ import json
 import math
 import os
 import warnings
-import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .io import NPZ_READ_ERRORS
 from .outputs import BY_NAME, ESTIMATES, TRUTH
 from .passes import MAX_COVARIANCE_CAMERAS, Accumulator, PassTracer, Reducer, schedule
 from .settings import DEFAULT_CHECKPOINT_INTERVAL_S, DEFAULT_EXPOSURE_S, RenderSettings, checked_checkpoint_interval, scene_layer
@@ -226,15 +226,13 @@ def _checkpoint_names(accs: list) -> list[tuple[str, Accumulator, str]]:
     return [(prefix(k) + name, acc, name) for k, acc in enumerate(accs) for name in acc.state]
 
 
-# What np.load raises for a file that is not a whole .npz.
-_UNREADABLE = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
 
 
 def _load_checkpoint(path, accs: list, key: str):
     try:
         with np.load(path, allow_pickle=False) as data:
             stored = {name: data[name] for name in data.files}
-    except _UNREADABLE as exc:
+    except NPZ_READ_ERRORS as exc:
         raise ValueError(f"{path}: the checkpoint cannot be read ({exc}); remove it to render from the start") from None
     if str(stored.get("fingerprint")) != _digest(key):
         differences = _differences(str(stored.get("fingerprint_text", "")), key)
@@ -274,7 +272,7 @@ def _passes_in(path) -> int | None:
     try:
         with np.load(path, allow_pickle=False) as data:
             return sum(int(data[name][0]) for name in data.files if name.rpartition(".")[2] == "passes_done")
-    except _UNREADABLE:
+    except NPZ_READ_ERRORS:
         return None
 
 

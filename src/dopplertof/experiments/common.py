@@ -26,6 +26,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .. import __version__
+from ..io import NPZ_READ_ERRORS
 from ..modulation import Camera
 from ..outputs import OUTPUTS
 from ..render import RenderResult, render
@@ -505,7 +506,7 @@ class ReferenceCache:
             with np.load(self.path(key), allow_pickle=False) as data:
                 meta = json.loads(str(data["meta"]))
                 arrays = {name: data[name] for name in _ARRAY_FIELDS}
-        except (OSError, KeyError, ValueError):
+        except NPZ_READ_ERRORS:  # a truncated or damaged file is rendered again
             return None
         settings = RenderSettings.build({**meta["settings"], "cameras": list(cameras)})
         return RenderResult(maps=arrays, settings=settings, spp=meta["spp"])
