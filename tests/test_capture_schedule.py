@@ -141,6 +141,7 @@ def test_a_schedule_resumes_from_its_checkpoint(cornell, tmp_path):
     calls = iter(range(100))
     partial = dt.render(cornell, checkpoint=checkpoint, stop=lambda: next(calls) >= 3, **common)
     assert partial.interrupted and partial.info["passes_done"] == 3 and partial.info["passes"] == 4
+    assert partial.info["window_spp"] == [32, 16] and partial.spp == 16  # per window (the command said 0 of a schedule's spp)
     resumed = dt.render(cornell, checkpoint=checkpoint, **common)
     whole = dt.render(cornell, **common)
     for name in whole.maps:

@@ -196,8 +196,10 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
         kept = f"; the rendered sums are kept in {checkpoint!r}: free space, then write the images with the same command and --resume" if result is not None and os.path.isfile(checkpoint) else ""
         fail(f"cannot write {output!r}: {exc.strerror or exc}{kept}")
     if result.interrupted:
+        done = result.info["window_spp"]
+        reached = f"{result.spp}" if len(done) == 1 else f"{', '.join(map(str, done))} (per exposure window)"
         click.echo(
-            f"{stop.name}: stopped at {result.spp} of {settings.spp} spp; partial result and checkpoint in "
+            f"{stop.name}: stopped at {reached} of {settings.spp} spp; partial result and checkpoint in "
             f"{os.path.abspath(output)}/ (continue with --resume)", err=True,
         )  # fmt: skip
         sys.exit(stop.exit_status)

@@ -586,12 +586,13 @@ def render(
         save(due=True)
     elif checkpoint is not None and os.path.exists(checkpoint):
         os.remove(checkpoint)
-    spp_done = min(int(acc.state["samples"].min()) for acc in accs)
+    window_spp = [int(acc.state["samples"].min()) for acc in accs]  # a stopped schedule's windows differ
+    spp_done = min(window_spp)
     info = {"render_seconds": time.perf_counter() - start, "passes": len(passes) * len(windows), "passes_done": done,
-            "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows]}  # fmt: skip
+            "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows], "window_spp": window_spp}  # fmt: skip
     if until_noise is not None:
         info["until_noise"] = {"ratio": until_noise, "reached": [reached[k][-1][1] if k in reached else float("inf") for k in range(len(windows))],
-                               "spp": [int(acc.state["samples"].min()) for acc in accs], "history": [reached.get(k, []) for k in range(len(windows))]}  # fmt: skip
+                               "spp": window_spp, "history": [reached.get(k, []) for k in range(len(windows))]}  # fmt: skip
     # finish consumes the sums: what the record needs of each window is taken first
     recorded = [(acc.record_sum, acc.state["samples"].copy(), int(acc.state["passes_done"][0])) for acc in accs]
     finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
