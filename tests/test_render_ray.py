@@ -186,3 +186,10 @@ def test_a_worker_refuses_a_scene_file_changed_since_it_was_loaded(local_ray, tm
     path.write_text(text.replace('<rgb name="intensity" value="', '<rgb name="intensity" value="1'))  # "5" -> "15": brighter
     with pytest.raises(ValueError, match=r"a Ray worker on .* built another scene than the one loaded: .*scene.xml changed since"):
         dt.render(scene, spp=2, executor="ray")
+
+
+def test_a_builtin_scene_from_its_function_knows_its_recipe():
+    """The README's own dt.scenes.cornell_box(...) was refused by Ray as "loaded from a dict"."""
+    direct, built = dt.scenes.cornell_box(16), dt.scenes.build("cornell-box", resolution=16)
+    assert direct.recipe == built.recipe and direct.recipe[:2] == ("builtin", "cornell-box")
+    assert direct.identity() == built.identity() != dt.scenes.cornell_box(16, displacement=0.02).identity()

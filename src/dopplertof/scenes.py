@@ -27,6 +27,7 @@ a modified scene gets the matching length.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import inspect
 import json
@@ -123,6 +124,31 @@ def _load(scene):
 # Cornell box
 
 
+
+def _builtin(name: str):
+    """Decorate the builder of built-in scene ``name``: the scene it returns knows how to be
+    built again (``recipe``, for Ray workers) and what it is (``content_digest``, for
+    checkpoints and clips), however the builder was called."""
+
+    def decorate(builder):
+        signature = inspect.signature(builder)
+
+        @functools.wraps(builder)
+        def built(*args, **kwargs):
+            scene = builder(*args, **kwargs)
+            bound = signature.bind(*args, **kwargs)
+            bound.apply_defaults()  # the same scene, however its arguments were given
+            arguments = dict(bound.arguments)
+            scene.recipe = ("builtin", name, arguments)
+            scene.content_digest = hashlib.sha256(json.dumps(["builtin", name, arguments], sort_keys=True, default=repr).encode()).hexdigest()
+            return scene
+
+        return built
+
+    return decorate
+
+
+@_builtin("cornell-box")
 def cornell_box(resolution=256, light="point", exposure=CORNELL_EXPOSURE_S, displacement=0.015):
     """The original D-ToF Cornell box (its dict: :func:`cornell_box_dict`).
 
@@ -214,6 +240,7 @@ def cornell_box_dict(resolution=256, light="point", exposure=CORNELL_EXPOSURE_S,
     return scene
 
 
+@_builtin("cornell-box-area")
 def cornell_box_area(resolution=256, exposure=CORNELL_EXPOSURE_S, displacement=0.015):
     """The Cornell box of :func:`cornell_box` lit by a ceiling area light.
 
@@ -244,6 +271,7 @@ def _cornell_clip(exposure, **_):
 ROTATING_PLATFORM_HEIGHT_M = 0.25
 
 
+@_builtin("rotating")
 def rotating(resolution=256, radius=1.2, rim_speed=3.0):
     """A merry-go-round: a round platform and four objects spinning about a vertical axis.
 
@@ -328,6 +356,7 @@ def fall_time(drop_height, gravity=STANDARD_GRAVITY_M_S2):
     return math.sqrt(2.0 * _positive("drop_height", drop_height) / _positive("gravity", gravity))
 
 
+@_builtin("falling-box")
 def falling_box(resolution=256, drop_height=1.5, size=0.5, gravity=STANDARD_GRAVITY_M_S2, spin_deg=90.0, keyframes=24):
     """A box dropped from rest that tumbles and lands flat on the floor.
 
@@ -536,6 +565,7 @@ def _domino_keys(times, angles, segments):
     return key_times, np.interp(key_times, times, angles)
 
 
+@_builtin("dominoes")
 def dominoes(resolution=256, count=10, height=0.5, thickness=0.08, width=0.25, spacing=0.3, push=3.0, gravity=STANDARD_GRAVITY_M_S2):
     """A chain of ``count`` dominoes that topple one after another.
 
@@ -619,6 +649,7 @@ def _dominoes_clip(count, height, thickness, spacing, push, gravity, **_):
 GLOSSY_ROLL_DISTANCE_M = 2.0
 
 
+@_builtin("glossy")
 def glossy(resolution=256, speed=2.0, spin_rate=2.0, roughness=0.15):
     """Smooth and rough conductors, a rolling glass sphere and diffuse surfaces.
 
@@ -734,6 +765,7 @@ _CROSSWALK_X_M = (-4.0, 1.0, 5.0)  # pedestrians on the crosswalk
 STREET_MOVING_BODIES = len(_ONCOMING_Z_M) + len(_AHEAD_Z_M) + len(_CROSSING_X_M) + _WALKERS + len(_CROSSWALK_X_M) + 1  # + the cyclist
 
 
+@_builtin("street")
 def street(resolution=256, speed=15.0, seed=0):
     """A D-ToF camera on a car driving down a street at ``speed`` m/s.
 
@@ -871,10 +903,7 @@ def build(name: str, **kwargs):
         A keyword argument the builder does not take.
     """
     _check_name(name)
-    scene = SCENES[name][0](**kwargs)
-    scene.recipe = ("builtin", name, kwargs)
-    scene.content_digest = hashlib.sha256(json.dumps(["builtin", name, kwargs], sort_keys=True, default=repr).encode()).hexdigest()
-    return scene
+    return SCENES[name][0](**kwargs)  # its builder records the recipe (_builtin)
 
 
 def from_recipe(recipe: tuple):
