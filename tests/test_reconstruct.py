@@ -672,3 +672,10 @@ def test_depth_of_non_sinusoidal_cameras_states_no_standard_error():
     m = np.array([[0.3, 0.2], [0.1, 0.25], [0.05, 0.02], [0.04, 0.03]])
     result = dt.reconstruct.velocity(m, cameras, measurement_stderr=np.full_like(m, 1e-4))
     assert result.depth_stderr is not None and np.isnan(result.depth_stderr).all()
+
+
+def test_negative_standard_errors_are_refused():
+    cameras = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
+    m = dt.reconstruct.model_measurements([1.0], 2.0, 3.0, cameras)
+    with pytest.raises(ValueError, match="measurement_stderr must be >= 0"):  # the sign was dropped
+        dt.reconstruct.velocity(m, cameras, measurement_stderr=-np.full_like(m, 1e-3))

@@ -203,6 +203,7 @@ TOPICS = [
         ("each camera needs modulation_frequency, exposure, heterodyne and phase attributes", "the API's cameras are of another type", "pass `dt.Camera` objects"),
         ("camera … must be finite, got …", "a camera parameter is NaN or infinite", "finite values"),
         ("measurement_stderr must have the measurements' shape …, got …", "standard errors of another shape", "pass `result.measurement_stderr`"),
+        ("measurement_stderr must be >= 0 (standard errors), got … negative values, e.g. …", "negative standard errors", "pass `result.measurement_stderr`"),
         ("measurement_covariance must have shape …, got …", "a covariance of another shape", "pass `result.measurement_covariance`"),
         ("method='ratio' needs every camera in a homodyne (h=0) / heterodyne (h=1) pair", "the ratio method pairs cameras", "pairs of h = 0 and h = 1 at equal phases, or `method='fit'`"),
         ("method='ratio' with pairs at … would read the brightness change of a moving surface as velocity", "the pairs' phases do not balance", "ψ = 0 and 90°, or `method='fit'`"),

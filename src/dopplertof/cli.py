@@ -138,7 +138,7 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
     from . import folder as out_folder
     from .backend import BackendError
     from .raytools import require_ray
-    from .render import CheckpointWriteError, check_film_memory, checkpoint_disk_bytes
+    from .render import CheckpointWriteError, check_film_memory, checked_until_noise, checkpoint_disk_bytes
     from .render import render as run_render
     from .scene import SceneError
     from .scenes import open_scene
@@ -156,8 +156,10 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
                 raise ValueError(f"{name} needs --ray")
         if use_ray:
             require_ray()
-        if until_noise is not None and sensor_spec is None:
-            raise ValueError("--until-noise compares the render's error with a sensor's noise: give --sensor")
+        if until_noise is not None:
+            if sensor_spec is None:
+                raise ValueError("--until-noise compares the render's error with a sensor's noise: give --sensor")
+            checked_until_noise(until_noise)  # before the folder is made
         sensor = None
         if sensor_spec is not None:
             from .sensors.files import load_sensor
@@ -174,6 +176,8 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
         check_film_memory(width, height, len(settings.cameras), len(settings.windows))
         bytes_needed = out_folder.estimated_bytes(width, height, len(settings.cameras)) + checkpoint_disk_bytes(width, height, settings)
         out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=bytes_needed)
+        if resume and not os.path.isfile(checkpoint):
+            click.echo(f"note: no checkpoint in {os.path.abspath(output)}/ to continue: rendering from the start", err=True)
         executor = {"executor": "ray", "address": address, "workers": workers} if use_ray else {}
         # The checkpoint outlives the render until its images are written: a full disk then loses nothing.
         result = run_render(dyn, settings=settings, progress=not quiet, checkpoint=checkpoint, checkpoint_interval_s=checkpoint_interval_s,

@@ -194,6 +194,14 @@ def warn_if_long(width: int, height: int, spp: int, n_windows: int = 1) -> None:
 # Checkpoints
 
 
+def checked_until_noise(ratio) -> float:
+    """``until_noise`` (:func:`render`) as a float, else ValueError: a ratio > 0."""
+    ratio = checked("until_noise", ratio, "float")
+    if not ratio > 0:
+        raise ValueError(f"until_noise={ratio!r}: must be > 0")
+    return ratio
+
+
 def fingerprint(scene, settings: RenderSettings) -> str:
     """What a checkpoint must match to be continued: the settings, the film and the scene,
     as JSON text (the checkpoint keeps it, and its hash)."""
@@ -478,11 +486,9 @@ def render(
         raise TypeError(f"settings must be a dopplertof.RenderSettings or a dict of setting names, got {type(settings).__name__}")
     settings = RenderSettings.build(*layers, overrides)
     if until_noise is not None:
-        until_noise = checked("until_noise", until_noise, "float")
+        until_noise = checked_until_noise(until_noise)
         if sensor is None:
             raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...)")
-        if not until_noise > 0:
-            raise ValueError(f"until_noise={until_noise!r}: must be > 0")
         # The ratio is checked after each pass: a pass of a large share of the render (on a
         # small film, one pass may hold all of it) would check too late to save anything.
         pass_lanes = math.prod(scene.resolution) * max(settings.group_size, settings.spp // settings.replicates)

@@ -70,6 +70,8 @@ def _covariance(stderr, covariance, shape):
     e = np.asarray(stderr, dtype=np.float64)
     if e.shape != shape:
         raise ValueError(f"measurement_stderr must have the measurements' shape {shape}, got {e.shape}")
+    if (e < 0).any():  # NaN (no error known) passes
+        raise ValueError(f"measurement_stderr must be >= 0 (standard errors), got {int((e < 0).sum())} negative values, e.g. {float(e[e < 0].flat[0])!r}")
     c = np.zeros((n, n) + shape[1:])
     for i in range(n):
         c[i, i] = e[i] ** 2
