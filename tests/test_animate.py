@@ -7,6 +7,7 @@ import dataclasses
 import json
 import shutil
 import sys
+import warnings
 
 import imageio.v3 as iio
 import numpy as np
@@ -178,3 +179,15 @@ def test_a_rerun_with_another_scene_content_is_refused(data_dir, tmp_path):
     code, output = run_animate(*common, "--frames", "2", "-D", "power=30")
     assert code == 2 and "holds an animation with other settings (scene_identity.content_sha256 (changed))" in output, output
     assert not (tmp_path / "clip" / "frame_0001").exists()
+
+
+def test_frames_whose_exposures_overlap_warn(tmp_path):
+    """--fps 1e9 queued frames 1 ns apart, each exposed for 1.5 ms, without a word."""
+    import dopplertof as dt
+
+    scene = dt.scenes.cornell_box(resolution=4)
+    with pytest.warns(UserWarning, match=r"exposure \(0.0015 s\) is longer than the time between frames \(1/fps = 0.001 s\)"):
+        animate.render_animation(scene, str(tmp_path / "a"), frames=2, fps=1000.0, settings={"spp": 4}, progress=False, log=lambda line: None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        animate.render_animation(scene, str(tmp_path / "b"), frames=2, fps=500.0, settings={"spp": 4}, progress=False, log=lambda line: None)

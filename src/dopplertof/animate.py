@@ -40,6 +40,7 @@ import os
 import re
 import shutil
 import time
+import warnings
 
 import click
 import numpy as np
@@ -369,6 +370,10 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
         raise ValueError(f"an animation opens every camera's exposure at its frame's time (i/fps); cameras {', '.join(scheduled)} "
                          "set their own exposure_start (a capture schedule), which animate does not take")
     method = resolve_method(list(settings.cameras), method)
+    longest_s = max(c.exposure for c in settings.cameras)
+    if frames > 1 and longest_s > 1.0 / fps:
+        warnings.warn(f"each frame's exposure ({longest_s:g} s) is longer than the time between frames (1/fps = {1.0 / fps:g} s): "
+                      "the frames' exposures overlap, and they see the same motion", stacklevel=2)
     width, height = scene.resolution
     record = _jsonable({
         "scene": scene_label or scene.source, "scene_identity": scene.identity(), "resolution": [width, height], "frames": frames, "fps": fps,

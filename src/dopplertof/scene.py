@@ -484,11 +484,10 @@ class DynamicScene:
         if self.content_digest is not None:
             named = {"builtin": self.recipe[1]} if self.recipe is not None and self.recipe[0] == "builtin" else {}
             return {**named, "content_sha256": self.content_digest}
-        boxes = [m.bbox() for m in [self.static, *(b.scene for b in self.bodies)]]
+        parts = [self.static, *(b.scene for b in self.bodies)]
         return {
-            "source": self.source, "shapes": [len(m.shapes()) for m in [self.static, *(b.scene for b in self.bodies)]],
-            "emitters": len(self.static.emitters()) + len(self.lights),
-            "bounds": [[round(float(v), 6) for v in (*box.min, *box.max)] for box in boxes],
+            "source": self.source, "shapes": [len(m.shapes()) for m in parts], "emitters": len(self.static.emitters()) + len(self.lights),
+            "bounds": [[round(float(v), 6) for v in (*m.bbox().min, *m.bbox().max)] for m in parts],
         }  # fmt: skip
 
     def set_time_window(self, t0: float, t1: float):
