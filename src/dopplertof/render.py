@@ -514,7 +514,7 @@ def render(
     window_settings = [
         dataclasses.replace(settings, cameras=w.cameras, exposure_start=w.start_s, seed=window_seed(settings.seed, k)) for k, w in enumerate(windows)
     ]  # fmt: skip
-    key = fingerprint(scene, settings)
+    key = None if checkpoint is None else fingerprint(scene, settings)  # only a checkpoint is matched against it
 
     def saved_sums():
         """The sums of the checkpoint, else zeros."""

@@ -57,6 +57,7 @@ import numpy as np
 from . import io, viz
 from .clitools import fail
 from . import reconstruct as rc
+from .reconstruct.frequencies import beat_range_m
 from .modulation import Camera
 
 METADATA_FILE = "metadata.json"
@@ -133,9 +134,7 @@ def summary(reconstruction: rc.VelocityResult, depth_truth_m=None) -> dict:
         "valid_fraction_of_image": float(np.mean(reconstruction.valid)),
     }
     if depth_truth_m is not None:
-        hit = np.isfinite(np.asarray(depth_truth_m, dtype=np.float64))
-        wrapped = depth_wrapped(depth_truth_m, reconstruction.depth_range_m)
-        info["depth_wrapped_fraction"] = float(wrapped[hit].mean()) if hit.any() else 0.0
+        info["depth_wrapped_fraction"] = _wrapped_fraction(depth_truth_m, reconstruction.depth_range_m)
     return info
 
 
@@ -246,8 +245,7 @@ def write_reconstruction(folder: str, reconstruction: rc.VelocityResult, ground_
         )
         io.write_json(path(ERROR_FILE), velocity_error(reconstruction, ground_truth_m_s))
     if depth_truth_m is not None:
-        wrapped = depth_wrapped(depth_truth_m, reconstruction.depth_range_m)
-        viz.save_png(path("depth_wrapped.png"), np.where(wrapped, 255, 0).astype(np.uint8))
+        _write_wrapped(path("depth_wrapped.png"), depth_truth_m, reconstruction.depth_range_m)
     io.write_json(path(SUMMARY_FILE), summary(reconstruction, depth_truth_m))
     return written
 
@@ -262,17 +260,27 @@ def write_depth(folder: str, depth_m, cameras, depth_truth_m=None, no_velocity: 
     io.write_exr(written[0], depth)
     viz.comparison_figure(written[1], {"reconstructed depth": depth}, signed=False, unit="m")
     frequencies = sorted({float(c.modulation_frequency) for c in cameras})
-    depth_range_m = rc.ambiguity_range_m(frequencies[0] if len(frequencies) == 1 else abs(frequencies[1] - frequencies[0]))
+    ranges = [rc.ambiguity_range_m(f) for f in frequencies]
+    depth_range_m = ranges[0] if len(ranges) == 1 else beat_range_m(*ranges)  # two frequencies: unwrapped (rc.depth)
     info = {"method": "depth only", "no_velocity": no_velocity, "depth_range_m": depth_range_m, "modulation_frequencies_hz": frequencies}
     if depth_truth_m is not None:
-        hit = np.isfinite(np.asarray(depth_truth_m, dtype=np.float64))
-        wrapped = depth_wrapped(depth_truth_m, depth_range_m)
-        info["depth_wrapped_fraction"] = float(wrapped[hit].mean()) if hit.any() else 0.0
+        info["depth_wrapped_fraction"] = _wrapped_fraction(depth_truth_m, depth_range_m)
         written.append(os.path.join(folder, "depth_wrapped.png"))
-        viz.save_png(written[-1], np.where(wrapped, 255, 0).astype(np.uint8))
+        _write_wrapped(written[-1], depth_truth_m, depth_range_m)
     written.append(os.path.join(folder, SUMMARY_FILE))
     io.write_json(written[-1], info)
     return written, info
+
+
+def _wrapped_fraction(depth_truth_m, depth_range_m: float) -> float:
+    """The fraction of the pixels that hit a surface whose depth is wrapped (:func:`depth_wrapped`)."""
+    hit = np.isfinite(np.asarray(depth_truth_m, dtype=np.float64))
+    return float(depth_wrapped(depth_truth_m, depth_range_m)[hit].mean()) if hit.any() else 0.0
+
+
+def _write_wrapped(path: str, depth_truth_m, depth_range_m: float) -> None:
+    """``depth_wrapped.png``: white where :func:`depth_wrapped`."""
+    viz.save_png(path, np.where(depth_wrapped(depth_truth_m, depth_range_m), 255, 0).astype(np.uint8))
 
 
 def depth_wrapped(depth_truth_m, depth_range_m: float) -> np.ndarray:

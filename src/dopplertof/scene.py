@@ -487,7 +487,7 @@ class DynamicScene:
         parts = [self.static, *(b.scene for b in self.bodies)]
         return {
             "source": self.source, "shapes": [len(m.shapes()) for m in parts], "emitters": len(self.static.emitters()) + len(self.lights),
-            "bounds": [[round(float(v), 6) for v in (*m.bbox().min, *m.bbox().max)] for m in parts],
+            "bounds": [[round(float(v), 6) for v in (*box.min, *box.max)] for box in (m.bbox() for m in parts)],
         }  # fmt: skip
 
     def set_time_window(self, t0: float, t1: float):
