@@ -115,6 +115,18 @@ def test_other_settings_are_refused_unless_overwritten(clip_copy):
     assert json.loads((folder / "animation.json").read_text())["spp"] == 8
 
 
+def test_a_shorter_clip_keeps_the_longer_ones_frames_and_says_so(clip_copy):
+    folder = clip_copy
+    code, output = run_animate(*CLIP, "--frames", 1, "-o", folder)
+    assert code == 0, output
+    assert "frame_0001 … frame_0002" in output and "--frames 3 takes them back in" in output
+    assert (folder / "frame_0002" / "done.json").is_file()  # finished work is kept
+    with open(folder / "summary.csv", newline="") as f:
+        assert [int(r["frame"]) for r in csv.DictReader(f)] == [0]
+    code, output = run_animate(*CLIP, "-o", folder)
+    assert code == 0 and "note:" not in output and output.count("skipped") == 3, output
+
+
 @pytest.mark.parametrize("args, message", [
     (["--frames", 0], "frames must be a positive integer, got 0"),
     (["--frames", -3], "frames must be a positive integer, got -3"),

@@ -604,6 +604,28 @@ def test_until_noise_checks_after_every_replicate_even_when_one_pass_would_hold_
     assert result.settings.lanes_per_pass == 64 * 2048 // 16  # one replicate (of the default 16) per pass
 
 
+def test_a_render_resumed_with_until_noise_continues_the_checkpoints_passes(tmp_path):
+    from dopplertof.sensors import preset
+
+    sensor = preset("dtof-prototype", radiance_unit=1e-3)
+    scene = dt.scenes.cornell_box(resolution=8)
+    checkpoint = str(tmp_path / "c.npz")
+    common = dict(sensor=sensor, spp=2048, max_depth=3, seed=2, lanes_per_pass=16384, checkpoint=checkpoint)
+    calls = iter(range(100))
+    partial = dt.render(scene, stop=lambda: next(calls) >= 2, **common)  # 2 of 8 passes of 256 spp
+    assert partial.interrupted and partial.spp == 512
+    # until_noise alone would check after every replicate (128 spp passes): it takes the checkpoint's 256
+    result = dt.render(scene, until_noise=1.0, **common)
+    assert result.settings.lanes_per_pass == 16384 and result.spp % 256 == 0 and result.spp > 512
+    unbroken = dt.render(scene, until_noise=1.0, **{**common, "checkpoint": None})
+    assert unbroken.settings.lanes_per_pass == 8192  # what it lowers to without a checkpoint
+    # a checkpoint whose passes are larger than asked is still refused (memory bound kept)
+    calls = iter(range(100))
+    dt.render(scene, stop=lambda: next(calls) >= 1, **{**common, "checkpoint": str(tmp_path / "d.npz")})
+    with pytest.raises(ValueError, match=r"lanes_per_pass: 16384 in the checkpoint, 4096 now"):
+        dt.render(scene, **{**common, "checkpoint": str(tmp_path / "d.npz"), "lanes_per_pass": 4096})
+
+
 def test_until_noise_needs_a_sensor_and_a_positive_ratio(cornell):
     with pytest.raises(ValueError, match="needs a sensor"):
         dt.render(cornell, spp=2, until_noise=0.5)

@@ -143,7 +143,7 @@ def test_read_exr_missing_file_names_path(tmp_path):
             reader(path)
 
 
-def test_read_exr_malformed_file_names_path(tmp_path):
+def test_read_exr_malformed_file_names_path(tmp_path, capfd):
     garbage = tmp_path / "garbage.exr"
     garbage.write_bytes(b"this is not an EXR file")
     with pytest.raises(ValueError, match="garbage.exr"):
@@ -155,8 +155,10 @@ def test_read_exr_malformed_file_names_path(tmp_path):
     truncated = tmp_path / "truncated.exr"
     data = full.read_bytes()
     truncated.write_bytes(data[: len(data) // 2])
-    with pytest.raises(ValueError, match="truncated.exr"):
+    with pytest.raises(ValueError, match="truncated.exr") as caught:
         io.read_exr_channels(truncated)
+    assert "(OpenEXR: (EXR_ERR_" in str(caught.value)  # the library's reason, in the one message
+    assert capfd.readouterr() == ("", "")  # and not printed on stdout or stderr beside it
 
 
 # --------------------------------------------------------------------------------- NPY

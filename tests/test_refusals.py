@@ -327,7 +327,7 @@ def test_render_animation_stopped_raises_its_own_exception(tiny, tmp_path):
 def test_an_spp_beyond_what_one_render_holds_is_refused_before_any_work(tmp_path):
     """2e10 paths per pixel overflowed the UInt32 strata table (a traceback), and 1e12 on a
     16x16 film grew to 20 GB before its first pass; one line now, up front."""
-    with pytest.raises(ValueError, match=r"spp=20000000000 exceeds 2147483648, the most paths per pixel one render takes"):
+    with pytest.raises(ValueError, match=r"spp=20000000000 exceeds its maximum 2147483648: the most paths per pixel one render takes"):
         dt.RenderSettings.build({"spp": 20_000_000_000})
     dt.RenderSettings.build({"spp": 1 << 31})
     proc = cli("render", "cornell-box", "--resolution", "1", "--spp", "20000000000", "-o", tmp_path / "out", "--quiet")

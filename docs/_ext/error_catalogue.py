@@ -128,7 +128,7 @@ TOPICS = [
         ("output folder … is not writable (…)", "the folder is read-only or not yours", "use another folder"),
         ("cannot write to output folder …: …", "the dataset folder cannot be created or written", "use another folder"),
         ("-o/--output is empty; leave it out for the default folder (…)", "`-o \"\"` (an unset shell variable, say)", "a folder name, or no `-o` for the default"),
-        ("spp=… exceeds …, the most paths per pixel one render takes; average several renders (different seeds) for more", "`spp` above 2³¹", "render several times with different seeds and average"),
+        ("…=… exceeds its maximum …: …", "a setting above its maximum (`spp` above 2³¹: the most paths per pixel one render takes)", "what the message says (for `spp`: render several times with different seeds and average)"),
         ("…: the checkpoint belongs to a render with other settings or another scene", "`--resume` found a checkpoint of a different render", "resume with the same settings, remove the checkpoint or use another folder"),
         ("…: the checkpoint cannot be read (…); remove it to render from the start", "the checkpoint file is unreadable", "remove `checkpoint.npz`"),
         ("…: the checkpoint is damaged (… missing or of another shape)", "the checkpoint file is incomplete", "remove `checkpoint.npz`"),

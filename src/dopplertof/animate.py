@@ -380,7 +380,11 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
         "method": method, **{k: v for k, v in settings.as_dict().items() if k != "exposure_start"},
     })
     _prepare_output(output, record, overwrite)
-
+    beyond = [name for name in _existing_frames(output) if int(name.split("_")[1]) >= frames]
+    if beyond:  # finished work is kept, but it is not part of this clip
+        log(f"note: {len(beyond)} frame folder{'' if len(beyond) == 1 else 's'} beyond frame {frames - 1} "
+            f"({beyond[0]} … {beyond[-1]}) from a longer clip stay in {output}, outside {SUMMARY_FILE} and {GIF_FILE}; "
+            f"--frames {int(beyond[-1].split('_')[1]) + 1} takes {'it' if len(beyond) == 1 else 'them'} back in")
     summaries = []
     for index in range(frames):
         folder = frame_folder(output, index)

@@ -31,6 +31,8 @@ import contextlib
 import json
 import os
 import re
+import sys
+import tempfile
 import zipfile
 from pathlib import Path
 from typing import Any, Sequence, Union
@@ -245,18 +247,48 @@ def read_exr_channels(path: PathLike) -> dict[str, np.ndarray]:
         If the file is not a readable OpenEXR image.
     """
     path = _existing_file(path, "EXR")
+    library_lines: list[str] = []
     try:
         # Copy out everything needed inside the block: leaving it empties the header dict.
-        with OpenEXR.File(str(path), separate_channels=True) as exr_file:
+        with _library_output_into(library_lines), OpenEXR.File(str(path), separate_channels=True) as exr_file:
             recorded_order = exr_file.header().get(EXR_CHANNEL_ORDER_ATTRIBUTE)
             stored = {name: channel.pixels for name, channel in exr_file.channels().items()}
     except Exception as error:  # OpenEXR raises RuntimeError or ValueError, message varies
-        raise ValueError(f"cannot read '{path}' as an OpenEXR image: {error}") from error
+        said = next((line for line in library_lines if "EXR_ERR" in line), library_lines[0] if library_lines else "")
+        said = said.removeprefix(f"{path}: ").strip()
+        raise ValueError(f"cannot read '{path}' as an OpenEXR image: {error}{f' (OpenEXR: {said})' if said else ''}") from error
+    for line in library_lines:  # a readable file's warnings are the user's to see
+        print(line, file=sys.stderr)
     if not stored:
         raise ValueError(f"OpenEXR file '{path}' has no channels")
 
     order = _channel_order(list(stored), recorded_order)
     return {name: np.asarray(stored[name], dtype=np.float32) for name in order}
+
+
+@contextlib.contextmanager
+def _library_output_into(lines: list):
+    """Collect into ``lines`` what a library prints, on file descriptors 1 and 2 or through
+    Python's ``sys.stdout``/``sys.stderr`` (OpenEXR prints its reasons there before
+    raising), so that a failure is reported in one line."""
+    import io as text_io
+
+    sys.stdout.flush(), sys.stderr.flush()
+    saved = {fd: os.dup(fd) for fd in (1, 2)}
+    python_streams = text_io.StringIO()
+    with tempfile.TemporaryFile() as sink:
+        for fd in saved:
+            os.dup2(sink.fileno(), fd)
+        try:
+            with contextlib.redirect_stdout(python_streams), contextlib.redirect_stderr(python_streams):
+                yield
+        finally:
+            for fd, original in saved.items():
+                os.dup2(original, fd)
+                os.close(original)
+            sink.seek(0)
+            text = python_streams.getvalue() + sink.read().decode(errors="replace")
+            lines.extend(line for line in text.splitlines() if line.strip())
 
 
 def _channel_order(stored_names: list[str], recorded: Any) -> list[str]:

@@ -236,6 +236,18 @@ def _checkpoint_names(accs: list) -> list[tuple[str, Accumulator, str]]:
 
 
 
+def _checkpoint_lanes_per_pass(path, settings: RenderSettings) -> int | None:
+    """The checkpoint's ``lanes_per_pass`` where it is at most ``settings``' (else None): the
+    sums are per pass, so a render continues the checkpoint's passes (``until_noise`` lowers
+    the pass size, and a render resumed with it would otherwise be refused)."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            stored = json.loads(str(data["fingerprint_text"]))["settings"]["lanes_per_pass"]
+    except (*NPZ_READ_ERRORS, KeyError, ValueError, TypeError):
+        return None  # no checkpoint yet, or one that _load_checkpoint explains
+    return stored if isinstance(stored, int) and 0 < stored <= settings.lanes_per_pass else None
+
+
 def _load_checkpoint(path, accs: list, key: str):
     try:
         with np.load(path, allow_pickle=False) as data:
@@ -388,7 +400,8 @@ def render(
         ``time_sampling``, ``correlation``, …), applied on top.
     progress : bool. Show a progress bar (a bool: ``"no"`` is a ValueError).
     checkpoint : path, optional. Continue from this checkpoint if it exists (same
-        settings, else ValueError); save the sums there while rendering (see
+        settings, else ValueError; its passes, where they hold at most ``lanes_per_pass``
+        lanes, not this render's pass size); save the sums there while rendering (see
         ``checkpoint_interval_s``) and if the render stops early; remove it when the render
         is complete (unless ``keep_checkpoint``).
     checkpoint_interval_s : float, seconds, default 60. With ``checkpoint``: a save follows
@@ -485,6 +498,7 @@ def render(
     else:
         raise TypeError(f"settings must be a dopplertof.RenderSettings or a dict of setting names, got {type(settings).__name__}")
     settings = RenderSettings.build(*layers, overrides)
+    resumed_lanes = None if checkpoint is None else _checkpoint_lanes_per_pass(checkpoint, settings)
     if until_noise is not None:
         until_noise = checked_until_noise(until_noise)
         if sensor is None:
@@ -493,6 +507,8 @@ def render(
         # small film, one pass may hold all of it) would check too late to save anything.
         pass_lanes = math.prod(scene.resolution) * max(settings.group_size, settings.spp // settings.replicates)
         settings = dataclasses.replace(settings, lanes_per_pass=min(settings.lanes_per_pass, pass_lanes))
+    if resumed_lanes is not None:
+        settings = dataclasses.replace(settings, lanes_per_pass=resumed_lanes)
     if record is not None and record is not False:
         from .design.record import as_spec, by_probes, first_grid
         from .design.record import check_memory as check_record_memory

@@ -44,9 +44,11 @@ MAX_SPP = 1 << 31
 PLUGIN_NAMES = ("dopplertof", "dopplertofpath")
 
 
-def _setting(default, kind, unit, doc, *, choices=None, follows=None, minimum=None, optional=False):
-    """A dataclass field with the setting's declaration in its metadata."""
-    meta = dict(kind=kind, unit=unit, doc=doc, choices=choices, follows=follows, minimum=minimum, optional=optional)
+def _setting(default, kind, unit, doc, *, choices=None, follows=None, minimum=None, maximum=None, beyond_maximum="", optional=False):
+    """A dataclass field with the setting's declaration in its metadata (``beyond_maximum``:
+    what the refusal of a value above ``maximum`` says to do instead)."""
+    meta = dict(kind=kind, unit=unit, doc=doc, choices=choices, follows=follows, minimum=minimum, maximum=maximum,
+                beyond_maximum=beyond_maximum, optional=optional)
     return field(default=default, metadata=meta)
 
 
@@ -54,7 +56,10 @@ def _setting(default, kind, unit, doc, *, choices=None, follows=None, minimum=No
 class RenderSettings:
     """All settings of one render (module docstring). Build with :meth:`build`."""
 
-    spp: int = _setting(64, "int", "paths/pixel", "paths per pixel (a group of n_times correlated times uses n_times)", minimum=1)
+    spp: int = _setting(
+        64, "int", "paths/pixel", "paths per pixel (a group of n_times correlated times uses n_times)", minimum=1,
+        maximum=MAX_SPP, beyond_maximum="the most paths per pixel one render takes; average several renders (different seeds) for more",
+    )  # fmt: skip
     seed: int = _setting(0, "int", "", "random seed: same seed, same image, whatever the pass split", minimum=0)
     cameras: tuple = _setting((), "cameras", "", "D-ToF camera configurations (dopplertof.Camera); none: intensity only")
     exposure: float | None = _setting(
@@ -253,8 +258,6 @@ class RenderSettings:
             raise ValueError(f"'reconnection_threshold' applies to adaptive correlation, not {self.correlation!r}")
         if self.correlation in PAIRED and n != 2:
             raise ValueError(f"correlation={self.correlation!r} pairs two times (n_times=2), got n_times={n}")
-        if self.spp > MAX_SPP:
-            raise ValueError(f"spp={self.spp} exceeds {MAX_SPP}, the most paths per pixel one render takes; average several renders (different seeds) for more")
         if self.spp % n:
             raise ValueError(f"spp={self.spp} must be a multiple of the {n} correlated times per group ({self.time_sampling})")
         groups = self.spp // n
@@ -310,7 +313,9 @@ def _parameters_section() -> str:
         meta = FIELDS[name].metadata
         kind = "sequence of dopplertof.Camera" if meta["kind"] == "cameras" else meta["kind"]
         choices = f" ({', '.join(meta['choices'])})" if meta["choices"] else ""
-        lines += [f"{name} : {kind}{', ' + unit if unit else ''}, default {default}", f"    {meaning}{choices}."]
+        bounds = [f">= {meta['minimum']}"] * (meta["minimum"] is not None) + [f"<= {meta['maximum']}"] * (meta["maximum"] is not None)
+        limits = f" ({', '.join(bounds)})" if bounds else ""
+        lines += [f"{name} : {kind}{', ' + unit if unit else ''}, default {default}", f"    {meaning}{choices}{limits}."]
     return "\n".join("    " + line for line in lines)
 
 
@@ -368,6 +373,8 @@ def _validated(f, value):
         raise ValueError(f"unknown {f.name} {value!r}; choose one of {', '.join(meta['choices'])}")
     if meta["minimum"] is not None and value < meta["minimum"]:
         raise ValueError(f"{f.name!r} must be >= {meta['minimum']}, got {value!r}")
+    if meta["maximum"] is not None and value > meta["maximum"]:
+        raise ValueError(f"{f.name}={value!r} exceeds its maximum {meta['maximum']}: {meta['beyond_maximum']}")
     return value
 
 

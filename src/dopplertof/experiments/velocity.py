@@ -50,10 +50,12 @@ MOVING_SPEED_M_S = 1e-3
 COLUMNS = (
     "scene", "estimator", "time_sampling", "correlation", "spp", "noise",
     "moving_pixels", "valid_fraction", "mae_m_s", "rmse_m_s", "bias_m_s", "median_abs_error_m_s",
-    "relative_mae", "static_pixels", "static_rmse_m_s",
+    "relative_mae", "static_pixels", "static_rmse_m_s", "max_velocity_stderr_m_s",
 )  # fmt: skip
-"""Errors in m/s over the moving pixels where the reconstruction is valid; ``valid_fraction``
-of the moving pixels are; ``relative_mae`` = MAE / mean |ground truth|; ``static_rmse_m_s``:
+"""Errors in m/s over the moving pixels where the reconstruction is valid (its standard error,
+propagated from the render's and the sensor's, within the threshold of
+:func:`dopplertof.reconstruct.velocity`, ``max_velocity_stderr_m_s``; its default, which a
+noisy map can make loose); ``valid_fraction`` of the moving pixels are; ``relative_mae`` = MAE / mean |ground truth|; ``static_rmse_m_s``:
 the velocity reconstructed on valid static pixels (should be 0)."""
 
 
@@ -229,16 +231,24 @@ def run_velocity(
 
     rows, written = [], []
     for name, estimator, result in runs:
-        noisy = sensor.noisy_measurements(_luminance(result.intensity), result.measurements, cameras, seed=seed)
-        maps = {  # the ratio, as the original animation script (the module docstring)
-            "none": reconstruct.velocity(result.measurements, cameras, method="ratio").velocity,
-            "sensor": reconstruct.velocity(noisy, cameras, method="ratio").velocity,
+        luma = _luminance(result.intensity)
+        noisy = sensor.noisy_measurements(luma, result.measurements, cameras, seed=seed)
+        # The render's covariance, plus the sensor's own noise (independent between cameras)
+        # for the noisy measurements: the reconstruction marks as invalid what they cannot resolve.
+        covariance = np.array(result.maps["measurement_covariance"], dtype=np.float64)
+        noisy_covariance = covariance.copy()
+        for i, (measurement, camera) in enumerate(zip(result.measurements, cameras)):
+            noisy_covariance[i, i] += sensor.measurement_std(luma, measurement, camera) ** 2
+        reconstructed = {  # the ratio, as the original animation script (the module docstring)
+            "none": reconstruct.velocity(result.measurements, cameras, method="ratio", measurement_covariance=covariance),
+            "sensor": reconstruct.velocity(noisy, cameras, method="ratio", measurement_covariance=noisy_covariance),
         }
-        for noise, estimate in maps.items():
+        maps = {noise: r.velocity for noise, r in reconstructed.items()}  # NaN where not valid
+        for noise, r in reconstructed.items():
             rows.append({
                 "scene": scene.label, "estimator": name, "time_sampling": estimator.time_sampling,
                 "correlation": estimator.correlation, "spp": result.spp, "noise": noise,
-                **velocity_errors(estimate, result.velocity),
+                **velocity_errors(r.velocity, result.velocity), "max_velocity_stderr_m_s": r.max_velocity_stderr_m_s,
             })  # fmt: skip
         written += _figures(folder, scene.label, name, result, maps)
 
