@@ -59,6 +59,18 @@ def test_cli_render_cornell_box_on_ray_equals_the_local_render_bit_for_bit(local
     assert meta["render"]["executor"] == "ray" and meta["render"]["passes"] == 8
 
 
+def test_a_ray_render_of_its_own_local_ray_prints_only_its_result(tmp_path):
+    from test_faults import _cli
+
+    pytest.importorskip("ray")
+    # a new local Ray (no address): Ray's notes ("Started a local Ray instance", token
+    # authentication) are not printed; the render's own lines are
+    done = _cli("render", "cornell-box", "--resolution", "8", "--spp", "2", "--quiet", "--ray", "--workers", "1",
+                "-o", str(tmp_path / "out"), timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == "" and done.stdout.startswith("rendered cornell-box at 2 spp"), (done.stdout, done.stderr)
+
+
 @pytest.mark.slow
 def test_sigterm_stops_a_ray_render_and_a_local_resume_is_bit_identical(local_ray, tmp_path):
     from test_faults import _cli, _interrupt

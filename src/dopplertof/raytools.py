@@ -17,6 +17,7 @@ workers' node-local disk.
 from __future__ import annotations
 
 import getpass
+import logging
 import os
 import signal
 import socket
@@ -48,7 +49,9 @@ def start_ray(address: str | None = None):
         check_reachable(address)
         previous = signal.getsignal(signal.SIGTERM)
         try:
-            ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+            # Ray's own notes ("Started a local Ray instance", that token authentication is
+            # on) are not the user's business here; its errors still print.
+            ray.init(address=address, ignore_reinit_error=True, log_to_driver=False, logging_level=logging.ERROR)
         except ConnectionError as exc:  # an OSError: it would read as a file problem
             raise ValueError(f"cannot connect to Ray at {address!r}: {exc}") from None
         if callable(previous) and threading.current_thread() is threading.main_thread():
