@@ -604,6 +604,14 @@ def test_until_noise_checks_after_every_replicate_even_when_one_pass_would_hold_
     assert result.settings.lanes_per_pass == 64 * 2048 // 16  # one replicate (of the default 16) per pass
 
 
+def test_until_noise_on_a_tiny_film_checks_after_passes_of_the_smallest_size():
+    from dopplertof.sensors import preset
+
+    # 16² at 8 spp: a replicate is 512 lanes, below the smallest pass (it was refused: "'lanes_per_pass' must be >= 1024")
+    result = dt.render(dt.scenes.cornell_box(resolution=16), sensor=preset("dtof-prototype"), spp=8, max_depth=2, until_noise=0.5)
+    assert result.settings.lanes_per_pass == 1024 and result.spp in (4, 8)
+
+
 def test_a_render_resumed_with_until_noise_continues_the_checkpoints_passes(tmp_path):
     from dopplertof.sensors import preset
 

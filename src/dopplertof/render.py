@@ -52,7 +52,7 @@ import numpy as np
 from .io import NPZ_READ_ERRORS
 from .outputs import BY_NAME, ESTIMATES, TRUTH
 from .passes import MAX_COVARIANCE_CAMERAS, Accumulator, PassTracer, Reducer, schedule
-from .settings import DEFAULT_CHECKPOINT_INTERVAL_S, DEFAULT_EXPOSURE_S, RenderSettings, checked_checkpoint_interval, scene_layer
+from .settings import DEFAULT_CHECKPOINT_INTERVAL_S, DEFAULT_EXPOSURE_S, FIELDS, RenderSettings, checked_checkpoint_interval, scene_layer
 from .validation import checked
 
 __all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S", "CheckpointWriteError"]
@@ -505,7 +505,9 @@ def render(
             raise ValueError(f"until_noise={until_noise!r}: needs a sensor (sensor=...)")
         # The ratio is checked after each pass: a pass of a large share of the render (on a
         # small film, one pass may hold all of it) would check too late to save anything.
-        pass_lanes = math.prod(scene.resolution) * max(settings.group_size, settings.spp // settings.replicates)
+        # (No smaller than the setting allows: a tiny film checks after a few spp.)
+        pass_lanes = max(math.prod(scene.resolution) * max(settings.group_size, settings.spp // settings.replicates),
+                         FIELDS["lanes_per_pass"].metadata["minimum"])
         settings = dataclasses.replace(settings, lanes_per_pass=min(settings.lanes_per_pass, pass_lanes))
     if resumed_lanes is not None:
         settings = dataclasses.replace(settings, lanes_per_pass=resumed_lanes)
