@@ -52,11 +52,11 @@ COLUMNS = (
     "moving_pixels", "valid_fraction", "mae_m_s", "rmse_m_s", "bias_m_s", "median_abs_error_m_s",
     "relative_mae", "static_pixels", "static_rmse_m_s", "max_velocity_stderr_m_s",
 )  # fmt: skip
-"""Errors in m/s over the moving pixels where the reconstruction is valid (its standard error,
-propagated from the render's and the sensor's, within the threshold of
-:func:`dopplertof.reconstruct.velocity`, ``max_velocity_stderr_m_s``; its default, which a
-noisy map can make loose); ``valid_fraction`` of the moving pixels are; ``relative_mae`` = MAE / mean |ground truth|; ``static_rmse_m_s``:
-the velocity reconstructed on valid static pixels (should be 0)."""
+"""Errors in m/s over the moving pixels where the reconstruction is valid: its standard error,
+propagated from the render's and the sensor's, within ``max_velocity_stderr_m_s``, the
+default threshold of :func:`dopplertof.reconstruct.velocity` (a noisy map can make it
+loose); ``valid_fraction`` of the moving pixels are; ``relative_mae`` = MAE / mean |ground
+truth|; ``static_rmse_m_s``: the velocity reconstructed on valid static pixels (should be 0)."""
 
 
 def velocity_cameras(base) -> list:
