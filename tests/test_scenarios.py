@@ -36,7 +36,7 @@ from dopplertof import io, scenes
 
 DATA = Path(__file__).parent / "data"
 RESOLUTION = 32
-SPP = 8
+SPP = 64  # the fewest (antithetic times: spp/4 degrees of freedom) with which a reconstructed pixel may be valid
 CAMERA_SPECS = ("h=0,psi=0", "h=0,psi=90deg", "h=1,psi=0", "h=1,psi=90deg")
 CAMERAS = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
 MEASUREMENT_FILES = [f"measurement_{i}_h{h}_psi{deg}deg" for i, (h, deg) in enumerate([(0, 0), (0, 90), (1, 0), (1, 90)])]

@@ -248,7 +248,8 @@ def _render_frame(scene, index, fps, settings, method, folder, progress, stop):
     if result.interrupted:  # a frame must be whole
         raise AnimationStopped(f"stopped in frame {index}; the frames before it are done, a rerun resumes there")
     write_result(result, folder, {"frame": index, "time_s": start_s})
-    reconstruction = reconstruct(result.measurements, cameras, method, result.measurement_stderr, result.maps.get("measurement_covariance"))
+    reconstruction = reconstruct(result.measurements, cameras, method, result.measurement_stderr, result.maps.get("measurement_covariance"),
+                                 stderr_dof=result.info["stderr_dof"])
     write_reconstruction(folder, reconstruction, result.velocity)
     summary = {"frame": index, "time_s": start_s, "exposure_s": cameras[0].exposure,
                **velocity_error(reconstruction, result.velocity)}

@@ -395,6 +395,7 @@ class Accumulator(Reducer):
         with np.errstate(invalid="ignore", divide="ignore"):
             groups = s.pop("groups_done").astype(np.float64)
             mean = [(row / groups).astype(np.float32) for row in s.pop("group_sum")]
+            self.stderr_dof = stderr_dof(s)
             if "within_sq" in s:  # Var(μ̂) = Σ_s Q_s / G² (class docstring)
                 closed = s.pop("strata_closed") >= 1
                 err = np.where(closed, np.sqrt(np.maximum(s.pop("within_sq"), 0.0)) / groups, np.nan).astype(np.float32)
@@ -438,6 +439,27 @@ class Accumulator(Reducer):
         if covariance is not None:
             maps["measurement_covariance"] = covariance.reshape(n_cameras, n_cameras, height, width)
         return maps
+
+
+def stderr_dof(state: dict) -> int:
+    """The degrees of freedom of the standard errors' variance estimate, of the pixel with
+    the fewest: one per closed stratum (two groups each), replicates − 1; 0 where there is
+    no error estimate.
+
+    Parameters
+    ----------
+    state : dict
+        An :class:`Accumulator`'s sums (before :meth:`Accumulator.finish` consumes them).
+
+    Returns
+    -------
+    int
+    """
+    if "strata_closed" in state and state["strata_closed"].size:
+        return int(state["strata_closed"].min())
+    if "reps_closed" in state and state["reps_closed"].size:
+        return max(int(state["reps_closed"].min()) - 1, 0)
+    return 0
 
 
 def _add_rows(total, pix, rows):

@@ -90,7 +90,11 @@ class RenderResult:
     interrupted : bool, default False
         The render stopped early (``stop``, a signal).
     info : dict, default {}
-        Render time (s), passes, executor, exposure windows ``[[start, T], …]`` (s).
+        Render time (s), passes, executor, exposure windows ``[[start, T], …]`` (s), and
+        ``stderr_dof``: the degrees of freedom the standard errors are estimated from (one per
+        stratum of two groups of correlated times, spp/4 for antithetic times; replicates − 1;
+        :func:`dopplertof.reconstruct.velocity` needs at least
+        :data:`~dopplertof.reconstruct.MIN_STDERR_DOF` to call a pixel valid).
     sensor : Sensor or None, default None
         The sensor rendered (``render(..., sensor=)``); its frames' electrons are
         ``maps["raw"]``.
@@ -109,7 +113,7 @@ class RenderResult:
     settings: RenderSettings
     spp: int  # paths per pixel done (less than asked where interrupted)
     interrupted: bool = False
-    info: dict = field(default_factory=dict)  # render time (s), passes, executor, exposure windows [[start, T], ...] (s)
+    info: dict = field(default_factory=dict)  # render time (s), passes, executor, exposure windows [[start, T], ...] (s), stderr_dof
     sensor: object = None  # the dopplertof.Sensor rendered (render(..., sensor=)); its frames' electrons are maps["raw"]
     record: object = None  # the scene's response record (render(..., record=True)): dopplertof.design.Record
 
@@ -620,6 +624,7 @@ def render(
     # finish consumes the sums: what the record needs of each window is taken first
     recorded = [(acc.record_sum, acc.state["samples"].copy(), int(acc.state["passes_done"][0])) for acc in accs]
     finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
+    info["stderr_dof"] = min(acc.stderr_dof for acc in accs)
     maps = _merge_windows(finished, windows, len(settings.cameras), (height, width))
     if sensor is not None:
         maps["raw"] = sensor.raw(maps["measurements"])

@@ -96,7 +96,7 @@ def resolve_method(cameras, method: str | None = None) -> str:
 
 
 def reconstruct(measurements, cameras, method: str | None = None, stderr=None, covariance=None,
-                max_velocity_stderr: float | None = None) -> rc.VelocityResult:
+                max_velocity_stderr: float | None = None, stderr_dof: int | None = None) -> rc.VelocityResult:
     """:func:`dopplertof.reconstruct.velocity` with the default method of this module.
 
     Parameters
@@ -109,11 +109,14 @@ def reconstruct(measurements, cameras, method: str | None = None, stderr=None, c
     max_velocity_stderr : float, optional
         Validity threshold on the velocity's standard error, m/s (default: derived from the
         scene, :func:`dopplertof.reconstruct.default_max_velocity_stderr`).
+    stderr_dof : int, optional
+        Degrees of freedom of ``stderr`` (the render's ``info["stderr_dof"]``); fewer than
+        :data:`dopplertof.reconstruct.MIN_STDERR_DOF`: no pixel valid.
     """
     method = resolve_method(cameras, method)
     with np.errstate(all="ignore"):  # invalid pixels come back as NaN with valid == False
         return rc.velocity(measurements, cameras, method=method, measurement_stderr=stderr, measurement_covariance=covariance,
-                           max_velocity_stderr=max_velocity_stderr)
+                           max_velocity_stderr=max_velocity_stderr, stderr_dof=stderr_dof)
 
 
 ERROR_MODEL = "standard errors are Monte Carlo only; multipath bias (global illumination, silhouettes) is not included"
@@ -132,6 +135,7 @@ def summary(reconstruction: rc.VelocityResult, depth_truth_m=None) -> dict:
         "depth_range_m": reconstruction.depth_range_m,
         "modulation_frequencies_hz": list(reconstruction.frequencies_hz),
         "valid_fraction_of_image": float(np.mean(reconstruction.valid)),
+        "stderr_dof": reconstruction.stderr_dof,
     }
     if depth_truth_m is not None:
         info["depth_wrapped_fraction"] = _wrapped_fraction(depth_truth_m, reconstruction.depth_range_m)
@@ -141,6 +145,10 @@ def summary(reconstruction: rc.VelocityResult, depth_truth_m=None) -> dict:
 def describe_summary(info: dict) -> str:
     """One line for :func:`summary` (and the ground-truth checks, when present)."""
     parts = []
+    dof = info.get("stderr_dof")
+    if dof is not None and dof < rc.MIN_STDERR_DOF:
+        parts.append(f"no pixel can be valid: its standard errors come from {dof} degree{'' if dof == 1 else 's'} of freedom, and a valid pixel "
+                     f"needs {rc.MIN_STDERR_DOF} (render more paths per pixel: antithetic times give spp/4, replicates replicates − 1)")
     if info["max_velocity_stderr_m_s"] is not None:
         parts.append(f"valid where the velocity's standard error ≤ {info['max_velocity_stderr_m_s']:.3g} m/s "
                      f"({info['threshold_reason']}); {info['error_model']}")
@@ -368,6 +376,13 @@ def read_depth_truth(folder: str):
     return depth
 
 
+def read_stderr_dof(folder: str) -> int | None:
+    """The degrees of freedom of the render's standard errors (``metadata.json``'s
+    ``render.stderr_dof``), or None where a render older than it does not say."""
+    dof = io.read_json(os.path.join(folder, METADATA_FILE)).get("render", {}).get("stderr_dof")
+    return dof if isinstance(dof, int) and not isinstance(dof, bool) else None
+
+
 def reconstruct_folder(folder: str, output: str | None = None, method: str | None = None,
                        max_velocity_stderr: float | None = None):
     """Reconstruct the velocity of a render folder and write the maps.
@@ -402,7 +417,7 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
     check_writable(output or folder)
     depth_truth = read_depth_truth(folder)
     try:
-        result = reconstruct(measurements, cameras, method, stderr, covariance, max_velocity_stderr)
+        result = reconstruct(measurements, cameras, method, stderr, covariance, max_velocity_stderr, read_stderr_dof(folder))
     except ValueError as no_velocity:
         try:
             depth_m = rc.depth(measurements, cameras)

@@ -414,6 +414,7 @@ def default_cache_dir() -> Path:
 
 
 _ARRAY_FIELDS = tuple(name for o in OUTPUTS for name in (o.name, o.stderr_name) if name)
+_OPTIONAL_ARRAY_FIELDS = ("measurement_covariance",)  # 2 to MAX_COVARIANCE_CAMERAS cameras; older caches lack it
 
 
 class ReferenceCache:
@@ -506,10 +507,12 @@ class ReferenceCache:
             with np.load(self.path(key), allow_pickle=False) as data:
                 meta = json.loads(str(data["meta"]))
                 arrays = {name: data[name] for name in _ARRAY_FIELDS}
+                arrays.update({name: data[name] for name in _OPTIONAL_ARRAY_FIELDS if name in data.files})
         except NPZ_READ_ERRORS:  # a truncated or damaged file is rendered again
             return None
         settings = RenderSettings.build({**meta["settings"], "cameras": list(cameras)})
-        return RenderResult(maps=arrays, settings=settings, spp=meta["spp"])
+        info = {"stderr_dof": meta["stderr_dof"]} if "stderr_dof" in meta else {}
+        return RenderResult(maps=arrays, settings=settings, spp=meta["spp"], info=info)
 
     def store(self, key: str, result: RenderResult) -> Path:
         """Write atomically, so that an interrupted write never leaves a readable bad file.
@@ -529,8 +532,10 @@ class ReferenceCache:
         self.folder.mkdir(parents=True, exist_ok=True)
         final = self.path(key)
         partial = final.with_name(f"{key}.{os.getpid()}.partial.npz")
-        meta = json.dumps({"spp": result.spp, "settings": result.settings.as_dict()})
-        np.savez_compressed(partial, meta=np.array(meta), **{name: getattr(result, name) for name in _ARRAY_FIELDS})
+        meta = json.dumps({"spp": result.spp, "settings": result.settings.as_dict(), **{k: result.info[k] for k in ("stderr_dof",) if k in result.info}})
+        arrays = {name: getattr(result, name) for name in _ARRAY_FIELDS}
+        arrays.update({name: result.maps[name] for name in _OPTIONAL_ARRAY_FIELDS if name in result.maps})
+        np.savez_compressed(partial, meta=np.array(meta), **arrays)
         os.replace(partial, final)
         return final
 

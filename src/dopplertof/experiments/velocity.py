@@ -235,13 +235,16 @@ def run_velocity(
         noisy = sensor.noisy_measurements(luma, result.measurements, cameras, seed=seed)
         # The render's covariance, plus the sensor's own noise (independent between cameras)
         # for the noisy measurements: the reconstruction marks as invalid what they cannot resolve.
-        covariance = np.array(result.maps["measurement_covariance"], dtype=np.float64)
+        covariance = np.array(result.maps["measurement_covariance"], dtype=np.float64) if "measurement_covariance" in result.maps else \
+            np.einsum("ij,i...->ij...", np.eye(len(cameras)), np.asarray(result.measurement_stderr, np.float64) ** 2)  # a cache older than it
         noisy_covariance = covariance.copy()
         for i, (measurement, camera) in enumerate(zip(result.measurements, cameras)):
             noisy_covariance[i, i] += sensor.measurement_std(luma, measurement, camera) ** 2
         reconstructed = {  # the ratio, as the original animation script (the module docstring)
-            "none": reconstruct.velocity(result.measurements, cameras, method="ratio", measurement_covariance=covariance),
-            "sensor": reconstruct.velocity(noisy, cameras, method="ratio", measurement_covariance=noisy_covariance),
+            "none": reconstruct.velocity(result.measurements, cameras, method="ratio", measurement_covariance=covariance,
+                                         stderr_dof=result.info.get("stderr_dof")),
+            "sensor": reconstruct.velocity(noisy, cameras, method="ratio", measurement_covariance=noisy_covariance,
+                                           stderr_dof=result.info.get("stderr_dof")),
         }
         maps = {noise: r.velocity for noise, r in reconstructed.items()}  # NaN where not valid
         for noise, r in reconstructed.items():
