@@ -243,6 +243,42 @@ def test_validity_is_calibrated_on_the_cornell_box_with_direct_light(direct, met
     assert np.nanmax(strict.velocity_stderr) <= 0.05 and strict.valid.sum() < rec.valid.sum()
 
 
+@pytest.mark.parametrize("settings, dof", [
+    ({"spp": 64}, 16),  # antithetic, stratified: one per stratum of two groups of two times
+    ({"spp": 32}, 8),
+    ({"spp": 64, "time_sampling": "uniform", "correlation": "none"}, 15),  # 16 replicates
+    ({"spp": 64, "time_sampling": "uniform", "correlation": "none", "replicates": 4}, 3),
+])
+def test_a_render_says_how_many_degrees_of_freedom_its_errors_have(settings, dof):
+    result = dt.render(dt.scenes.cornell_box(resolution=8), cameras=CAMERAS, max_depth=2, **settings)
+    assert result.info["stderr_dof"] == dof
+
+
+def test_errors_from_too_few_degrees_of_freedom_make_no_pixel_valid(tmp_path):
+    """On the Cornell box's moving faces (direct light) a quarter of the pixels a threshold
+    kept were off by more than three standard errors at 16 spp (4 degrees of freedom): the
+    pixels whose error came out small by chance. Now none is valid there, with the reason;
+    at 64 spp (16) they are, and calibrated."""
+    scene = dt.scenes.cornell_box(resolution=32)
+    few = dt.render(scene, cameras=CAMERAS, spp=16, seed=1, max_depth=2)
+    assert few.info["stderr_dof"] == 4
+    rec = dt.reconstruct.velocity(few)
+    assert rec.stderr_dof == 4 and not rec.valid.any() and np.isnan(rec.velocity).all()
+    arrays = dt.reconstruct.velocity(few.measurements, CAMERAS, measurement_covariance=few.measurement_covariance, stderr_dof=4)
+    assert not arrays.valid.any()
+    write_result(few, tmp_path)
+    code, out, err = run_cli("reconstruct", tmp_path)
+    assert code == 0, err
+    assert "no pixel can be valid: its standard errors come from 4 degrees of freedom, and a valid pixel needs 15" in out.splitlines()[0]
+    assert json.loads((tmp_path / "reconstruction.json").read_text())["stderr_dof"] == 4
+    enough = dt.render(scene, cameras=CAMERAS, spp=64, seed=1, max_depth=2)
+    rec = dt.reconstruct.velocity(enough)
+    moving = rec.valid & (np.abs(np.nan_to_num(enough.velocity)) > MOVING_M_S)
+    assert moving.sum() > 50
+    z = (rec.velocity - enough.velocity)[moving] / rec.velocity_stderr[moving]
+    assert np.mean(np.abs(z) > 3) < 0.08  # edges included
+
+
 def run_cli(*args):
     """``dopplertof`` in a real subprocess: (exit status, stdout, stderr)."""
     done = subprocess.run([sys.executable, "-m", "dopplertof.cli", *map(str, args)], capture_output=True, text=True)

@@ -183,6 +183,7 @@ TOPICS = [
         ("max_doppler_hz must be a finite number > 0, got …", "the fit's Doppler bound is not positive", "a frequency in Hz"),
         ("max_velocity_stderr=… m/s needs the measurements' errors", "the validity threshold needs standard errors", "pass the `RenderResult`, or `measurement_stderr`"),
         ("max_velocity_stderr must be > 0 m/s, got …", "the validity threshold is not positive", "a speed in m/s"),
+        ("stderr_dof must be >= 0 (degrees of freedom), got …", "a negative number of degrees of freedom given to `reconstruct.velocity`", "the render's `info[\"stderr_dof\"]`, or leave it out"),
         ("cameras at … modulation frequencies (… MHz): velocity() combines two", "more than two modulation frequencies", "reconstruct the others separately"),
         ("the cameras at … MHz differ in exposure", "the cameras of one frequency have different T", "one exposure for all cameras"),
         ("the cameras at … MHz open their first windows at different times", "two frequencies' depths refer to different instants", "the same first window for both frequencies"),

@@ -148,7 +148,8 @@ def describe_summary(info: dict) -> str:
     dof = info.get("stderr_dof")
     if dof is not None and dof < rc.MIN_STDERR_DOF:
         parts.append(f"no pixel can be valid: its standard errors come from {dof} degree{'' if dof == 1 else 's'} of freedom, and a valid pixel "
-                     f"needs {rc.MIN_STDERR_DOF} (render more paths per pixel: antithetic times give spp/4, replicates replicates − 1)")
+                     f"needs {rc.MIN_STDERR_DOF} (render more paths per pixel: one degree per two groups of correlated times, spp/4 for antithetic "
+                     "times; replicates − 1 where the times are not stratified)")
     if info["max_velocity_stderr_m_s"] is not None:
         parts.append(f"valid where the velocity's standard error ≤ {info['max_velocity_stderr_m_s']:.3g} m/s "
                      f"({info['threshold_reason']}); {info['error_model']}")
