@@ -664,6 +664,25 @@ def test_a_pixel_measured_by_one_sample_is_not_valid():
     assert dt.reconstruct.velocity(m, cameras, measurement_covariance=many).valid.all()
 
 
+def test_exact_heterodyne_measurements_beside_sampled_motion_are_not_valid():
+    """With antithetic times a static path cancels exactly at h = 1: a pixel whose samples all
+    missed a moving surface reads 0 ± 0 m/s (a rotating rim at 45 m/s did at 16 spp). Beside
+    a pixel that sampled motion such a pixel is not valid; away from any (a wall lit directly),
+    its exact 0 is. A row of 6 pixels: 0-1 sampled motion, 2-5 are static and exact."""
+    cameras = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
+    m = dt.reconstruct.model_measurements(np.ones(6), 2.0, np.array([5.0, 5.0, 0, 0, 0, 0]), cameras)
+    covariance = np.zeros((4, 4, 6))
+    for i in range(4):
+        covariance[i, i] = 1e-12  # σ = 1e-6: the h = 1 signal, 3e-4, resolved
+    covariance[2, 2, 2:] = covariance[3, 3, 2:] = 0.0  # no sampled path changed: h = 1 exact
+    result = dt.reconstruct.velocity(m, cameras, measurement_covariance=covariance, max_velocity_stderr=1.0)
+    np.testing.assert_array_equal(result.valid, [True, True, False, True, True, True])
+    assert abs(result.velocity[3]) < 1e-9 and result.velocity_stderr[3] < 1e-6
+    # the same along an image's rows and columns
+    image = dt.reconstruct.velocity(m.reshape(4, 3, 2), cameras, measurement_covariance=covariance.reshape(4, 4, 3, 2), max_velocity_stderr=1.0)
+    np.testing.assert_array_equal(image.valid, [[True, True], [False, False], [True, True]])  # diagonal neighbours count
+
+
 def test_depth_of_non_sinusoidal_cameras_states_no_standard_error():
     """Square-wave cameras' depth has the waveform's cyclic error (3.6 cm median on a static
     scene) that the Monte Carlo error (4.8 mm) does not hold: 78 % of pixels were off by more

@@ -202,9 +202,11 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
     if result.interrupted:
         done = result.info["window_spp"]
         reached = f"{result.spp}" if len(done) == 1 else f"{', '.join(map(str, done))} (per exposure window)"
+        partial_errors = ("; its standard errors leave out the spread of the time strata not drawn (they understate the error, "
+                          "most at h != 0)") if result.info["stderr_dof"] == 0 and settings.stratified else ""
         click.echo(
             f"{stop.name}: stopped at {reached} of {settings.spp} spp; partial result and checkpoint in "
-            f"{os.path.abspath(output)}/ (continue with --resume)", err=True,
+            f"{os.path.abspath(output)}/ (continue with --resume){partial_errors}", err=True,
         )  # fmt: skip
         sys.exit(stop.exit_status)
     if until_noise is not None:

@@ -94,7 +94,9 @@ class RenderResult:
         ``stderr_dof``: the degrees of freedom the standard errors are estimated from (one per
         stratum of two groups of correlated times, spp/4 for antithetic times; replicates − 1;
         :func:`dopplertof.reconstruct.velocity` needs at least
-        :data:`~dopplertof.reconstruct.MIN_STDERR_DOF` to call a pixel valid).
+        :data:`~dopplertof.reconstruct.MIN_STDERR_DOF` to call a pixel valid; 0 for a render
+        with stratified times stopped before its last stratum, whose errors leave out the
+        spread between the strata it did not draw: at h = 1 they understate the error 100-300×).
     sensor : Sensor or None, default None
         The sensor rendered (``render(..., sensor=)``); its frames' electrons are
         ``maps["raw"]``.
@@ -624,7 +626,11 @@ def render(
     # finish consumes the sums: what the record needs of each window is taken first
     recorded = [(acc.record_sum, acc.state["samples"].copy(), int(acc.state["passes_done"][0])) for acc in accs]
     finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
-    info["stderr_dof"] = min(acc.stderr_dof for acc in accs)
+    # A stratified render stopped before its last stratum (interrupted, or by until_noise):
+    # its errors leave out the spread between the strata it did not draw (at h = 1,
+    # 100-300x the error it states).
+    incomplete = settings.stratified and spp_done < settings.spp
+    info["stderr_dof"] = 0 if incomplete else min(acc.stderr_dof for acc in accs)
     maps = _merge_windows(finished, windows, len(settings.cameras), (height, width))
     if sensor is not None:
         maps["raw"] = sensor.raw(maps["measurements"])

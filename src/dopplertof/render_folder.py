@@ -146,7 +146,10 @@ def describe_summary(info: dict) -> str:
     """One line for :func:`summary` (and the ground-truth checks, when present)."""
     parts = []
     dof = info.get("stderr_dof")
-    if dof is not None and dof < rc.MIN_STDERR_DOF:
+    if dof == 0:
+        parts.append("no pixel can be valid: the render stopped early, and with stratified times its standard errors leave out "
+                     "the spread between the strata it did not draw (resume it to complete them)")
+    elif dof is not None and dof < rc.MIN_STDERR_DOF:
         parts.append(f"no pixel can be valid: its standard errors come from {dof} degree{'' if dof == 1 else 's'} of freedom, and a valid pixel "
                      f"needs {rc.MIN_STDERR_DOF} (render more paths per pixel: one degree per two groups of correlated times, spp/4 for antithetic "
                      "times; replicates − 1 where the times are not stratified)")
