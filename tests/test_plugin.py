@@ -91,6 +91,31 @@ def test_registration_follows_the_variant(order):
     assert float(frequency) == 20e6
 
 
+_SPECTRAL_SCRIPT = """
+import warnings, mitsuba as mi
+mi.set_variant("llvm_ad_spectral")
+import dopplertof as dt
+try:
+    mi.load_dict({"type": "dopplertof"})
+except RuntimeError as exc:
+    print(str(exc).splitlines()[-1])
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    dt.scenes.cornell_box(resolution=4)
+print(mi.variant(), "|", "; ".join(str(w.message) for w in caught))
+"""
+
+
+def test_a_variant_dopplertof_does_not_render_in_is_named_not_switched_silently():
+    """Under llvm_ad_spectral the plugin said 'Plugin "dopplertof" not found!', and
+    dt.load_scene switched the variant to llvm_ad_rgb without a word."""
+    run = subprocess.run([sys.executable, "-c", _SPECTRAL_SCRIPT], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    plugin, switched = run.stdout.strip().splitlines()
+    assert plugin.startswith("ValueError: the dopplertof integrator renders in the Mitsuba variants llvm_ad_rgb") and "not in 'llvm_ad_spectral'" in plugin
+    assert switched.startswith("llvm_ad_rgb | Mitsuba's active variant 'llvm_ad_spectral' is not one dopplertof renders in"), switched
+
+
 def test_scene_dict_keeps_a_dopplertofpath_integrator():
     scene = dt.load_scene(
         {

@@ -387,6 +387,17 @@ def test_an_irradiance_meter_is_refused():
         dt.load_scene(scene)
 
 
+def test_a_batch_sensor_is_refused_when_the_scene_loads():
+    """Its cameras' radial velocity and velocity_3d were taken in the batch's own frame: a body
+    approaching the first camera read velocity_3d z = +8.75 m/s (through a perspective camera
+    of the same pose, -10), and its flow was NaN."""
+    sensor = {"type": "batch", "a": {"type": "perspective"}, "b": {"type": "perspective"},
+              "film": {"type": "hdrfilm", "width": 8, "height": 4, "rfilter": {"type": "box"}}}
+    scene = {"type": "scene", "sensor": sensor, "ball": {"type": "sphere"}}
+    with pytest.raises(dt.SceneError, match=r"the sensor is a batch sensor \(its cameras' ground truth .*render each of its cameras as a scene of its own"):
+        dt.load_scene(scene)
+
+
 @pytest.mark.parametrize(
     "bsdf",
     [{"type": "principled", "spec_trans": 0.5}, {"type": "mask", "opacity": 0.5, "bsdf": {"type": "dielectric"}},
@@ -408,3 +419,14 @@ def test_straight_through_and_dielectric_bsdfs_load(bsdf):
     scene = dt.load_scene(dict_scene(ball={"type": "sphere", "bsdf": bsdf}))
     eta = relative_ior(scene.static.shapes()[0].bsdf())
     assert eta == pytest.approx(1.5046 / 1.000277, rel=1e-5) if bsdf["type"] == "dielectric" else eta == 1.0  # Mitsuba's bk7 in air
+
+
+@pytest.mark.parametrize("pixel_format", ["xyz", "luminance", "rgba"])
+def test_a_film_pixel_format_other_than_rgb_is_refused(pixel_format):
+    """It was ignored: an xyz film's intensity.exr held RGB values under R, G, B."""
+    film = {"type": "hdrfilm", "width": 4, "height": 4, "pixel_format": pixel_format, "rfilter": {"type": "box"}}
+    scene = {"type": "scene", "sensor": {"type": "perspective", "film": film}, "ball": {"type": "sphere"}}
+    with pytest.raises(dt.SceneError, match=f"the film's pixel_format is '{pixel_format}'"):
+        dt.load_scene(scene)
+    film["pixel_format"] = "rgb"
+    dt.load_scene(scene)

@@ -511,11 +511,16 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
 
 
 def ensure_variant() -> str:
-    """The active dopplertof-compatible variant, choosing the default if none is set
-    (BackendError as :func:`set_variant`, also for a variant the user set)."""
+    """The active dopplertof-compatible variant, choosing the default if none is set, or,
+    with a warning, if the active one is not supported (BackendError as
+    :func:`set_variant`, also for a variant the user set)."""
     mi = _import_mitsuba()
     current = mi.variant()
     if current in SUPPORTED_VARIANTS:
         _check_llvm_variant(current)
         return current
-    return set_variant()
+    chosen = set_variant()
+    if current is not None:  # the user's own choice: changed, not silently
+        warnings.warn(f"Mitsuba's active variant {current!r} is not one dopplertof renders in ({', '.join(SUPPORTED_VARIANTS)}: "
+                      f"no scalar or spectral variant); switched to {chosen!r}", stacklevel=3)
+    return chosen

@@ -42,11 +42,10 @@ motions that would scale a camera or a point or spot light, are refused.
 
 from __future__ import annotations
 
-import re
-
 import copy
 import hashlib
 import os
+import re
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -66,7 +65,12 @@ MOVABLE_EMITTERS = ("point", "spot")
 SHUTTER_PARAMETERS = ("shutter_open", "shutter_close")
 SENSOR_TYPES = {"perspective", "thinlens", "orthographic", "radiancemeter", "irradiancemeter", "distant", "batch"}
 # Sensors Mitsuba loads that the tracer cannot start paths from (class name -> what to call it).
-UNSUPPORTED_SENSORS = {"IrradianceMeter": "irradiancemeter (its rays start on a shape, with no film position)"}
+UNSUPPORTED_SENSORS = {  # class name: (what it is, why not, what to do instead)
+    "IrradianceMeter": ("an irradiancemeter", "its rays start on a shape, with no film position",
+                        "use radiancemeter or a perspective camera"),
+    "BatchSensor": ("a batch sensor", "its cameras' ground truth (radial velocity, velocity_3d, flow) would be taken in the "
+                    "batch's frame, not each camera's", "render each of its cameras as a scene of its own"),
+}
 # Sampler properties kept as the render's defaults (DynamicScene fields); its type is not
 # (dopplertof draws its own stratified pixel positions and times: docs/scene-format.md).
 _SAMPLER_HINTS = {"sample_count": "spp_hint", "seed": "seed_hint"}
@@ -504,12 +508,20 @@ def _checked_scene(scene: DynamicScene, shutter_given: bool = False) -> DynamicS
     (not after a long render): participating media, emitters or sensors on moving bodies,
     more than one sensor, a shutter interval that is not finite or (``shutter_given``: the
     scene sets it) of zero length, bad integrator parameters."""
+    import mitsuba as mi
+
     where = scene.source
     n_sensors = len(scene.static.sensors())
     if n_sensors > 1:
         raise SceneError(f"{where}: the scene has {n_sensors} sensors; dopplertof renders one (remove the others)")
     if scene.sensor.class_name() in UNSUPPORTED_SENSORS:
-        raise SceneError(f"{where}: the sensor is an {UNSUPPORTED_SENSORS[scene.sensor.class_name()]}, which dopplertof does not render; use radiancemeter or a perspective camera")
+        what, why, instead = UNSUPPORTED_SENSORS[scene.sensor.class_name()]
+        raise SceneError(f"{where}: the sensor is {what} ({why}), which dopplertof does not render; {instead}")
+    pixel_format = re.search(r"pixel_format = (\w+)", str(scene.sensor.film()))
+    if pixel_format and pixel_format.group(1) != ("rgb" if mi.is_rgb else "y"):  # y: luminance, which a mono variant sets
+        named = {"y": "luminance", "ya": "luminance_alpha"}.get(pixel_format.group(1), pixel_format.group(1))  # Mitsuba's short names
+        raise SceneError(f"{where}: the film's pixel_format is {named!r}; dopplertof writes the intensity as RGB "
+                         "(luminance in a mono variant, coverage.exr for what alpha holds): remove pixel_format or give 'rgb'")
     open_s, length_s = float(scene.sensor.shutter_open()), float(scene.sensor.shutter_open_time())
     if not (np.isfinite(open_s) and np.isfinite(length_s)):
         raise SceneError(f"{where}: the sensor's shutter_open={open_s!r} and shutter_close={open_s + length_s!r} s must be finite")

@@ -201,12 +201,17 @@ _registered_variants: set = set()
 def register() -> bool:
     """Register ``dopplertof`` and ``dopplertofpath`` for the active Mitsuba variant.
 
-    Returns False (and registers nothing) when no supported variant is active.
+    Returns False when no supported variant is active (in another variant the two names
+    load as an error saying which variants they render in).
     """
     import mitsuba as mi
 
     variant = mi.variant()
     if variant not in SUPPORTED_VARIANTS:
+        if variant is not None and variant not in _registered_variants:  # say why, not 'Plugin "dopplertof" not found!'
+            for name in PLUGIN_NAMES:
+                mi.register_integrator(name, lambda props, name=name: _refuse_variant(name, variant))
+            _registered_variants.add(variant)
         return False
     if variant not in _registered_variants:
         cls = _integrator_class()
@@ -214,6 +219,11 @@ def register() -> bool:
             mi.register_integrator(name, lambda props, name=name: cls(props, name))
         _registered_variants.add(variant)
     return True
+
+
+def _refuse_variant(name: str, variant: str):
+    raise ValueError(f"the {name} integrator renders in the Mitsuba variants {', '.join(SUPPORTED_VARIANTS)}, "
+                     f"not in {variant!r} (no scalar or spectral variant): mi.set_variant('llvm_ad_rgb') first")
 
 
 def _on_variant_change(old_variant, new_variant):
