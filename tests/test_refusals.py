@@ -430,3 +430,22 @@ def test_a_film_pixel_format_other_than_rgb_is_refused(pixel_format):
         dt.load_scene(scene)
     film["pixel_format"] = "rgb"
     dt.load_scene(scene)
+
+
+def _spun_ball(angular_velocity_rad_s):
+    look = mi.ScalarTransform4f().look_at(origin=[0, 0, 8], target=[0, 0, 0], up=[0, 1, 0])
+    return {"type": "scene", "sensor": {"type": "perspective", "to_world": look, "film": {"type": "hdrfilm", "width": 4, "height": 4}},
+            "ball": {"type": "sphere", "to_world": mi.ScalarTransform4f().translate([2, 0, 0]),
+                     "motion": {"type": "parametric", "angular_velocity": [0, angular_velocity_rad_s, 0], "pivot": [0, 0, 0]}}}
+
+
+def test_a_rotation_faster_than_light_is_refused_and_a_suspicious_one_warns():
+    """Only the linear velocity was checked: a ball spun at 1e9 rad/s 2 m from its pivot
+    rendered with a ground truth of 3e9 m/s."""
+    with pytest.raises(dt.SceneError, match=r"entry 'ball': the fastest corner of its bounding box, rotation included is 3\.3\d+e\+09 m/s, at or above the speed of light"):
+        dt.load_scene(_spun_ball(1e9))
+    with pytest.warns(UserWarning, match=r"rotation included is 663325 m/s, above .* is the unit m/s\?"):
+        dt.load_scene(_spun_ball(2e5))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        dt.load_scene(_spun_ball(10.0))  # 33 m/s: nothing to say

@@ -419,6 +419,7 @@ TOPICS = [
     ]),
     ("Backend", "Starting Mitsuba and Dr.Jit (see [installation](installation.md)).", [
         ("unsupported Mitsuba variant …; choose one of …", "`--variant` names a variant dopplertof does not support", "`llvm_ad_rgb` runs on any CPU with libLLVM ≥ 16"),
+        ("the … integrator renders in the Mitsuba variants …, not in … (no scalar or spectral variant)", "`mi.load_dict`/`mi.load_file` of a scene with the `dopplertof` integrator under a scalar or spectral variant", "`mi.set_variant('llvm_ad_rgb')` (or `cuda_ad_rgb`) before loading"),
         ("…=… is not a file; point it at libLLVM >= …", "`DRJIT_LIBLLVM_PATH` names no file", "point it at the library or unset it"),
         ("…=… is LLVM …, but Dr.Jit needs libLLVM >= …", "`DRJIT_LIBLLVM_PATH` names an LLVM older than 16", "point it at a newer one or unset it"),
         ("Dr.Jit loaded libLLVM … (…), which aborts on dopplertof's kernels", "an LLVM 14 or 15 was loaded", "install libLLVM ≥ 16 as the message says"),

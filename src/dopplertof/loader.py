@@ -51,7 +51,8 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from . import mitsuba06
-from .motion import Keyframed, Motion, Parametric
+from .modulation import SPEED_OF_LIGHT_M_S
+from .motion import SUSPICIOUS_SPEED_M_S, Keyframed, Motion, Parametric, check_speed
 from .settings import PLUGIN_NAMES, STOCK_OTHER_INTEGRATORS, STOCK_PATH_INTEGRATORS, integrator_layer
 from .lights import MovingLight
 from .scene import Body, DynamicScene, SceneError
@@ -444,7 +445,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
                 body_scene = _load_guest_string(ET.tostring(body_root, encoding="unicode"), host)
             except Exception as exc:  # noqa: BLE001
                 raise _mitsuba_error(f"{path}: moving shape(s) {name}", exc) from None
-            bodies.append(_make_body(name, body_scene, motion))
+            bodies.append(_make_body(name, body_scene, motion, f"{path}: moving shape(s) {name}"))
 
         def light_scene(element, where):
             light_root = ET.Element("scene", {"version": root.attrib.get("version", "3.0.0")})
@@ -645,10 +646,18 @@ def _load_guest_string(xml: str, host):
     return mi.parser.instantiate(config, state)
 
 
-def _make_body(name: str, scene, motion: Motion) -> Body:
+def _make_body(name: str, scene, motion: Motion, where: str) -> Body:
+    """A moving body; SceneError where a point of it would move at or above the speed of
+    light (rotation included), a warning above :data:`dopplertof.motion.SUSPICIOUS_SPEED_M_S`."""
     bbox = scene.bbox()
     lo = np.array([bbox.min.x, bbox.min.y, bbox.min.z], dtype=np.float64)
     hi = np.array([bbox.max.x, bbox.max.y, bbox.max.z], dtype=np.float64)
+    speed = motion.max_point_speed(lo, hi)
+    if speed > SUSPICIOUS_SPEED_M_S >= motion.checked_speed_m_s or speed >= SPEED_OF_LIGHT_M_S:
+        try:  # (a fast translation alone the motion itself has warned of)
+            check_speed(speed, "the fastest corner of its bounding box, rotation included", where)
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
     return Body(name=name, scene=scene, motion=motion, bounds_local=(lo, hi))
 
 
@@ -843,7 +852,7 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
             body_scene = mi.load_dict({"type": "scene", **guest, **referenced(dict(shapes)), **dict(shapes)})
         except Exception as exc:  # noqa: BLE001
             raise _mitsuba_error(where, exc) from None
-        bodies.append(_make_body(", ".join(keys), body_scene, motion))
+        bodies.append(_make_body(", ".join(keys), body_scene, motion, where))
     try:
         static = mi.load_dict({**static_dict, **guest})
     except Exception as exc:  # noqa: BLE001
