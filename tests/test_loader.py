@@ -189,6 +189,23 @@ def test_shapes_sharing_a_motion_form_one_body(tmp_path):
     assert sorted(len(b.scene.shapes()) for b in scene.bodies) == [1, 2]
 
 
+def test_a_moving_instance_of_a_shapegroup_renders_like_the_shape_itself(tmp_path):
+    """In XML it failed with a parser message about '_arg_0' (the body's scene lacked the
+    shapegroup); a dict worked."""
+    keys = ((0.0, '<translate x="0"/>'), (1.5e-3, '<translate z="0.015"/>'))
+    view = ('<sensor type="perspective"><transform name="to_world"><lookat origin="0 0 4" target="0 0 0" up="0 1 0"/></transform>'
+            '<film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/></film></sensor>'
+            '<emitter type="point"><point name="position" value="0 0 4"/></emitter>')
+    group = '<shape type="shapegroup" id="grp"><shape type="sphere"><float name="radius" value="0.3"/></shape></shape>'
+    instanced = dt.load_scene(write_scene(tmp_path, view + group + animated('<ref id="grp"/>', keys=keys, shape="instance"), "instanced.xml", with_sensor=False))
+    plain = dt.load_scene(write_scene(tmp_path, view + animated('<float name="radius" value="0.3"/>', keys=keys), "plain.xml", with_sensor=False))
+    camera = [dt.Camera(heterodyne=0.0)]
+    a, b = (dt.render(s, cameras=camera, spp=16, max_depth=2) for s in (instanced, plain))
+    assert (a.instance_id >= 0).sum() > 0 and len(instanced.bodies) == 1
+    for name in ("velocity", "velocity_3d", "depth"):  # an instance's intersection rounds its own way
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-6, err_msg=name)
+
+
 # ----------------------------------------------------------------------------------------
 # Bad XML
 
@@ -302,6 +319,14 @@ def test_bad_dict_motion(motion, match):
         dt.load_scene(dict_scene(ball={"type": "sphere", "motion": motion}))
     assert_one_line(info)
     assert "'ball'" in str(info.value)  # says which entry
+
+
+def test_a_motion_where_nothing_moves_says_so():
+    """It was only Mitsuba's 'Plugin "parametric" not found!'."""
+    ball = {"type": "sphere", "bsdf": {"type": "diffuse", "motion": {"type": "parametric", "linear_velocity": [0, 0, 1]}}}
+    with pytest.raises(dt.SceneError, match=r"ball\.bsdf\.motion.*a 'motion' was given where nothing moves: only a top-level shape, emitter or the sensor") as info:
+        dt.load_scene(dict_scene(ball=ball))
+    assert_one_line(info)
 
 
 def test_keyframes_and_to_world_conflict():

@@ -169,6 +169,9 @@ def _mitsuba_error(where: str, exc: Exception) -> SceneError:
             text = text[text.find(marker):]
     if "unreferenced" in text.lower():
         hint = " (unknown parameter)"
+    elif re.search(r'Plugin "(parametric|keyframed)" not found', text):
+        hint = (" (a 'motion' was given where nothing moves: only a top-level shape, emitter or the sensor may "
+                "have one, not a BSDF, a film, an emitter inside a shape or a shape inside a shapegroup)")
     elif re.search(r'Plugin "[^"]*" not found', text):
         hint = " (unknown plugin type)"
     elif "not found" in text.lower() or "does not exist" in text.lower():
@@ -376,6 +379,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     integrator_params: dict = {}
     hints = {}  # the sampler's sample_count and seed
     definitions = [el for el in root if el.tag in _DEFINITION_TAGS and "id" in el.attrib]
+    shape_groups = {el.attrib["id"]: el for el in root if el.tag == "shape" and el.get("type") == "shapegroup" and "id" in el.attrib}
     moving = []  # (motion, (index, element)) of every animated shape
     moving_lights = []  # (where, element, motion) of every animated emitter
     attached = []  # (element, where) of the emitters inside the sensor
@@ -438,6 +442,9 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
             body_root = ET.Element("scene", {"version": root.attrib.get("version", "3.0.0")})
             for d in definitions:
                 body_root.append(copy.deepcopy(d))
+            used_groups = {ref.get("id") for _, el in members for ref in el.iter("ref")} & shape_groups.keys()
+            for group in sorted(used_groups):  # a moving instance's shapegroup (it renders nothing itself)
+                body_root.append(copy.deepcopy(shape_groups[group]))
             for _, el in members:
                 body_root.append(el)
             name = ", ".join(el.attrib.get("id", f"shape #{i}") for i, el in members)
