@@ -24,6 +24,7 @@ import json
 import math
 import subprocess
 import sys
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -217,3 +218,15 @@ def test_commands_take_a_scene_with_a_shutter(one_ms_shutter, tmp_path, command,
     else:
         cameras = metadata["cameras"] if "cameras" in metadata else [metadata["base_camera"]]  # the sweeps record their grid's base
         assert cameras and {c["exposure"] for c in cameras} == {exposure_s}
+
+
+def test_an_api_camera_exposing_past_the_files_shutter_warns(one_ms_shutter):
+    """A dt.Camera's own T (default 1.5 ms) wins over a 1 ms shutter, where the command
+    line's --camera without T takes the shutter's: it rendered past shutter_close silently."""
+    scene = dt.load_scene(one_ms_shutter)
+    with pytest.warns(UserWarning, match=r"the cameras expose 0 to 0\.0015 s, past the scene's shutter \(0 to 0\.001 s\).*Camera\(exposure=0\.001\)"):
+        dt.render(scene, cameras=[dt.Camera()], spp=2, max_depth=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        dt.render(scene, cameras=[dt.Camera(exposure=1e-3)], spp=2, max_depth=2)
+        dt.render(scene, spp=2, max_depth=2)  # the scene's own exposure

@@ -242,6 +242,25 @@ def _checkpoint_names(accs: list) -> list[tuple[str, Accumulator, str]]:
 
 
 
+def _warn_past_the_shutter(scene, settings: RenderSettings) -> None:
+    """Warn where the caller's cameras expose outside the scene file's shutter interval: a
+    ``dopplertof.Camera`` has its own T (default 1.5 ms), which wins over the file's (the
+    command line's ``--camera`` without T takes the shutter's)."""
+    from .settings import shutter_interval
+
+    shutter = shutter_interval(scene)
+    if shutter is None:
+        return
+    open_s, length_s = shutter
+    slack = 1e-6 * length_s
+    for w in settings.windows:
+        if w.start_s < open_s - slack or w.start_s + w.exposure_s > open_s + length_s + slack:
+            warnings.warn(f"the cameras expose {w.start_s:g} to {w.start_s + w.exposure_s:g} s, past the scene's shutter "
+                          f"({open_s:g} to {open_s + length_s:g} s): a dopplertof.Camera's own T (default {DEFAULT_EXPOSURE_S:g} s) "
+                          f"wins over the file's; give Camera(exposure={length_s:g}) to expose for the shutter", stacklevel=3)
+            return
+
+
 def _checkpoint_lanes_per_pass(path, settings: RenderSettings) -> int | None:
     """The checkpoint's ``lanes_per_pass`` where it is at most ``settings``' (else None): the
     sums are per pass, so a render continues the checkpoint's passes (``until_noise`` lowers
@@ -495,6 +514,7 @@ def render(
         cameras = sensor.cameras()
     checkpoint_interval_s = checked_checkpoint_interval(checkpoint_interval_s)
     keep_checkpoint = checked("keep_checkpoint", keep_checkpoint, "bool")
+    callers_cameras = cameras is not None and sensor is None
     if cameras is not None:
         overrides["cameras"] = cameras
     if isinstance(settings, RenderSettings):
@@ -504,6 +524,8 @@ def render(
     else:
         raise TypeError(f"settings must be a dopplertof.RenderSettings or a dict of setting names, got {type(settings).__name__}")
     settings = RenderSettings.build(*layers, overrides)
+    if callers_cameras:
+        _warn_past_the_shutter(scene, settings)
     resumed_lanes = None if checkpoint is None else _checkpoint_lanes_per_pass(checkpoint, settings)
     if until_noise is not None:
         until_noise = checked_until_noise(until_noise)
