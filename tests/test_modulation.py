@@ -82,6 +82,7 @@ def test_camera_from_original_parses_boolean_text_strictly(text, expected):
     ({"g_1": "-1"}, r"'g1' .* must be > 0, got -1.0"),
     # a misspelt key gave the default (a homodyne camera for a misspelt hetero_frequency)
     ({"w_g": 30, "hetero_frequnecy": 1.0}, r"unknown camera key 'hetero_frequnecy' \(did you mean 'hetero_frequency'\?\); the keys are time, "),
+    ({"w_g": 30e6}, r"modulation_frequency must be in .*, got 30000000000000.0 \(w_g and w_s are in MHz: w_g=30 is 30 MHz\)"),
 ])  # fmt: skip
 def test_camera_from_original_refuses_bad_values(params, match):
     with pytest.raises(ValueError, match=match):

@@ -528,7 +528,7 @@ TOPICS = [
         ("…: a … emitter cannot move", "environment and directional emitters stay put", "point or spot emitters, or area emitters on a moving shape"),
         ("…: a light attached to a camera whose motion is a … on top of a to_world is not supported", "this camera motion cannot carry a light", "keyframes that include the placement"),
         ("…: …carries a sensor; a camera moves by its own <animation> (XML) or 'motion' (dict)", "a sensor inside a moving shape", "animate the sensor itself"),
-        ("…: … has a motion that scales; cameras and point or spot lights may only move rigidly", "a scaling camera or light motion", "translate and rotate only"),
+        ("…: … has a motion that scales (its keys carry a scale", "a scaling camera or light motion (a constant scale in its keys too: an orthographic sensor's extent)", "translate and rotate only; an orthographic sensor cannot move"),
         ("…: moving body … carries an emitter and its motion's keys scale the axes differently; give the shape its own to_world and a parametric motion, or keys that scale every axis equally", "an emitter on a body whose keyframes scale it per axis", "a parametric motion over the shape's own `to_world`, or keys with one scale on every axis"),
         ("…: the sensor is inside a participating medium; media are not supported", "media", "remove the medium"),
         ("…: …shape … has a participating medium; media are not supported", "media", "remove the `<medium>` or render with stock Mitsuba's volpath"),

@@ -551,7 +551,8 @@ def _checked_scene(scene: DynamicScene, shutter_given: bool = False) -> DynamicS
             raise SceneError(f"{where}: {label}carries a sensor; a camera moves by its own <animation> (XML) or 'motion' (dict)")
     for label, motion in [("the sensor", scene.camera_motion)] + [(f"moving light {light.name!r}", light.motion) for light in scene.lights]:
         if motion is not None and not motion.is_rigid():
-            raise SceneError(f"{where}: {label} has a motion that scales; cameras and point or spot lights may only move rigidly")
+            raise SceneError(f"{where}: {label} has a motion that scales (its keys carry a scale, even one that does not change, "
+                             "such as an orthographic sensor's extent); cameras and point or spot lights may only move rigidly")
     for body in scene.bodies:
         if body.scene.emitters() and not body.motion.is_conformal():
             raise SceneError(

@@ -330,7 +330,8 @@ class Camera:
         try:
             return cls(**values)
         except ValueError as exc:
-            raise ValueError(f"{where}: {exc}") from None
+            unit = " (w_g and w_s are in MHz: w_g=30 is 30 MHz)" if "modulation_frequency" in str(exc) and "w_g" in params else ""
+            raise ValueError(f"{where}: {exc}{unit}") from None
 
 
 # The original code's camera parameters and their kinds (:meth:`Camera.from_original`).
