@@ -338,6 +338,9 @@ def test_reconstruct_command_states_threshold_error_model_and_depth_range(direct
     assert np.median(np.abs(direct.depth[seen] - depth[seen] - info["depth_range_m"])) < 0.01
     error = json.loads((tmp_path / "velocity_error.json").read_text())
     assert error["off_by_3_stderr_fraction"] <= 0.02
+    # over the moving pixels alone (static walls read exactly 0 and dilute the first): the boxes' outlines count
+    assert error["off_by_3_stderr_fraction"] < error["off_by_3_stderr_fraction_moving"] < 0.1
+    assert f"({100 * error['off_by_3_stderr_fraction_moving']:.1f}% of those that move)" in head
     for bad in ("-1", "fast", "0m/s", "nan"):
         code, out, err = run_cli("reconstruct", tmp_path, "--max-velocity-stderr", bad)
         assert code == 2 and err.strip().splitlines() == [

@@ -92,3 +92,7 @@ BY_NAME = {o.name: o for o in OUTPUTS}
 TRUTH = tuple(o for o in OUTPUTS if o.kind == "truth")
 ESTIMATES = tuple(o for o in OUTPUTS if o.kind == "estimate")
 STDERR_NAMES = {o.stderr_name: o for o in ESTIMATES}
+
+MOVING_PIXEL_M_S = 1e-3
+"""A pixel moves where its ground-truth radial ``velocity`` exceeds this, m/s, in absolute
+value (the reconstruction's error summary, the velocity experiment, dataset statistics)."""

@@ -59,6 +59,7 @@ from .clitools import fail
 from . import reconstruct as rc
 from .reconstruct.frequencies import beat_range_m
 from .modulation import Camera
+from .outputs import MOVING_PIXEL_M_S
 
 METADATA_FILE = "metadata.json"
 ERROR_FILE = "velocity_error.json"
@@ -159,7 +160,9 @@ def describe_summary(info: dict) -> str:
     else:
         parts.append(info["threshold_reason"])
     if "off_by_3_stderr_fraction" in info and math.isfinite(info["off_by_3_stderr_fraction"]):
-        parts.append(f"{100 * info['off_by_3_stderr_fraction']:.1f}% of valid pixels are off by > 3 standard errors")
+        moving = info.get("off_by_3_stderr_fraction_moving", math.nan)
+        of_moving = f" ({100 * moving:.1f}% of those that move)" if math.isfinite(moving) else ""
+        parts.append(f"{100 * info['off_by_3_stderr_fraction']:.1f}% of valid pixels are off by > 3 standard errors{of_moving}")
     formula = "c/(2 f_g)" if len(info["modulation_frequencies_hz"]) < 2 else "c/(2 |f_1 − f_2|), two frequencies"
     depth = f"depth modulo {info['depth_range_m']:.4g} m ({formula})"
     if "depth_wrapped_fraction" in info:
@@ -182,7 +185,9 @@ def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s) -> dict:
     dict
         ``valid_fraction`` (of the pixels with ground truth), ``n_valid``, and over those
         pixels ``median_abs_error_m_s``, ``mean_abs_error_m_s``, ``rmse_m_s`` and
-        ``off_by_3_stderr_fraction`` (|error| > 3 ``velocity_stderr``) (NaN when no pixel is
+        ``off_by_3_stderr_fraction`` (|error| > 3 ``velocity_stderr``), also over the valid
+        pixels that move (|truth| > :data:`dopplertof.outputs.MOVING_PIXEL_M_S`: static walls whose velocity is
+        exactly 0 would dilute it), ``off_by_3_stderr_fraction_moving`` (NaN when no pixel is
         valid, or without standard errors).
     """
     truth = np.asarray(ground_truth_m_s, dtype=np.float64)
@@ -196,10 +201,12 @@ def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s) -> dict:
 
     sigma = reconstruction.velocity_stderr
     off = np.abs(error) > 3.0 * sigma[valid] if sigma is not None else np.zeros(0)
+    off_moving = off[np.abs(truth[valid]) > MOVING_PIXEL_M_S] if off.size else off
     return {
         "valid_fraction": float(valid.sum() / n_seen) if n_seen else 0.0,
         # the calibration of velocity_stderr: ≈ 0.3 % for Gaussian errors where the model holds
         "off_by_3_stderr_fraction": float(off.mean()) if off.size else math.nan,
+        "off_by_3_stderr_fraction_moving": float(off_moving.mean()) if off_moving.size else math.nan,
         "n_valid": int(valid.sum()),
         "median_abs_error_m_s": stat(lambda e: np.median(np.abs(e))),
         "mean_abs_error_m_s": stat(lambda e: np.mean(np.abs(e))),

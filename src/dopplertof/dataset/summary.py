@@ -9,10 +9,10 @@ from collections import Counter
 
 import numpy as np
 
+from ..outputs import MOVING_PIXEL_M_S
 from ..validation import checked_in_range
 from .reader import open_dataset
 
-MOVING_PIXEL_SPEED_M_S = 1e-3  # a pixel "sees motion" where |velocity| exceeds this
 _BINS = 10
 _BAR_WIDTH = 30
 
@@ -75,7 +75,7 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
         depths.append(sample["depth"].ravel())
         v = sample["velocity"].ravel()
         speeds.append(np.abs(v))
-        sees_motion_px += int(np.sum(np.abs(v[np.isfinite(v)]) > MOVING_PIXEL_SPEED_M_S))
+        sees_motion_px += int(np.sum(np.abs(v[np.isfinite(v)]) > MOVING_PIXEL_M_S))
         total_px += v.size
         if "moving_mask" in sample:
             moving_px += int(sample["moving_mask"].sum())
@@ -115,13 +115,13 @@ def summarize(folder, sheet: str | None = None, sheet_samples: int = 4, max_samp
         *([f"sensors (raw_electrons, raw_dn): {', '.join(f'{k} {c}' for k, c in sorted(sensors.items()))}"] if sensors else []),
         f"moving fraction: {stats['moving_mask_fraction']:.4f} of pixels (moving_mask)" if stats["moving_mask_fraction"] is not None
         else "moving fraction (moving_mask): n/a, the dataset has no instance_id",
-        f"pixels whose radial velocity exceeds {MOVING_PIXEL_SPEED_M_S * 1e3:g} mm/s: {stats['pixels_seeing_motion_fraction']:.4f}"
+        f"pixels whose radial velocity exceeds {MOVING_PIXEL_M_S * 1e3:g} mm/s: {stats['pixels_seeing_motion_fraction']:.4f}"
         if total_px else "no pixels",
         f"pixels without a hit (background): {stats['no_hit_fraction']:.4f}" if depth.size else "",
         "depth (m), hit pixels:",
         *_histogram_lines(depth, "m"),
         "|radial velocity| (m/s) on pixels seeing motion:",
-        *_histogram_lines(speed[speed > MOVING_PIXEL_SPEED_M_S], "m/s"),
+        *_histogram_lines(speed[speed > MOVING_PIXEL_M_S], "m/s"),
         "body speed (m/s):",
         *_histogram_lines(np.asarray(body_speeds, dtype=np.float64), "m/s"),
         "body spin rate (rad/s):",

@@ -27,6 +27,7 @@ from typing import Sequence
 import numpy as np
 
 from .. import io, reconstruct, viz
+from ..outputs import MOVING_PIXEL_M_S
 from ..sensor import SensorModel, luminance
 from .common import (
     REFERENCE_ESTIMATOR,
@@ -43,9 +44,6 @@ from .common import (
 
 DEFAULT_ESTIMATORS = (Estimator("uniform", "none"), Estimator("stratified", "replay"), Estimator("antithetic", "replay"))
 """The three heterodyne estimators of the original ``main_animation.py``."""
-
-MOVING_SPEED_M_S = 1e-3
-"""Ground-truth |velocity| above which a pixel counts as moving (m/s)."""
 
 COLUMNS = (
     "scene", "estimator", "time_sampling", "correlation", "spp", "noise",
@@ -93,7 +91,7 @@ def velocity_errors(estimate: np.ndarray, truth: np.ndarray) -> dict:
         ``static_rmse_m_s``. Statistics of an empty pixel set are NaN.
     """
     known = np.isfinite(truth)
-    moving = known & (np.abs(truth) > MOVING_SPEED_M_S)
+    moving = known & (np.abs(truth) > MOVING_PIXEL_M_S)
     static = known & ~moving
     valid = moving & np.isfinite(estimate)
     error = (estimate - truth)[valid]
@@ -269,7 +267,7 @@ def run_velocity(
         "max_depth": max_depth,
         "signal_electrons": signal_electrons,
         "sensor": dataclasses.asdict(sensor),
-        "moving_speed_m_s": MOVING_SPEED_M_S,
+        "moving_speed_m_s": MOVING_PIXEL_M_S,
         "cache": str(cache.folder),
     }))  # fmt: skip
     return written
