@@ -16,7 +16,9 @@ Scene elements
 * ``<srgb>`` (gamma-encoded, ``#rrggbb`` or three numbers) → linear ``<rgb>``; the
   ``intent`` attribute of ``<rgb>``/``<srgb>``/``<spectrum>`` is dropped: it only steers
   spectral upsampling, which an RGB build (the original's) does not do;
-* ``mfilm`` → ``hdrfilm`` with mfilm's defaults made explicit (1×1 pixels, box filter);
+* ``mfilm`` → ``hdrfilm`` with mfilm's defaults made explicit (1×1 pixels, box filter), but
+  its default luminance output: the measurements are one number a pixel anyway, and the
+  intensity is written as RGB (a ``pixelFormat`` other than ``rgb`` given is refused);
   ``fileFormat`` (matlab/mathematica/numpy), ``digits``, ``variable``, ``banner`` and
   ``attachLog`` only shape the written file and are dropped; ``pixelFormat`` keeps its
   value (``luminanceAlpha`` → ``luminance_alpha``; ``spectrum*`` has no Mitsuba 3
@@ -367,8 +369,6 @@ def _film(film, where):
         fmt = _child(film, "file_format")
         if fmt is not None:
             film.remove(fmt)  # matlab/mathematica/numpy: the written file's encoding
-        if _child(film, "pixel_format") is None:
-            film.append(ET.Element("string", {"name": "pixel_format", "value": "luminance"}))
     for p in list(film):
         name = p.attrib.get("name")
         if name in _FILE_ONLY_FILM_KEYS:
