@@ -125,9 +125,11 @@ def velocity(
         few samples contributed for their errors to bound the velocity's (from a single
         sample the propagated error is zero), and where every camera with h ≠ 0 is exact
         (error 0: no sampled path changed during the exposure) beside a pixel where some
-        sampled path did (its own samples missed the motion). Valid pixels are calibrated where the model holds
-        (one path per pixel, direct light): fewer than 2 % of them are off by more than three
-        standard errors (``tests/test_reconstruct_render.py``). Multipath biases are not in
+        sampled path did (its own samples missed the motion). Where the model holds (one
+        surface per pixel, direct light) fewer than 2 % of the valid pixels are off by more
+        than three standard errors (``tests/test_reconstruct_render.py``), but on moving
+        surfaces more (4–7 % of the Cornell box's at 256 spp: the errors of h ≠ 0 cameras are
+        heavy-tailed there, ``docs/estimators.md``). Multipath and silhouettes bias beyond
         the standard error.
     stderr_dof : int, optional
         The degrees of freedom the measurements' errors are estimated from (a render's
