@@ -321,6 +321,14 @@ def test_bad_dict_motion(motion, match):
     assert "'ball'" in str(info.value)  # says which entry
 
 
+def test_an_integrator_value_no_render_could_take_is_refused_when_the_scene_loads(tmp_path):
+    """max_depth 0 loaded and was refused only when the render began, without the file's name."""
+    path = write_scene(tmp_path, '<integrator type="path"><integer name="max_depth" value="0"/></integrator><shape type="sphere"/>')
+    with pytest.raises(dt.SceneError, match=r"scene\.xml: <integrator>: 'max_depth' must be >= 1 or -1 \(unbounded\), got 0") as info:
+        dt.load_scene(path)
+    assert_one_line(info)
+
+
 def test_a_motion_where_nothing_moves_says_so():
     """It was only Mitsuba's 'Plugin "parametric" not found!'."""
     ball = {"type": "sphere", "bsdf": {"type": "diffuse", "motion": {"type": "parametric", "linear_velocity": [0, 0, 1]}}}

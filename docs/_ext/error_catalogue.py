@@ -561,7 +561,8 @@ TOPICS = [
 # Messages composed away from the call that raises them (the reasons of
 # dopplertof.reconstruct.identify, returned as text and raised by its callers): catalogued by
 # hand, so the source scan does not see them.
-COMPOSED_ELSEWHERE = ("all cameras have the same heterodyne ratio h = …", "the cameras … cannot determine velocity")
+COMPOSED_ELSEWHERE = ("all cameras have the same heterodyne ratio h = …", "the cameras … cannot determine velocity",
+                      "'max_depth' must be >= 1 or -1 (unbounded), got …")  # the last: a setting's rule (settings.py)
 
 def _template(node, constants=None) -> str:
     """A message expression as its template: literal text kept (and the module's string

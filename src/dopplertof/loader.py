@@ -53,7 +53,7 @@ import numpy as np
 from . import mitsuba06
 from .modulation import SPEED_OF_LIGHT_M_S
 from .motion import SUSPICIOUS_SPEED_M_S, Keyframed, Motion, Parametric, check_speed
-from .settings import PLUGIN_NAMES, STOCK_OTHER_INTEGRATORS, STOCK_PATH_INTEGRATORS, integrator_layer
+from .settings import PLUGIN_NAMES, STOCK_OTHER_INTEGRATORS, STOCK_PATH_INTEGRATORS, check_layer, integrator_layer
 from .lights import MovingLight
 from .scene import Body, DynamicScene, SceneError
 from .tracing.materials import relative_ior
@@ -573,7 +573,7 @@ def _checked_scene(scene: DynamicScene, shutter_given: bool = False) -> DynamicS
         raise SceneError(f"{where}: {exc}") from None
     if scene.integrator_params:
         try:
-            integrator_layer(scene.integrator_params, f"{where}: <integrator>")
+            check_layer(integrator_layer(scene.integrator_params, f"{where}: <integrator>"), f"{where}: <integrator>")
         except ValueError as exc:
             raise SceneError(str(exc)) from None
     return scene

@@ -44,11 +44,12 @@ MAX_SPP = 1 << 31
 PLUGIN_NAMES = ("dopplertof", "dopplertofpath")
 
 
-def _setting(default, kind, unit, doc, *, choices=None, follows=None, minimum=None, maximum=None, beyond_maximum="", optional=False):
+def _setting(default, kind, unit, doc, *, choices=None, follows=None, minimum=None, maximum=None, beyond_maximum="", rule=None, optional=False):
     """A dataclass field with the setting's declaration in its metadata (``beyond_maximum``:
-    what the refusal of a value above ``maximum`` says to do instead)."""
+    what the refusal of a value above ``maximum`` says to do instead; ``rule``: value → what
+    it must be, where it is not, else None)."""
     meta = dict(kind=kind, unit=unit, doc=doc, choices=choices, follows=follows, minimum=minimum, maximum=maximum,
-                beyond_maximum=beyond_maximum, optional=optional)
+                beyond_maximum=beyond_maximum, rule=rule, optional=optional)
     return field(default=default, metadata=meta)
 
 
@@ -66,7 +67,10 @@ class RenderSettings:
         None, "float", "s", f"exposure T when no camera is given (default {DEFAULT_EXPOSURE_S})", follows="cameras", optional=True,
     )  # fmt: skip
     exposure_start: float = _setting(0.0, "float", "s", "scene time at which the exposure opens (of the cameras that give no exposure_start of their own)")
-    max_depth: int = _setting(5, "int", "", "longest path, Mitsuba semantics (1 emitters only, 2 direct light, -1 unbounded)")
+    max_depth: int = _setting(
+        5, "int", "", "longest path, Mitsuba semantics (1 emitters only, 2 direct light, -1 unbounded)",
+        rule=lambda depth: "must be >= 1 or -1 (unbounded)" if depth == 0 or depth < -1 else None,
+    )  # fmt: skip
     rr_depth: int = _setting(5, "int", "", "depth at which Russian roulette starts", minimum=1)
     hide_emitters: bool = _setting(False, "bool", "", "hide directly visible emitters (as stock path)")
     time_sampling: str = _setting("antithetic", "str", "", "how path times are drawn", choices=METHODS + (ANALYTIC,))
@@ -240,8 +244,6 @@ class RenderSettings:
 
     def _check_combination(self):
         n = self.group_size
-        if self.max_depth == 0 or self.max_depth < -1:
-            raise ValueError(f"'max_depth' must be >= 1 or -1 (unbounded), got {self.max_depth}")
         if self.seed >= 1 << 32:
             raise ValueError(f"'seed' must be < 2**32, got {self.seed}")
         if self.time_sampling in ("antithetic_mirror", ANALYTIC) and n != 2:
@@ -375,7 +377,30 @@ def _validated(f, value):
         raise ValueError(f"{f.name!r} must be >= {meta['minimum']}, got {value!r}")
     if meta["maximum"] is not None and value > meta["maximum"]:
         raise ValueError(f"{f.name}={value!r} exceeds its maximum {meta['maximum']}: {meta['beyond_maximum']}")
+    broken = meta["rule"](value) if meta["rule"] is not None else None
+    if broken:
+        raise ValueError(f"{f.name!r} {broken}, got {value!r}")
     return value
+
+
+def check_layer(layer: dict, where: str) -> None:
+    """ValueError (prefixed with ``where``) for a value of a settings layer that no render
+    could take (its kind, choices, range, rule), before the other layers meet it: what
+    :meth:`RenderSettings.build` checks of each setting on its own, not their combination.
+
+    Parameters
+    ----------
+    layer : dict
+        Setting name → value (a scene's ``<integrator>``: :func:`integrator_layer`).
+    where : str
+        Named in the error.
+    """
+    for name, value in layer.items():
+        if name in FIELDS:
+            try:
+                _validated(FIELDS[name], value)
+            except ValueError as exc:
+                raise ValueError(f"{where}: {exc}") from None
 
 
 def checked_checkpoint_interval(value) -> float:
