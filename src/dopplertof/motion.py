@@ -219,6 +219,22 @@ class Pose:
         return self.translation_rate + _cross(self.omega, r) + stretch
 
 
+def box_corners(bbox_min, bbox_max) -> np.ndarray:
+    """The 8 corners of an axis-aligned box as homogeneous points, shape (8, 4).
+
+    Parameters
+    ----------
+    bbox_min, bbox_max : (3,) array_like
+        The box's opposite corners.
+
+    Returns
+    -------
+    ndarray of float64
+    """
+    lo, hi = np.asarray(bbox_min, dtype=np.float64), np.asarray(bbox_max, dtype=np.float64)
+    return np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+
 class Motion:
     """Base class: a rigid motion evaluated per lane. Subclasses implement :meth:`pose`."""
 
@@ -283,9 +299,7 @@ class Motion:
         if len(edges) < 2 or not t1 > t0:
             return 0.0
         times = np.unique(np.concatenate([np.linspace(a, b, steps_per_segment + 1) for a, b in zip(edges, edges[1:])]))
-        lo, hi = np.asarray(bbox_min, dtype=np.float64), np.asarray(bbox_max, dtype=np.float64)
-        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-        at = (self.matrices(times) @ corners.T)[:, :3, :]  # (times, 3, 8)
+        at = (self.matrices(times) @ box_corners(bbox_min, bbox_max).T)[:, :3, :]  # (times, 3, 8)
         return float((np.linalg.norm(np.diff(at, axis=0), axis=1) / np.diff(times)[:, None]).max())
 
     def swept_bounds(self, bbox_min, bbox_max, t0: float, t1: float, samples: int = 65):
@@ -297,9 +311,7 @@ class Motion:
         measured at every midpoint, pads the box: about four times the gap left after
         adding those midpoints (exactly so for the arc of a rotation).
         """
-        lo = np.asarray(bbox_min, dtype=np.float64)
-        hi = np.asarray(bbox_max, dtype=np.float64)
-        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        corners = box_corners(bbox_min, bbox_max)
         times = np.union1d(np.linspace(t0, t1, samples), self.breakpoints(t0, t1))
         mids = 0.5 * (times[1:] + times[:-1])
         at_times = (self.matrices(times) @ corners.T).transpose(0, 2, 1)[..., :3]  # (times, 8, 3)
@@ -544,9 +556,7 @@ class Parametric(Motion):
     def max_point_speed(self, bbox_min, bbox_max, steps_per_segment: int = 64) -> float:
         """|v| + |ω| × the farthest corner of the local box from the pivot (at t = 0, a
         distance the rotation keeps): a bound on the speed of every point (m/s)."""
-        lo, hi = np.asarray(bbox_min, dtype=np.float64), np.asarray(bbox_max, dtype=np.float64)
-        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-        reach = np.linalg.norm((self.base @ corners.T)[:3].T - self.pivot, axis=1).max()
+        reach = np.linalg.norm((self.base @ box_corners(bbox_min, bbox_max).T)[:3].T - self.pivot, axis=1).max()
         return float(np.linalg.norm(self.linear_velocity) + self.rate * reach)
 
     def is_static(self):
