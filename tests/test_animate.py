@@ -47,6 +47,8 @@ def frame_lines(output):
 def test_every_frame_is_one_exposure_at_its_own_time(clip):
     folder, output = clip
     assert len(frame_lines(output)) == 3
+    # 4 spp: why no pixel is valid is said with the frame
+    assert "no valid pixel (its standard errors come from 1 degree of freedom, a valid pixel needs 15: more --spp)" in frame_lines(output)[0]
     for i in range(3):
         frame = folder / f"frame_{i:04d}"
         meta = json.loads((frame / "metadata.json").read_text())

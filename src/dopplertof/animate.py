@@ -50,6 +50,7 @@ from .clitools import StopOnSignal, cameras_layer, fail, given_settings, output_
 from . import io, viz
 from .differences import differences
 from .modulation import Camera
+from .reconstruct import MIN_STDERR_DOF
 from .render_folder import describe_error, reconstruct, resolve_method, velocity_error, write_reconstruction
 
 DEFAULT_FPS = 30.0
@@ -251,7 +252,7 @@ def _render_frame(scene, index, fps, settings, method, folder, progress, stop):
     reconstruction = reconstruct(result.measurements, cameras, method, result.measurement_stderr, result.maps.get("measurement_covariance"),
                                  stderr_dof=result.info["stderr_dof"])
     write_reconstruction(folder, reconstruction, result.velocity)
-    summary = {"frame": index, "time_s": start_s, "exposure_s": cameras[0].exposure,
+    summary = {"frame": index, "time_s": start_s, "exposure_s": cameras[0].exposure, "stderr_dof": result.info["stderr_dof"],
                **velocity_error(reconstruction, result.velocity)}
     _write_done(folder, summary)
     os.remove(checkpoint)
@@ -397,7 +398,10 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
         started = time.perf_counter()
         summary = _render_frame(scene, index, fps, settings, method, folder, progress, stop)
         summaries.append(summary)
-        log(f"{head}: rendered in {time.perf_counter() - started:.1f} s; {describe_error(summary)}")
+        dof = summary["stderr_dof"]
+        too_few = dof < MIN_STDERR_DOF
+        why = f" (its standard errors come from {dof} degree{'' if dof == 1 else 's'} of freedom, a valid pixel needs {MIN_STDERR_DOF}: more --spp)" if too_few else ""
+        log(f"{head}: rendered in {time.perf_counter() - started:.1f} s; {describe_error(summary)}{why}")
     write_clip_files(output, frames, fps)
     return summaries
 
