@@ -51,7 +51,7 @@ from . import io, viz
 from .differences import differences
 from .modulation import Camera
 from .reconstruct import MIN_STDERR_DOF
-from .render_folder import describe_error, reconstruct, resolve_method, velocity_error, write_reconstruction
+from .render_folder import describe_error, errors_from, reconstruct, resolve_method, velocity_error, write_reconstruction
 
 DEFAULT_FPS = 30.0
 DEFAULT_CAMERAS = tuple((h, psi) for h in (0.0, 1.0) for psi in (0.0, math.pi / 2))
@@ -400,7 +400,7 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
         summaries.append(summary)
         dof = summary["stderr_dof"]
         too_few = dof < MIN_STDERR_DOF
-        why = f" (its standard errors come from {dof} degree{'' if dof == 1 else 's'} of freedom, a valid pixel needs {MIN_STDERR_DOF}: more --spp)" if too_few else ""
+        why = f" ({errors_from(dof)}, a valid pixel needs {MIN_STDERR_DOF}: more --spp)" if too_few else ""
         log(f"{head}: rendered in {time.perf_counter() - started:.1f} s; {describe_error(summary)}{why}")
     write_clip_files(output, frames, fps)
     return summaries

@@ -52,7 +52,7 @@ import numpy as np
 from .io import NPZ_READ_ERRORS
 from .outputs import BY_NAME, ESTIMATES, TRUTH
 from .passes import MAX_COVARIANCE_CAMERAS, Accumulator, PassTracer, Reducer, schedule
-from .settings import DEFAULT_CHECKPOINT_INTERVAL_S, DEFAULT_EXPOSURE_S, FIELDS, RenderSettings, checked_checkpoint_interval, scene_layer
+from .settings import DEFAULT_CHECKPOINT_INTERVAL_S, DEFAULT_EXPOSURE_S, FIELDS, RenderSettings, checked_checkpoint_interval, scene_layer, shutter_interval
 from .validation import checked
 
 __all__ = ["render", "RenderResult", "RenderSettings", "DEFAULT_EXPOSURE_S", "CheckpointWriteError"]
@@ -246,8 +246,6 @@ def _warn_past_the_shutter(scene, settings: RenderSettings) -> None:
     """Warn where the caller's cameras expose outside the scene file's shutter interval: a
     ``dopplertof.Camera`` has its own T (default 1.5 ms), which wins over the file's (the
     command line's ``--camera`` without T takes the shutter's)."""
-    from .settings import shutter_interval
-
     shutter = shutter_interval(scene)
     if shutter is None:
         return

@@ -143,6 +143,12 @@ def summary(reconstruction: rc.VelocityResult, depth_truth_m=None) -> dict:
     return info
 
 
+def errors_from(dof: int) -> str:
+    """"its standard errors come from N degree(s) of freedom": why no pixel can be valid
+    below :data:`dopplertof.reconstruct.MIN_STDERR_DOF` (``reconstruct``, ``animate``)."""
+    return f"its standard errors come from {dof} degree{'' if dof == 1 else 's'} of freedom"
+
+
 def describe_summary(info: dict) -> str:
     """One line for :func:`summary` (and the ground-truth checks, when present)."""
     parts = []
@@ -151,7 +157,7 @@ def describe_summary(info: dict) -> str:
         parts.append("no pixel can be valid: the render stopped early, and with stratified times its standard errors leave out "
                      "the spread between the strata it did not draw (resume it to complete them)")
     elif dof is not None and dof < rc.MIN_STDERR_DOF:
-        parts.append(f"no pixel can be valid: its standard errors come from {dof} degree{'' if dof == 1 else 's'} of freedom, and a valid pixel "
+        parts.append(f"no pixel can be valid: {errors_from(dof)}, and a valid pixel "
                      f"needs {rc.MIN_STDERR_DOF} (render more paths per pixel: one degree per two groups of correlated times, spp/4 for antithetic "
                      "times; replicates − 1 where the times are not stratified)")
     if info["max_velocity_stderr_m_s"] is not None:

@@ -28,6 +28,7 @@ import numpy as np
 
 from .. import io, reconstruct, viz
 from ..outputs import MOVING_PIXEL_M_S
+from ..reconstruct.errors import _covariance
 from ..sensor import SensorModel, luminance
 from .common import (
     REFERENCE_ESTIMATOR,
@@ -233,8 +234,8 @@ def run_velocity(
         noisy = sensor.noisy_measurements(luma, result.measurements, cameras, seed=seed)
         # The render's covariance, plus the sensor's own noise (independent between cameras)
         # for the noisy measurements: the reconstruction marks as invalid what they cannot resolve.
-        covariance = np.array(result.maps["measurement_covariance"], dtype=np.float64) if "measurement_covariance" in result.maps else \
-            np.einsum("ij,i...->ij...", np.eye(len(cameras)), np.asarray(result.measurement_stderr, np.float64) ** 2)  # a cache older than it
+        # (a cache older than the covariance gives the standard errors alone)
+        covariance = _covariance(result.measurement_stderr, result.maps.get("measurement_covariance"), result.measurements.shape)
         noisy_covariance = covariance.copy()
         for i, (measurement, camera) in enumerate(zip(result.measurements, cameras)):
             noisy_covariance[i, i] += sensor.measurement_std(luma, measurement, camera) ** 2
