@@ -8,7 +8,13 @@
 #   scripts/gpu-check.sh                      # set up, then the check
 #   scripts/gpu-check.sh --dry-run            # no GPU: the LLVM half, compared with itself
 #                                             # at another seed (CI; also DOPPLERTOF_GPU_CHECK_DRY=1)
-#   scripts/gpu-check.sh --no-setup --resolution 8 --spp 4 --no-throughput
+#   scripts/gpu-check.sh --no-setup --resolution 8 --spp 16 --no-throughput
+#
+# --no-setup runs on what is installed: .venv's Python, else $PYTHON, else python3, with this
+# checkout's src/ first on the path (a GPU machine with no network: carry the mitsuba and
+# drjit wheels, install them with pip --target, and put that folder on PYTHONPATH).
+# Each variant's renders stop after --half-timeout s (default 240); the scenes they finished
+# are compared, and the check fails naming the rest.
 #
 # Exit status 0 when every comparison holds, 1 otherwise (the failures are listed).
 set -euo pipefail
@@ -20,4 +26,7 @@ for a in "$@"; do
 done
 if [ "${DOPPLERTOF_GPU_CHECK_DRY:-0}" = 1 ]; then args+=("--dry-run"); fi
 if [ "$setup" = 1 ]; then bash scripts/setup.sh; fi
-exec .venv/bin/python scripts/gpu_check.py ${args[@]+"${args[@]}"}
+py=.venv/bin/python
+[ -x "$py" ] || py=${PYTHON:-python3}
+export PYTHONPATH="$PWD/src${PYTHONPATH:+:$PYTHONPATH}"
+exec "$py" scripts/gpu_check.py ${args[@]+"${args[@]}"}

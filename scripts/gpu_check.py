@@ -10,6 +10,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -27,7 +28,8 @@ MIN_BODY_PIXELS = 3  # a body on at least this many CPU pixels must show on the 
 
 
 def render_half(variant: str, resolution: int, spp: int, seed: int, out: str) -> None:
-    """Render every built-in scene × correlation on ``variant``; arrays to ``out`` (npz)."""
+    """Render every built-in scene × correlation on ``variant``; arrays to ``out`` (npz),
+    written again after each scene, so a half stopped part way keeps what it finished."""
     os.environ["DOPPLERTOF_VARIANT"] = variant
     import numpy as np
 
@@ -43,13 +45,14 @@ def render_half(variant: str, resolution: int, spp: int, seed: int, out: str) ->
         scene = dt.scenes.build(name, resolution=resolution)
         start = 0.5 * dt.scenes.clip_duration(name)
         for correlation in CORRELATIONS:
+            began = time.perf_counter()
             r = dt.render(scene, cameras, spp=spp, seed=seed, max_depth=3, correlation=correlation, exposure_start=start,
                           stratify_intervals=False, replicates=REPLICATES)  # fmt: skip
             key = f"{name}/{correlation}"
             for field in ("intensity", "stderr", "measurements", "measurement_stderr", "instance_id"):
                 arrays[f"{key}/{field}"] = np.asarray(getattr(r, field))
-            print(f"{variant}: {key} done", flush=True)
-    np.savez(out, **arrays)
+            print(f"{variant}: {key} done in {time.perf_counter() - began:.1f} s ({len(scene.bodies)} moving bodies, traversal {scene.traversal_in_use()})", flush=True)
+        np.savez(out, **arrays)
 
 
 def compare(a: dict, b: dict, label_a: str, label_b: str) -> list[str]:
@@ -57,8 +60,10 @@ def compare(a: dict, b: dict, label_a: str, label_b: str) -> list[str]:
     import numpy as np
 
     failures = []
-    keys = sorted({k.rsplit("/", 1)[0] for k in a})
-    for key in keys:
+    keys_a, keys_b = ({k.rsplit("/", 1)[0] for k in half} for half in (a, b))
+    failures += [f"{key}: rendered on {label_a} only (the other half stopped before it)" for key in sorted(keys_a - keys_b)]
+    failures += [f"{key}: rendered on {label_b} only (the other half stopped before it)" for key in sorted(keys_b - keys_a)]
+    for key in sorted(keys_a & keys_b):
         for value, error in (("intensity", "stderr"), ("measurements", "measurement_stderr")):
             x, y = a[f"{key}/{value}"].astype(np.float64), b[f"{key}/{value}"].astype(np.float64)
             se = np.sqrt(a[f"{key}/{error}"].astype(np.float64) ** 2 + b[f"{key}/{error}"].astype(np.float64) ** 2)
@@ -77,14 +82,25 @@ def compare(a: dict, b: dict, label_a: str, label_b: str) -> list[str]:
 
 
 def run_half(variant: str, args, seed: int, out: str) -> list[str]:
-    """Render a half in a process of its own; failures: its exit status, its warnings."""
+    """Render a half in a process of its own, for at most ``args.half_timeout`` s;
+    failures: its exit status, its warnings."""
     cmd = [sys.executable, __file__, "--half", variant, "--resolution", str(args.resolution), "--spp", str(args.spp), "--seed", str(seed), "--out", out]
-    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=args.half_timeout)
+    except subprocess.TimeoutExpired as exc:
+        sys.stdout.write(_text(exc.stdout))
+        warnings = [line for line in _text(exc.stderr).splitlines() if line.strip()]
+        return [f"{variant}: stopped after {args.half_timeout:g} s (--half-timeout); the scenes it finished are compared"] + [f"{variant}: stderr: {line}" for line in warnings]
     sys.stdout.write(proc.stdout)
     if proc.returncode != 0:
         return [f"{variant}: the renders failed (exit {proc.returncode}): {proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else ''}"]
     warnings = [line for line in proc.stderr.splitlines() if line.strip()]
     return [f"{variant}: stderr: {line}" for line in warnings]
+
+
+def _text(output) -> str:
+    """A TimeoutExpired's captured output (bytes, str or None) as text."""
+    return output.decode(errors="replace") if isinstance(output, bytes) else output or ""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -99,12 +115,15 @@ def main(argv=None) -> int:
     p.add_argument("--resolution", type=int, default=32, help="square film side, pixels (default 32)")
     p.add_argument("--spp", type=int, default=32, help="paths per pixel (even; default 32)")
     p.add_argument("--no-throughput", action="store_true", help="skip the throughput rows")
+    p.add_argument("--half-timeout", type=float, default=240.0, help="seconds each variant's renders may take; what finished is compared (default 240)")
     p.add_argument("--half", choices=(GPU, CPU), help=argparse.SUPPRESS)
     p.add_argument("--seed", type=int, default=1, help=argparse.SUPPRESS)
     p.add_argument("--out", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.resolution < 1 or args.spp < MIN_SPP or args.spp % 2:
         p.error(f"--resolution must be >= 1 and --spp even and >= {MIN_SPP}, got {args.resolution} and {args.spp}")
+    if not args.half_timeout > 0:
+        p.error(f"--half-timeout must be > 0 s, got {args.half_timeout:g}")
     if args.half:
         render_half(args.half, args.resolution, args.spp, args.seed, args.out)
         return 0
@@ -115,9 +134,11 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         out_a, out_b = os.path.join(tmp, "a.npz"), os.path.join(tmp, "b.npz")
         failures = run_half(CPU, args, 1, out_a) + run_half(first, args, 1 if first == GPU else 2, out_b)
-        if not failures:
+        if os.path.exists(out_a) and os.path.exists(out_b):
             with np.load(out_a) as a, np.load(out_b) as b:
                 failures += compare(dict(a), dict(b), CPU, first + (" (seed 2)" if args.dry_run else ""))
+        else:
+            failures.append("a half finished no scene: nothing compared")
     if not args.no_throughput:
         for variant in (CPU,) if args.dry_run else (CPU, GPU):
             print(f"\nthroughput on {variant}:", flush=True)

@@ -44,9 +44,22 @@ def test_the_comparison_fails_where_a_body_vanishes_or_values_differ():
     assert any("body 0 is on 4 pixels on a and on none on b" in f for f in gpu_check.compare(half, vanished, "a", "b"))
     brighter = dict(half, **{"s/replay/intensity": 2 * ones})
     assert any("intensity differ" in f for f in gpu_check.compare(half, brighter, "a", "b"))
+    stopped = dict(half)  # a half stopped before the second scene
+    longer = dict(half, **{k.replace("s/", "t/"): v for k, v in half.items()})
+    assert gpu_check.compare(longer, stopped, "a", "b") == ["t/replay: rendered on a only (the other half stopped before it)"]
 
 
-@pytest.mark.parametrize("args, message", [(["--spp", "3"], "--spp even and >= 16"), (["--resolution", "0"], "--resolution must be >= 1")])
+def test_a_half_stopped_by_its_timeout_keeps_and_compares_what_it_finished():
+    """One second is time to start and not to finish: the check fails, naming the timeout,
+    and compares the scenes each half finished (none or some)."""
+    proc = _run("--resolution", "8", "--spp", "16", "--no-throughput", "--half-timeout", "1", env_dry=True)
+    assert proc.returncode == 1
+    assert "llvm_ad_rgb: stopped after 1 s (--half-timeout)" in proc.stdout
+    assert "GPU check FAILED" in proc.stdout and "Traceback" not in proc.stdout + proc.stderr
+
+
+@pytest.mark.parametrize("args, message", [(["--spp", "3"], "--spp even and >= 16"), (["--resolution", "0"], "--resolution must be >= 1"),
+                                           (["--half-timeout", "0"], "--half-timeout must be > 0 s")])  # fmt: skip
 def test_bad_arguments_are_one_error_line(args, message):
     proc = _run(*args, "--dry-run", "--no-throughput")
     assert proc.returncode == 2

@@ -12,7 +12,8 @@ frame by ``M_b(t)⁻¹``, with the scenes of the bodies whose swept bounding box
 exposure window) it enters; the closest hit wins and is mapped back to the world. ``wi``,
 ``t`` and ``uv`` are invariant under rigid motion, so BSDFs work unchanged.
 
-Two traversals of the bodies give the same hits (DESIGN §5.3):
+Three traversals of the bodies give the same hits (DESIGN §5.3; the atlas to float32
+rounding):
 
 ==============  ==========================================================================
 ``per-body``    every body in a Python loop, its work behind a ``dr.if_stmt`` on its
@@ -24,10 +25,16 @@ Two traversals of the bodies give the same hits (DESIGN §5.3):
                 loop (stackless: depth-first order with skip links); a lane queries, through
                 one ``dr.switch``, only the bodies whose boxes it enters before its closest
                 hit so far, and evaluates only those bodies' poses: O(log K) per ray
+``atlas``       the same tree, each leaf query one trace against one scene of every body
+                shifted into a cell of its own (:mod:`dopplertof.atlas`): no ``dr.switch``,
+                one trace site whatever the number of bodies. The traversal for CUDA, where
+                a trace inside ``dr.switch`` is not sanctioned and the per-body loop's
+                kernel compiles for minutes; 0-15 % slower than ``tree`` on the CPU
 ==============  ==========================================================================
 
-``DynamicScene.traversal`` picks one (``"auto"``: ``tree`` above
-:data:`PER_BODY_MAX_BODIES` bodies). Either takes the bodies' poses from
+``DynamicScene.traversal`` picks one (``"auto"``: on the CPU ``tree`` above
+:data:`PER_BODY_MAX_BODIES` bodies, else ``per-body``; on CUDA ``atlas`` where it can hold
+every body's shapes, else ``per-body``). Each takes the bodies' poses from
 :meth:`DynamicScene.poses`: all evaluated up front up to :data:`LISTED_POSES_MAX_BODIES`
 bodies, else per lane for the one body asked for.
 
@@ -62,7 +69,7 @@ PER_BODY_MAX_BODIES = 8
 # The list is code per body too: at 16 bodies it cost the tree's first render 1.0 s more.
 LISTED_POSES_MAX_BODIES = 8
 
-TRAVERSALS = ("auto", "per-body", "tree")
+TRAVERSALS = ("auto", "per-body", "tree", "atlas")
 # Emitter parameters that hold emitted power: their textures' values, an envmap's pixels and scale.
 EMITTED_PARAMETERS = ("radiance", "intensity", "irradiance", "data", "scale")
 
@@ -381,7 +388,8 @@ class DynamicScene:
     seed_hint          int       the file's sampler ``seed`` (None: none given)
     source             str       where it was loaded from (a path; ``"<dict>"`` by default)
     traversal          str       how a ray finds the bodies it hits (module docstring):
-                                 ``"auto"`` (default), ``"per-body"`` or ``"tree"``
+                                 ``"auto"`` (default), ``"per-body"``, ``"tree"`` or
+                                 ``"atlas"``
     camera_motion      Motion    the sensor's motion (None: static), applied on top of its
                                  ``to_world``
     lights             list      :class:`~dopplertof.lights.MovingLight` per moving point or
@@ -430,6 +438,7 @@ class DynamicScene:
         self._tree_key = None  # the swept boxes the tree was built over (bytes)
         self._poses = None  # PoseTable of the bodies' motions, built on first use
         self._targets = {}  # dr.switch targets per query, traced once per body list
+        self._atlas = None  # (body scenes' ids, BodyAtlas) of the body list it was built for
         self._emitters = None
         groups = [(self.source, self.static)] + [(f"{self.source}: moving body {b.name!r}", b.scene) for b in self.bodies]
         for where, mi_scene in groups + [(light.name, light.scene) for light in self.lights]:
@@ -503,27 +512,61 @@ class DynamicScene:
             raise ValueError(f"time window must be finite with t0 <= t1, got [{t0!r}, {t1!r}] s")
         self._fit_bounds(t0, t1)
 
+    def traversal_in_use(self) -> str:
+        """The traversal ray queries take: ``"per-body"``, ``"tree"`` or ``"atlas"`` (see
+        ``traversal``; ``"per-body"`` without bodies). ``"tree"`` is refused on CUDA: it
+        traces inside ``dr.switch``, which OptiX compiles to direct callables, from which
+        tracing is not sanctioned (gpu-notes §2.2).
+
+        Returns
+        -------
+        str
+
+        Raises
+        ------
+        ValueError
+            An unknown ``traversal``, ``"tree"`` on CUDA, or ``"atlas"`` for a body whose
+            shape the atlas cannot hold.
+        """
+        import mitsuba as mi
+
+        from .atlas import BodyAtlas
+
+        if self.traversal not in TRAVERSALS:
+            raise ValueError(f"traversal must be one of {TRAVERSALS}, got {self.traversal!r}")
+        if not self.bodies or self.traversal == "per-body":
+            return "per-body"
+        cuda = mi.variant().startswith("cuda")
+        if self.traversal == "tree" and cuda:
+            raise ValueError(f"traversal='tree' traces inside dr.switch (OptiX direct callables) and is not supported on {mi.variant()}; use 'atlas', 'per-body' or 'auto'")
+        if self.traversal == "atlas" or (self.traversal == "auto" and cuda):
+            reason = BodyAtlas.unsupported(self.bodies)
+            if reason is None:
+                return "atlas"
+            if self.traversal == "atlas":
+                raise ValueError(f"traversal='atlas' cannot hold {reason}; use 'per-body' or 'auto'")
+            return "per-body"
+        return "tree" if self.traversal == "tree" or len(self.bodies) > PER_BODY_MAX_BODIES else "per-body"
+
     def uses_tree(self) -> bool:
-        """Whether ray queries walk the tree of swept boxes (see ``traversal``). Never on
-        CUDA: the tree traces inside ``dr.switch``, which OptiX compiles to direct
-        callables, from which tracing is not sanctioned (gpu-notes §2.2); ``"tree"`` is
-        refused there and ``"auto"`` takes the per-body loop.
+        """Whether ray queries walk the tree of swept boxes (``"tree"`` or ``"atlas"``,
+        :meth:`traversal_in_use`).
 
         Returns
         -------
         bool
         """
-        import mitsuba as mi
+        return self.traversal_in_use() != "per-body"
 
-        if self.traversal not in TRAVERSALS:
-            raise ValueError(f"traversal must be one of {TRAVERSALS}, got {self.traversal!r}")
-        if not self.bodies or self.traversal == "per-body":
-            return False
-        if mi.variant().startswith("cuda"):
-            if self.traversal == "tree":
-                raise ValueError(f"traversal='tree' traces inside dr.switch (OptiX direct callables) and is not supported on {mi.variant()}; use 'per-body' or 'auto'")
-            return False
-        return self.traversal == "tree" or len(self.bodies) > PER_BODY_MAX_BODIES
+    def _body_atlas(self):
+        """The :class:`~dopplertof.atlas.BodyAtlas` of the current body list (built once per
+        list, a guest of the pipeline host)."""
+        from .atlas import BodyAtlas
+
+        key = tuple(id(b.scene) for b in self.bodies)
+        if self._atlas is None or self._atlas[0] != key:
+            self._atlas = (key, BodyAtlas.build(self.bodies, self.pipeline_host))
+        return self._atlas[1]
 
     @property
     def sensor(self):
@@ -823,13 +866,18 @@ class DynamicScene:
         import drjit as dr
         import mitsuba as mi
 
-        targets = self._switch_targets("closest")
+        if self.traversal_in_use() == "atlas":
+            leaf_closest = self._body_atlas().closest
+        else:
+            targets = self._switch_targets("closest")
+            leaf_closest = lambda body, ray_local, query: dr.switch(body, targets, ray_local, query)  # noqa: E731
 
         def on_leaf(state, body, ray_local, query):
             pi, body_index = state
-            pib = dr.switch(body, targets, ray_local, query)
+            pib = leaf_closest(body, ray_local, query)
             # Ties (coplanar faces of overlapping bodies) go to the lower index, as in the
-            # per-body loop, so that both traversals give the same hits.
+            # per-body loop, so that the tree gives the per-body loop's hits bit for bit
+            # (the atlas, finding each body's hit in a shifted cell, breaks them by rounding).
             tie = (pib.t == pi.t) & (body_index > 0) & (body + 1 < body_index)
             closer = query & pib.is_valid() & ((pib.t < dr.minimum(ray.maxt, pi.t)) | tie)
             return dr.select(closer, pib, pi), dr.select(closer, body + 1, body_index)
@@ -842,10 +890,14 @@ class DynamicScene:
         """``blocked`` (by the static scene) or blocked by a body."""
         import drjit as dr
 
-        targets = self._switch_targets("blocked")
+        if self.traversal_in_use() == "atlas":
+            leaf_blocked = self._body_atlas().blocked
+        else:
+            targets = self._switch_targets("blocked")
+            leaf_blocked = lambda body, ray_local, query: dr.switch(body, targets, ray_local, query)  # noqa: E731
 
         def on_leaf(blocked, body, ray_local, query):
-            return blocked | dr.switch(body, targets, ray_local, query)
+            return blocked | leaf_blocked(body, ray_local, query)
 
         return self._walk(ray, time_s, active, blocked, lambda blocked: ray.maxt, on_leaf, lambda blocked: blocked, "dopplertof bodies: blocked")
 
