@@ -58,6 +58,14 @@ class EmitterGroup:
     weight: float
 
 
+def _is_infinite(emitter) -> bool:
+    """Whether ``emitter`` is infinitely distant (Mitsuba's ``EmitterFlags.Infinite``:
+    environment maps, constant, directional and sun-sky emitters)."""
+    import mitsuba as mi
+
+    return mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite)
+
+
 def _weight(mi_scene) -> float:
     return float(sum(e.sampling_weight() for e in mi_scene.emitters()))
 
@@ -73,6 +81,9 @@ class Emitters:
         groups += [EmitterGroup(light.scene, light.motion, NO_GEOMETRY, _weight(light.scene)) for light in scene.lights]
         self.static = scene.static
         self.only_static = len(groups) == 1
+        # Infinitely distant emitters (environment, directional) are static (others are refused).
+        self.has_infinite = any(_is_infinite(e) for e in scene.static.emitters())
+        self._far_reference = None
         self.groups = [g for g in groups if g.weight > 0]
         self.total = sum(g.weight for g in self.groups)
 
@@ -111,6 +122,23 @@ class Emitters:
             p_out = dr.select(chosen, p64, p_out)
             start += g.weight
         return ds_out, weight_out, p_out
+
+    def far_reference(self):
+        """(centre, radius) of the static scene's bounding sphere (mi.Point3d, mi.Float64,
+        opaque): where :func:`dopplertof.tracing.path.plane_wave_leg_m` measures the plane
+        waves of infinitely distant emitters from (the origin and 0 for a scene with no
+        static shape). Fixed per scene, whatever the bodies do."""
+        import drjit as dr
+        import mitsuba as mi
+
+        if self._far_reference is None:
+            box = self.static.bbox()
+            centre, radius = (0.0, 0.0, 0.0), 0.0
+            if box.valid():
+                sphere = box.bounding_sphere()
+                centre, radius = (float(sphere.center.x), float(sphere.center.y), float(sphere.center.z)), float(sphere.radius)
+            self._far_reference = (mi.Point3d(*(dr.opaque(mi.Float64, v) for v in centre)), dr.opaque(mi.Float64, radius))
+        return self._far_reference
 
     def pdf_hit(self, prev_it, si, body, time_s, active):
         """Density (solid angle at ``prev_it``) with which :meth:`sample` produces the

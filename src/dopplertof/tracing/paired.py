@@ -53,7 +53,7 @@ from .. import modulation
 from ..timesampling import ANALYTIC
 from . import lanes
 from .path import (
-    ESCAPED_LENGTH_M, camera_ray, emitter_hit, extend, first_hit, ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction,
+    camera_ray, emitter_hit, escaped_length, extend, first_hit, ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction,
 )  # fmt: skip
 from .sink import Sink
 
@@ -183,15 +183,15 @@ def trace_pair(scene, settings, setup, tables):
         # ---------------------------------------------------- emitter hit
         contributions = []
         members = (
-            (si1, body1, time1, active1, prev_it1, prev_pdf1, prev_shift1, prev_r1, prev_delta1, beta1, length1),
-            (si2, body2, time2, active2, prev_it2, prev_pdf2, prev_shift2, prev_r2, prev_delta2, beta2, length2),
+            (si1, body1, time1, active1, prev_it1, prev_pdf1, prev_shift1, prev_r1, prev_delta1, beta1, length1, index1, x1, ray1),
+            (si2, body2, time2, active2, prev_it2, prev_pdf2, prev_shift2, prev_r2, prev_delta2, beta2, length2, index2, x2, ray2),
         )
-        for member, (si, body, time_s, act, prev_it, prev_pdf, prev_shift, prev_r, prev_delta, beta, length) in enumerate(members):
+        for member, (si, body, time_s, act, prev_it, prev_pdf, prev_shift, prev_r, prev_delta, beta, length, index, x, ray) in enumerate(members):
             shown = act if not hide_emitters else act & (depth > 0)
             le, light_pdf, visible = emitter_hit(scene, si, body, prev_it, prev_delta, time_s, shown)
             denominator = own_coef[member] * (prev_pdf + light_pdf) + shift_coef[member] * prev_r * (prev_shift + light_pdf)
             weight = dr.select(denominator > 0, prev_pdf / denominator, 0.0)
-            contributions.append((beta * le * weight, dr.select(si.is_valid(), length, length + ESCAPED_LENGTH_M), visible))
+            contributions.append((beta * le * weight, dr.select(si.is_valid(), length, escaped_length(scene, length, index, x, ray.d)), visible))
 
         # ---------------------------------------------------- shift decision for this bounce
         bsdf1, bsdf2 = si1.bsdf(ray1), si2.bsdf(ray2)

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-ESCAPED_LENGTH_M = 1e6  # optical length given to light arriving from infinity (environment)
 MAX_HIDDEN_LAYERS = 4  # hidden emitter surfaces a camera ray may pass through
 
 
@@ -216,8 +215,10 @@ def extend(scene, poses64, hit, x_prev, direction, length_m, index, active, prec
         t64, x_hit = hit_distance64(scene, poses64, hit, x_prev, direction)
     else:  # from x_prev, not the ray's origin: camera rays start at the near-clip plane
         t64, x_hit = mi.Float64(dr.norm(hit.si.p - mi.Point3f(x_prev))), mi.Vector3d(hit.si.p)
-    grown = dr.select(active & hit.si.is_valid(), length_m + mi.Float64(index) * t64, length_m)
-    return grown, x_hit, t64
+    hit_here = active & hit.si.is_valid()
+    # A ray that escapes keeps its origin as the path's last vertex: light from an
+    # infinitely distant emitter is measured to it (escaped_length).
+    return dr.select(hit_here, length_m + mi.Float64(index) * t64, length_m), dr.select(hit_here, x_hit, x_prev), t64
 
 
 def segment_index(index, tables, bsdf, active, wi_local, wo_local):
@@ -300,16 +301,78 @@ def emitter_hit(scene, si, body, prev_it, prev_delta, time_s, active):
     return emitter.eval(si, visible), pdf, visible
 
 
-def length_to_emitter(length_m, index, x, p_light):
-    """Optical length of a path whose last vertex ``x`` connects to ``p_light`` (Float64).
+def plane_wave_leg_m(scene, x, toward_light):
+    """Distance light from an infinitely distant emitter (an environment, a directional
+    light) travels to ``x`` from the direction ``toward_light``: a plane wave's, from the
+    plane facing that direction that touches the static scene's bounding sphere
+    (:meth:`~dopplertof.lights.Emitters.far_reference`), ``R − ω·(x − c)``. Its phase at
+    ``x`` changes with ``ω·x`` as a far source's does, so a body moving into the wave
+    shortens the light's leg by its speed along ω (Mitsuba's own sample points lie at a
+    distance from ``x`` that depends on the scene's bounds, not on ω).
 
     Parameters
     ----------
+    scene : DynamicScene
+    x : mi.Point3d
+        The path's last vertex, m.
+    toward_light : mi.Vector3f
+        Unit direction from ``x`` towards the emitter.
+
+    Returns
+    -------
+    mi.Float64
+        m (negative beyond the sphere on the light's side: only differences matter).
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    centre, radius = scene.emitters.far_reference()
+    d = mi.Vector3d(toward_light)
+    d = d / dr.norm(d)  # IEEE div and sqrt: dr.normalize of Float64 is approximate on CUDA
+    return radius - dr.dot(d, mi.Vector3d(x) - mi.Vector3d(centre))
+
+
+def escaped_length(scene, length_m, index, x, direction):
+    """Optical length of a path whose ray from its last vertex ``x`` escapes along
+    ``direction`` to the environment (:func:`plane_wave_leg_m`).
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    length_m : mi.Float64
+        Optical length to ``x``, m.
+    index : mi.Float
+        Refractive index of the escaping segment.
+    x : mi.Point3d
+    direction : mi.Vector3f
+
+    Returns
+    -------
+    mi.Float64
+        m.
+    """
+    import mitsuba as mi
+
+    if not scene.emitters.has_infinite:
+        return length_m  # nothing to meet: the length is never used
+    return length_m + mi.Float64(index) * plane_wave_leg_m(scene, x, direction)
+
+
+def length_to_emitter(scene, length_m, index, x, ds, p_light):
+    """Optical length of a path whose last vertex ``x`` connects to the emitter sample
+    ``ds`` at ``p_light`` (Float64): the distance to ``p_light``, or a plane wave's
+    (:func:`plane_wave_leg_m`) for an infinitely distant emitter.
+
+    Parameters
+    ----------
+    scene : DynamicScene
     length_m : mi.Float64
         Optical length to ``x``, m.
     index : mi.Float
         Refractive index of the last segment.
     x : mi.Point3d
+    ds : mi.DirectionSample3f
+        The emitter sample.
     p_light : mi.Point3d
 
     Returns
@@ -320,7 +383,11 @@ def length_to_emitter(length_m, index, x, p_light):
     import drjit as dr
     import mitsuba as mi
 
-    return length_m + mi.Float64(index) * dr.norm(p_light - x)
+    leg = dr.norm(p_light - x)
+    if scene.emitters.has_infinite:
+        far = mi.has_flag(ds.emitter.flags(), mi.EmitterFlags.Infinite)
+        leg = dr.select(far, plane_wave_leg_m(scene, x, ds.d), leg)
+    return length_m + mi.Float64(index) * leg
 
 
 @dataclass
@@ -388,7 +455,7 @@ def sample_emitter(scene, si, bsdf, bsdf_ctx, sample, time_s, poses, length_m, i
     wo = si.to_local(ds.d)
     value, pdf = bsdf.eval_pdf(mi.BSDFContext(), si, wo, active)
     index_out = segment_index(index, tables, bsdf, active, si.wi, wo)
-    length = length_to_emitter(length_m, index_out, x, p_light)
+    length = length_to_emitter(scene, length_m, index_out, x, ds, p_light)
     return LightSample(ds, weight, value, pdf, length, active)
 
 
