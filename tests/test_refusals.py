@@ -449,3 +449,38 @@ def test_a_rotation_faster_than_light_is_refused_and_a_suspicious_one_warns():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         dt.load_scene(_spun_ball(10.0))  # 33 m/s: nothing to say
+
+
+# ----------------------------------------------------------------------------------------
+# Elements Mitsuba ignores or cannot render here (a trial of scenes written by others)
+
+BLACKBODY = '<spectrum type="blackbody" name="radiance"><float name="temperature" value="3000"/></spectrum>'
+
+
+@pytest.mark.parametrize("body, fragment", [
+    ('<integrator type="path"/><integrator type="path"><integer name="max_depth" value="6"/></integrator>', "a second <integrator>"),
+    ('<sampler type="independent"><integer name="sample_count" value="12"/></sampler>', "a <sampler> outside the <sensor> is ignored"),
+    ('<film type="hdrfilm"/>', "a <film> outside the <sensor> is ignored"),
+    (f'<emitter type="constant">{BLACKBODY}</emitter>', "a blackbody spectrum needs a spectral Mitsuba variant"),
+    (f'<shape type="rectangle"><emitter type="area">{BLACKBODY}</emitter></shape>', "blackbody"),
+    ('<shape type="sphere" id="ball"><float name="radius" value="nan"/></shape>', "shape 'ball' has a position or size that is not finite"),
+    ('<shape type="cube" id="box"><transform name="to_world"><translate y="nan"/></transform></shape>', "shape 'box' has a position or size that is not finite"),
+])  # fmt: skip
+def test_xml_elements_that_would_be_dropped_or_fail_mid_render_are_refused(tmp_path, body, fragment):
+    with pytest.raises(dt.SceneError, match=fragment):
+        dt.load_scene(str(xml_scene(tmp_path, body)))
+
+
+def test_the_command_line_refuses_a_blackbody_in_one_line(tmp_path):
+    path = xml_scene(tmp_path, f'<emitter type="constant">{BLACKBODY}</emitter>')
+    assert_cli_error(cli("render", path, "-o", tmp_path / "out", "--spp", "4"), "blackbody spectrum")
+
+
+@pytest.mark.parametrize("entries, fragment", [
+    ({"a": {"type": "path"}, "b": {"type": "path", "max_depth": 6}}, "a second integrator"),
+    ({"sky": {"type": "constant", "radiance": {"type": "blackbody", "temperature": 3000.0}}}, "blackbody"),
+    ({"box": {"type": "cube", "to_world": mi.ScalarTransform4f().translate([0.0, math.nan, 0.0])}}, "shape 'box' has a position or size that is not finite"),
+])  # fmt: skip
+def test_dict_entries_that_would_be_dropped_or_fail_mid_render_are_refused(entries, fragment):
+    with pytest.raises(dt.SceneError, match=fragment):
+        dt.load_scene(dict_scene(**entries))

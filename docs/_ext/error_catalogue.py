@@ -534,6 +534,11 @@ TOPICS = [
         ("…: moving body … carries an emitter and its motion's keys scale the axes differently; give the shape its own to_world and a parametric motion, or keys that scale every axis equally", "an emitter on a body whose keyframes scale it per axis", "a parametric motion over the shape's own `to_world`, or keys with one scale on every axis"),
         ("…: the sensor is inside a participating medium; media are not supported", "media", "remove the medium"),
         ("…: …shape … has a participating medium; media are not supported", "media", "remove the `<medium>` or render with stock Mitsuba's volpath"),
+        ("…: …shape … has a position or size that is not finite (NaN or inf in its transform or its parameters); it would render as nothing", "a NaN or infinite value in a shape's transform, radius or other size (Mitsuba renders such a shape as nothing, silently)", "fix the value the message's shape holds"),
+        ("…: a <…> outside the <sensor> is ignored by Mitsuba; move it into the <sensor>", "a `<sampler>` or `<film>` at the scene's top level, which Mitsuba ignores without a word", "move it into the `<sensor>`"),
+        ("…: a second <integrator>; a scene has one (Mitsuba refuses two as well)", "two `<integrator>` elements; the first would be dropped", "keep one"),
+        ("…: a second integrator; a scene has one (Mitsuba refuses two as well)", "two integrator entries in a scene dict", "keep one"),
+        ("…: a blackbody spectrum needs a spectral Mitsuba variant, and dopplertof renders in RGB (or mono)", "a `<spectrum type=\"blackbody\">` (Mitsuba implements it in spectral variants only; the render would fail part way)", "give the emitter an `<rgb>` value"),
         ("…: 'motion' must be a Motion or a dict with type 'keyframes' or 'parametric', got …", "a dict motion of another form", "one of the two types"),
         ("…: unknown motion parameter(s) … for type …", "a motion key that does not exist", "the keys of that motion type"),
         ("…: … must be a …, got …", "a Mitsuba 0.6 property of the wrong type", "the type named"),
@@ -564,7 +569,8 @@ TOPICS = [
 # dopplertof.reconstruct.identify, returned as text and raised by its callers): catalogued by
 # hand, so the source scan does not see them.
 COMPOSED_ELSEWHERE = ("all cameras have the same heterodyne ratio h = …", "the cameras … cannot determine velocity",
-                      "'max_depth' must be >= 1 or -1 (unbounded), got …")  # the last: a setting's rule (settings.py)
+                      "'max_depth' must be >= 1 or -1 (unbounded), got …",  # a setting's rule (settings.py)
+                      "…: a blackbody spectrum needs a spectral Mitsuba variant, and dopplertof renders in RGB (or mono)")  # loader.BLACKBODY_REFUSAL
 
 def _template(node, constants=None) -> str:
     """A message expression as its template: literal text kept (and the module's string

@@ -72,6 +72,8 @@ UNSUPPORTED_SENSORS = {  # class name: (what it is, why not, what to do instead)
     "BatchSensor": ("a batch sensor", "its cameras' ground truth (radial velocity, velocity_3d, flow) would be taken in the "
                     "batch's frame, not each camera's", "render each of its cameras as a scene of its own"),
 }
+BLACKBODY_REFUSAL = ("a blackbody spectrum needs a spectral Mitsuba variant, and dopplertof renders in RGB (or mono): "
+                     "give the emitter an <rgb> value (its colour and brightness)")
 # Sampler properties kept as the render's defaults (DynamicScene fields); its type is not
 # (dopplertof draws its own stratified pixel positions and times: docs/scene-format.md).
 _SAMPLER_HINTS = {"sample_count": "spp_hint", "seed": "seed_hint"}
@@ -387,7 +389,13 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     shutter_given = False
     for index, el in enumerate(list(root)):
         where = f"{path}: {_describe(el, index)}"
+        if any(sp.get("type") == "blackbody" for sp in el.iter("spectrum")):
+            raise SceneError(f"{where}: {BLACKBODY_REFUSAL}")
+        if el.tag in ("sampler", "film"):
+            raise SceneError(f"{where}: a <{el.tag}> outside the <sensor> is ignored by Mitsuba; move it into the <sensor>")
         if el.tag == "integrator":
+            if integrator_params:
+                raise SceneError(f"{where}: a second <integrator>; a scene has one (Mitsuba refuses two as well)")
             integrator_params["type"] = el.attrib.get("type")
             for p in el:
                 if "name" in p.attrib:
@@ -545,6 +553,11 @@ def _checked_scene(scene: DynamicScene, shutter_given: bool = False) -> DynamicS
                     relative_ior(shape.bsdf())
             except ValueError as exc:
                 raise SceneError(f"{where}: {label}shape {shape.id() or shape.class_name()!r}: {exc}") from None
+            box = shape.bbox()
+            corners = [float(v) for c in (box.min, box.max) for v in (c.x, c.y, c.z)]
+            if not all(np.isfinite(corners)):
+                raise SceneError(f"{where}: {label}shape {shape.id() or shape.class_name()!r} has a position or size that is not finite "
+                                 "(NaN or inf in its transform or its parameters); it would render as nothing")
             if shape.interior_medium() is not None or shape.exterior_medium() is not None:
                 raise SceneError(f"{where}: {label}shape {shape.id() or shape.class_name()!r} has a participating medium; media are not supported (remove the <medium> or render with stock Mitsuba's volpath)")
         if label and mi_scene.sensors():
@@ -811,7 +824,11 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
     hints = {}  # the sampler's sample_count and seed
     for key, value in scene_dict.items():
         where = f"<dict>: entry {key!r}"
+        if "blackbody" in _plugin_types(value):
+            raise SceneError(f"{where}: {BLACKBODY_REFUSAL}")
         if _is_integrator(value):  # kept for the render, which refuses what it cannot honour
+            if integrator_params:
+                raise SceneError(f"{where}: a second integrator; a scene has one (Mitsuba refuses two as well)")
             integrator_params = {k: v for k, v in value.items()}
             continue
         kind = value.get("type") if isinstance(value, dict) else None
