@@ -382,7 +382,7 @@ def test_unwritable_or_foreign_folder_is_an_error(tmp_path, reference):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     res = CliRunner().invoke(main, ["dataset", "generate", "-o", str(blocker / "sub"), "--samples", "2"])
-    assert res.exit_code == 2 and res.output.startswith("error: cannot write to output folder"), res.output
+    assert res.exit_code == 2 and res.output.startswith("error: output ") and "which is a file" in res.output, res.output  # as render says it
     with pytest.raises(ValueError, match="samples must be an integer ≥ 1, got 0"):
         dt.dataset.generate(tmp_path / "x", 0)
     # a folder holding another dataset is refused, naming what differs
@@ -390,6 +390,11 @@ def test_unwritable_or_foreign_folder_is_an_error(tmp_path, reference):
         dt.dataset.generate(reference, **{**SMALL, "seed": 6})
     res = CliRunner().invoke(main, ["dataset", "verify", str(tmp_path)])
     assert res.exit_code == 2 and res.output.startswith("error: ") and "dataset.json" in res.output
+    # a folder holding another command's output is refused, naming it
+    (tmp_path / "render").mkdir()
+    (tmp_path / "render" / "metadata.json").write_text('{"spp": 4}')
+    with pytest.raises(ValueError, match="holds a render; a dataset would mix with it"):
+        dt.dataset.generate(tmp_path / "render", **SMALL)
 
 
 def test_info_prints_statistics_and_a_contact_sheet(reference, tmp_path):

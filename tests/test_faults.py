@@ -603,3 +603,113 @@ def test_sigint_during_start_up_of_other_commands_neither_crashes_nor_prints_a_t
     extra = ["--cache", str(tmp_path / "cache")] if args[0] == "experiment" else []
     status, stderr = _sigint_while_dr_jit_loads([*args, "-o", str(tmp_path / "o"), *extra])
     assert status == 130 and says in stderr and "Traceback" not in stderr, (status, stderr)
+
+
+def _no_space(*args, **kwargs):
+    import errno
+
+    raise OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_a_render_whose_last_checkpoint_cannot_be_written_is_returned_all_the_same(tmp_path, monkeypatch):
+    """A full disk at the final save of the sums (kept until the images are written) lost the
+    whole finished render: the images would have fit."""
+    monkeypatch.setattr(sys.modules["dopplertof.render"], "save_checkpoint", _no_space)  # (dt.render is the function)
+    scene = dt.scenes.build("cornell-box", resolution=8)
+    with pytest.warns(UserWarning, match="cannot write the checkpoint .*No space left on device.*returned without it"):
+        result = dt.render(scene, spp=8, checkpoint=str(tmp_path / "ck.npz"), keep_checkpoint=True)
+    assert result.spp == 8 and not result.interrupted and "No space left" in result.info["checkpoint_error"]
+
+
+def test_the_command_line_writes_the_images_when_only_the_checkpoint_does_not_fit(tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    from dopplertof.cli import main
+
+    monkeypatch.setattr(sys.modules["dopplertof.render"], "save_checkpoint", _no_space)  # (dt.render is the function)
+    out = tmp_path / "out"
+    run = CliRunner().invoke(main, ["render", "cornell-box", "--resolution", "8", "--spp", "8", "-o", str(out)])
+    assert run.exit_code == 0, run.output
+    assert (out / "intensity.exr").is_file() and (out / "metadata.json").is_file() and not (out / "checkpoint.npz").exists()
+
+
+@pytest.mark.parametrize("markers, kind", [
+    ({"metadata.json": {"spp": 8, "files": []}}, "render"),
+    ({"checkpoint.npz": None}, "render"),
+    ({"metadata.json": {"experiment": "shifts"}}, "experiment"),
+    ({"dataset.json": {}}, "dataset"),
+    ({"animation.json": {}}, "animation"),
+    ({"sweep.csv": None}, "design"),
+    ({"record_1.npz": None}, "design"),
+    ({}, None),
+])  # fmt: skip
+def test_each_commands_output_is_known_and_another_command_refuses_it(tmp_path, markers, kind):
+    from dopplertof.folder import OUTPUT_KINDS, output_kind, refuse_other_output
+
+    for name, content in markers.items():
+        (tmp_path / name).write_text(json.dumps(content) if content is not None else "")
+    assert output_kind(str(tmp_path)) == kind
+    for own in OUTPUT_KINDS:
+        if kind is None or own == kind:
+            refuse_other_output(str(tmp_path), own)  # its own kind (or nothing) is the command's to decide
+        else:
+            with pytest.raises(ValueError, match=f"holds {OUTPUT_KINDS[kind]}; {OUTPUT_KINDS[own]} would mix with it"):
+                refuse_other_output(str(tmp_path), own)
+
+
+def test_an_experiment_into_a_render_folder_is_refused_before_it_renders(tmp_path):
+    """It replaced the render's metadata.json, after which neither reconstruct nor render
+    knew the folder."""
+    out = tmp_path / "render"
+    assert _cli("render", "cornell-box", "--resolution", "4", "--spp", "4", "-o", str(out)).returncode == 0
+    before = (out / "metadata.json").read_bytes()
+    _one_error_line(_cli("experiment", "shifts", "cornell-box", "--quick", "-o", str(out), "--cache", str(tmp_path / "cache")), "holds a render")
+    assert (out / "metadata.json").read_bytes() == before and not (tmp_path / "cache").exists()
+
+
+@pytest.mark.parametrize("how", ["resume", "overwrite"])
+def test_a_reconstruction_of_a_render_goes_when_the_render_is_continued_or_replaced(tmp_path, how):
+    from dopplertof import folder
+
+    (tmp_path / "metadata.json").write_text(json.dumps({"files": ["intensity.exr"], "interrupted": True}))
+    (tmp_path / "checkpoint.npz").write_bytes(b"")
+    for name in ("intensity.exr", "velocity_reconstructed.exr", "notes.txt"):
+        (tmp_path / name).write_bytes(b"x")
+    (tmp_path / "reconstruction.json").write_text(json.dumps({"files": ["velocity_reconstructed.exr"]}))
+    folder.prepare(str(tmp_path), **{how: True})
+    assert not (tmp_path / "velocity_reconstructed.exr").exists() and not (tmp_path / "reconstruction.json").exists()
+    assert (tmp_path / "notes.txt").exists()  # not the render's
+    assert (tmp_path / "intensity.exr").exists() == (how == "resume")
+
+
+def test_a_resume_in_the_checkpoints_own_passes_says_so(tmp_path):
+    """Its passes decide the result bit for bit, so the checkpoint's are kept; a smaller
+    pass size asked for (the troubleshooting page: nothing is silently altered) is named."""
+    scene = dt.scenes.build("cornell-box", resolution=8)
+    checkpoint = str(tmp_path / "ck.npz")
+    calls = iter([False, True])
+    dt.render(scene, spp=64, lanes_per_pass=1024, checkpoint=checkpoint, checkpoint_interval_s=0, stop=lambda: next(calls, True))
+    with pytest.warns(UserWarning, match="in its own passes of 1024 lanes, not 2048"):
+        assert dt.render(scene, spp=64, lanes_per_pass=2048, checkpoint=checkpoint).spp == 64
+
+
+@pytest.mark.parametrize("name, match", [
+    ("", "must name a file"),
+    (".", "must name a file"),
+    ("afile/ck.npz", "does not exist \\(or is a file\\)"),
+    ("nowhere/ck.npz", "does not exist"),
+])  # fmt: skip
+def test_an_api_checkpoint_that_cannot_be_written_is_refused_before_rendering(tmp_path, monkeypatch, name, match):
+    """It was found at the first save, a checkpoint interval (a minute) into the render."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(ValueError, match=match):
+        dt.render(dt.scenes.build("cornell-box", resolution=4), spp=4, checkpoint=name)
+
+
+def test_a_checkpoint_that_is_not_one_says_so_without_numpys_advice(tmp_path):
+    garbage = tmp_path / "ck.npz"
+    garbage.write_bytes(b"not a checkpoint at all")  # numpy takes it for a pickle
+    with pytest.raises(ValueError, match="cannot be read") as caught:
+        dt.render(dt.scenes.build("cornell-box", resolution=4), spp=4, checkpoint=str(garbage))
+    assert "pickle" not in str(caught.value)

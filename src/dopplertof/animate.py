@@ -200,8 +200,9 @@ def _existing_frames(output: str) -> list[str]:
 
 def _prepare_output(output: str, settings: dict, overwrite: bool) -> None:
     """Create ``output`` for ``settings``; refuse an unusable folder or one holding a different clip."""
-    from .folder import check_writable
+    from .folder import check_writable, refuse_other_output
 
+    refuse_other_output(output, "animation")
     check_writable(output)
     settings_path = os.path.join(output, SETTINGS_FILE)
     if overwrite:

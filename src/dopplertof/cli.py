@@ -187,13 +187,17 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
             sys.exit(stop.exit_status)
         metadata = {"scene": scene_description(scene, resolution, defines), "film": [width, height], "command": sys.argv}
         written = out_folder.write_result(result, output, metadata)
-        if not result.interrupted:
+        if not result.interrupted and os.path.isfile(checkpoint):
             os.remove(checkpoint)
-    except KeyboardInterrupt:
-        click.echo("error: interrupted before the first pass finished; nothing written", err=True)
+    except KeyboardInterrupt:  # before the first pass, or a second signal while the result is saved or written
+        if os.path.isfile(checkpoint):
+            click.echo(f"error: interrupted while saving; the rendered sums are kept in {checkpoint!r} (continue with --resume)", err=True)
+        else:
+            click.echo("error: interrupted before the first pass finished; nothing written", err=True)
         sys.exit(stop.exit_status)
     except CheckpointWriteError as exc:
-        fail(f"{exc}; free space, then continue with the same command and --resume")
+        again = "continue with the same command and --resume" if os.path.isfile(checkpoint) else "run the command again"
+        fail(f"{exc}; free space, then {again}")
     except (ValueError, SceneError, BackendError, FileNotFoundError) as exc:
         fail(str(exc))
     except OSError as exc:
@@ -204,9 +208,11 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
         reached = f"{result.spp}" if len(done) == 1 else f"{', '.join(map(str, done))} (per exposure window)"
         partial_errors = ("; its standard errors leave out the spread of the time strata not drawn (they understate the error, "
                           "most at h != 0)") if result.info["stderr_dof"] == 0 and settings.stratified else ""
+        kept = ("partial result and checkpoint in", "continue with --resume")
+        if "checkpoint_error" in result.info:  # its sums could not be saved: what --resume finds is older, or nothing
+            kept = ("partial result in", "its checkpoint could not be written: --resume continues from an earlier one, if kept, else from the start")
         click.echo(
-            f"{stop.name}: stopped at {reached} of {settings.spp} spp; partial result and checkpoint in "
-            f"{os.path.abspath(output)}/ (continue with --resume){partial_errors}", err=True,
+            f"{stop.name}: stopped at {reached} of {settings.spp} spp; {kept[0]} {os.path.abspath(output)}/ ({kept[1]}){partial_errors}", err=True,
         )  # fmt: skip
         sys.exit(stop.exit_status)
     if until_noise is not None:

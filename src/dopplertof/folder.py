@@ -32,6 +32,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -65,8 +66,29 @@ def measurement_stem(index: int, camera) -> str:
     return f"measurement_{index}_h{camera.heterodyne:g}_psi{math.degrees(camera.phase):g}deg"
 
 
+def _reconstruction_files(folder: str) -> list[str]:
+    """The files of a reconstruction of the render in ``folder`` (its
+    ``reconstruction.json`` lists them): stale once the render changes."""
+    from .render_folder import SUMMARY_FILE
+
+    try:
+        with open(os.path.join(folder, SUMMARY_FILE), encoding="utf-8") as f:
+            return [*json.load(f).get("files", []), SUMMARY_FILE]
+    except (OSError, ValueError):
+        return []
+
+
+def _remove_files(folder: str, names) -> None:
+    """Remove the files ``names`` of ``folder`` (only files directly in it)."""
+    for name in names:
+        path = os.path.join(folder, name)
+        if os.path.isfile(path) and os.path.dirname(os.path.abspath(path)) == folder:
+            os.remove(path)
+
+
 def _owned_files(folder: str) -> list[str]:
-    """The files of the render in ``folder`` (from its metadata), checkpoint included."""
+    """The files of the render in ``folder`` (from its metadata), checkpoint and
+    reconstruction included."""
     files = []
     meta = os.path.join(folder, METADATA)
     if os.path.isfile(meta):
@@ -76,9 +98,73 @@ def _owned_files(folder: str) -> list[str]:
         except (OSError, ValueError):
             files = []
         files.append(METADATA)
+    files += _reconstruction_files(folder)
     if os.path.isfile(os.path.join(folder, CHECKPOINT)):
         files.append(CHECKPOINT)
     return files
+
+
+OUTPUT_KINDS = {  # what each command leaves in its output folder, as its messages name it
+    "render": "a render",
+    "experiment": "an experiment's tables",
+    "dataset": "a dataset",
+    "animation": "an animation",
+    "design": "a design study",
+}
+
+
+def output_kind(folder: str) -> str | None:
+    """Which command's output ``folder`` holds (a key of :data:`OUTPUT_KINDS`), known by a
+    file only that command writes; None for an empty, missing or foreign folder.
+
+    Parameters
+    ----------
+    folder : str
+
+    Returns
+    -------
+    str or None
+    """
+    from .animate import SETTINGS_FILE as ANIMATION
+    from .dataset.shards import MANIFEST
+    from .design.cli import OUTPUTS as DESIGN_OUTPUTS
+
+    if not os.path.isdir(folder):
+        return None
+    names = set(os.listdir(folder))
+    if MANIFEST in names:
+        return "dataset"
+    if ANIMATION in names or any(name.startswith("frame_") and os.path.isdir(os.path.join(folder, name)) for name in names):
+        return "animation"
+    if names & set(DESIGN_OUTPUTS) or any(re.fullmatch(r"record_\d+\.npz", name) for name in names):  # record_<i>: one per scene
+        return "design"
+    if METADATA in names:
+        try:
+            with open(os.path.join(folder, METADATA), encoding="utf-8") as f:
+                return "experiment" if "experiment" in json.load(f) else "render"
+        except (OSError, ValueError):
+            return "render"
+    return "render" if CHECKPOINT in names else None
+
+
+def refuse_other_output(folder: str, own: str) -> None:
+    """ValueError where ``folder`` holds another command's output than ``own`` (a key of
+    :data:`OUTPUT_KINDS`): the two would mix, and one command's ``--overwrite`` would not
+    know the other's files. Each command decides itself what to do with its own kind.
+
+    Parameters
+    ----------
+    folder : str
+    own : str
+
+    Raises
+    ------
+    ValueError
+        Naming the folder and what it holds.
+    """
+    kind = output_kind(folder)
+    if kind is not None and kind != own:
+        raise ValueError(f"output folder {folder!r} holds {OUTPUT_KINDS[kind]}; {OUTPUT_KINDS[own]} would mix with it: use another folder")
 
 
 def check_writable(folder: str, bytes_needed: int = 0) -> str:
@@ -149,20 +235,24 @@ def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes
     """
     from .io import remove_stale_partials
 
+    refuse_other_output(folder, "render")
     parts = check_writable(folder, bytes_needed)
     remove_stale_partials(parts)  # a killed render's half-written files: no one's data
     owned = _owned_files(parts)
     if not owned:
         return
     if resume and os.path.isfile(os.path.join(parts, CHECKPOINT)):
+        _remove_files(parts, _reconstruction_files(parts))  # a reconstruction of the part rendered so far
         return
     if not overwrite:
-        what = "an interrupted render (continue it with --resume)" if CHECKPOINT in owned and METADATA not in owned else "another render's files"
+        if CHECKPOINT in owned and METADATA not in owned:
+            what = "an interrupted render (continue it with --resume)"
+        elif resume:
+            what = "a finished render (nothing to resume: its checkpoint goes when a render completes)"
+        else:
+            what = "another render's files"
         raise ValueError(f"output folder {folder!r} holds {what}; use --overwrite to replace them, or another folder")
-    for name in owned:
-        path = os.path.join(parts, name)
-        if os.path.isfile(path) and os.path.dirname(os.path.abspath(path)) == parts:
-            os.remove(path)
+    _remove_files(parts, owned)
 
 
 def estimated_bytes(width: int, height: int, n_cameras: int) -> int:

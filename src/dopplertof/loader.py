@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import math
 import os
 import re
 import xml.etree.ElementTree as ET
@@ -553,9 +554,9 @@ def _checked_scene(scene: DynamicScene, shutter_given: bool = False) -> DynamicS
                     relative_ior(shape.bsdf())
             except ValueError as exc:
                 raise SceneError(f"{where}: {label}shape {shape.id() or shape.class_name()!r}: {exc}") from None
-            box = shape.bbox()
+            box = shape.bbox()  # (an empty mesh's box is invalid, +inf to -inf: nothing to refuse)
             corners = [float(v) for c in (box.min, box.max) for v in (c.x, c.y, c.z)]
-            if not all(np.isfinite(corners)):
+            if any(math.isnan(v) for v in corners) or (box.valid() and not all(map(math.isfinite, corners))):
                 raise SceneError(f"{where}: {label}shape {shape.id() or shape.class_name()!r} has a position or size that is not finite "
                                  "(NaN or inf in its transform or its parameters); it would render as nothing")
             if shape.interior_medium() is not None or shape.exterior_medium() is not None:

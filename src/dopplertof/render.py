@@ -271,12 +271,27 @@ def _checkpoint_lanes_per_pass(path, settings: RenderSettings) -> int | None:
     return stored if isinstance(stored, int) and 0 < stored <= settings.lanes_per_pass else None
 
 
+def _check_checkpoint_path(path) -> None:
+    """ValueError where ``path`` cannot hold a checkpoint, before any rendering (not at its
+    first save, a checkpoint interval later): empty, a folder, in a folder that does not
+    exist or that cannot be written."""
+    name = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(name)) if name else ""
+    if not name or os.path.isdir(name):
+        raise ValueError(f"checkpoint={name!r} must name a file")
+    if not os.path.isdir(folder):
+        raise ValueError(f"checkpoint={name!r}: its folder {folder!r} does not exist (or is a file)")
+    if not os.access(folder, os.W_OK):
+        raise ValueError(f"checkpoint={name!r}: its folder {folder!r} cannot be written")
+
+
 def _load_checkpoint(path, accs: list, key: str):
     try:
         with np.load(path, allow_pickle=False) as data:
             stored = {name: data[name] for name in data.files}
     except NPZ_READ_ERRORS as exc:
-        raise ValueError(f"{path}: the checkpoint cannot be read ({exc}); remove it to render from the start") from None
+        why = "not a checkpoint (numpy refuses to read it)" if "allow_pickle" in str(exc) else str(exc)  # numpy's advice to unpickle is no advice here
+        raise ValueError(f"{path}: the checkpoint cannot be read ({why}); remove that file to render from the start") from None
     if str(stored.get("fingerprint")) != _digest(key):
         differences = _differences(str(stored.get("fingerprint_text", "")), key)
         raise ValueError(
@@ -432,7 +447,9 @@ def render(
         pass), so a killed process loses at most this much rendering (plus a pass).
     keep_checkpoint : bool, default False. With ``checkpoint``: also save the sums of a
         complete render and leave them, for a caller that removes the checkpoint once the
-        result is safely written (resuming a complete checkpoint renders nothing).
+        result is safely written (resuming a complete checkpoint renders nothing). Where
+        this last save (or an interrupted render's) cannot be written (a full disk), the
+        result is returned all the same, with a warning and ``info["checkpoint_error"]``.
     stop : callable, optional. Called before every pass; when it returns True the render
         stops there and returns what the finished passes hold: ``result.interrupted`` is
         True and ``result.spp`` the paths per pixel done, 0 (every estimate NaN, nothing
@@ -511,6 +528,8 @@ def render(
             raise ValueError("give cameras or sensor, not both (a sensor's raw frames are its cameras)")
         cameras = sensor.cameras()
     checkpoint_interval_s = checked_checkpoint_interval(checkpoint_interval_s)
+    if checkpoint is not None:
+        _check_checkpoint_path(checkpoint)
     keep_checkpoint = checked("keep_checkpoint", keep_checkpoint, "bool")
     callers_cameras = cameras is not None and sensor is None
     if cameras is not None:
@@ -536,6 +555,8 @@ def render(
                          FIELDS["lanes_per_pass"].metadata["minimum"])
         settings = dataclasses.replace(settings, lanes_per_pass=min(settings.lanes_per_pass, pass_lanes))
     if resumed_lanes is not None:
+        if resumed_lanes != settings.lanes_per_pass:  # (the result does not depend on it; its passes do)
+            warnings.warn(f"resuming {os.fspath(checkpoint)!r} in its own passes of {resumed_lanes} lanes, not {settings.lanes_per_pass}", stacklevel=2)
         settings = dataclasses.replace(settings, lanes_per_pass=resumed_lanes)
     if record is not None and record is not False:
         from .design.record import as_spec, by_probes, first_grid
@@ -632,14 +653,21 @@ def render(
         if bar is not None:
             bar.close()
     done = sum(passes_done())
+    checkpoint_error = None
     if done and (interrupted or keep_checkpoint):
-        save(due=True)
+        try:
+            save(due=True)
+        except CheckpointWriteError as exc:  # (a full disk) the sums in hand are returned all the same
+            checkpoint_error = str(exc)
+            warnings.warn(f"{exc}; the result is returned without it", stacklevel=2)
     elif checkpoint is not None and os.path.exists(checkpoint):
         os.remove(checkpoint)
     window_spp = [int(acc.state["samples"].min()) for acc in accs]  # a stopped schedule's windows differ
     spp_done = min(window_spp)
     info = {"render_seconds": time.perf_counter() - start, "passes": len(passes) * len(windows), "passes_done": done,
             "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows], "window_spp": window_spp}  # fmt: skip
+    if checkpoint_error is not None:
+        info["checkpoint_error"] = checkpoint_error
     if until_noise is not None:
         info["until_noise"] = {"ratio": until_noise, "reached": [reached[k][-1][1] if k in reached else float("inf") for k in range(len(windows))],
                                "spp": window_spp, "history": [reached.get(k, []) for k in range(len(windows))]}  # fmt: skip

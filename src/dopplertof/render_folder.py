@@ -271,7 +271,8 @@ def write_reconstruction(folder: str, reconstruction: rc.VelocityResult, ground_
         io.write_json(path(ERROR_FILE), velocity_error(reconstruction, ground_truth_m_s))
     if depth_truth_m is not None:
         _write_wrapped(path("depth_wrapped.png"), depth_truth_m, reconstruction.depth_range_m)
-    io.write_json(path(SUMMARY_FILE), summary(reconstruction, depth_truth_m))
+    files = [os.path.basename(f) for f in written] + [SUMMARY_FILE]  # what a new render of the folder removes (folder.prepare)
+    io.write_json(path(SUMMARY_FILE), {**summary(reconstruction, depth_truth_m), "files": files})
     return written
 
 

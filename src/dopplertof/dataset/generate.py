@@ -11,6 +11,7 @@ import time
 
 from ..backend import Stopped, signals_as_interrupt  # noqa: F401  (Stopped: what generate raises)
 from ..differences import differences
+from ..folder import check_writable, refuse_other_output
 from . import config as config_mod
 from . import execute, schema, shards
 
@@ -56,17 +57,6 @@ def parse_shard_range(text: str, total: int) -> range:
     if not 0 <= lo < hi <= total:
         raise ValueError(f"shard range {text!r} is outside the dataset's {total} shards (0:{total})")
     return range(lo, hi)
-
-
-def _check_writable(folder: str) -> None:
-    try:
-        os.makedirs(folder, exist_ok=True)
-        probe = os.path.join(folder, f".write-test.{os.getpid()}")
-        with open(probe, "wb"):
-            pass
-        os.unlink(probe)
-    except OSError as exc:
-        raise ValueError(f"cannot write to output folder {folder!r}: {exc.strerror or exc}") from None
 
 
 def _resolve_config(config, resolution, spp) -> dict:
@@ -226,7 +216,8 @@ def generate(
     layout = shards.plan(samples, shard_size)
     wanted = parse_shard_range(shards_range, len(layout)) if shards_range is not None else range(len(layout))
     output = os.fspath(output)
-    _check_writable(output)
+    refuse_other_output(output, "dataset")
+    check_writable(output)
     name = _variant(variant)
     header = header_for(cfg, samples, seed, shard_size, name)
 

@@ -15,6 +15,7 @@ import itertools
 import json
 import os
 import tarfile
+import warnings
 
 import numpy as np
 
@@ -63,6 +64,16 @@ def _samples_of(path: str):
             yield current, sample
 
 
+def _damaged(folder: str, shard: dict) -> bool:
+    """Whether a finished shard's file is missing or of another size than its manifest
+    entry says (a manifest without sizes: only missing)."""
+    try:
+        size = os.path.getsize(os.path.join(folder, shard["name"]))
+    except OSError:
+        return True
+    return shard.get("bytes") is not None and size != shard["bytes"]
+
+
 class Dataset:
     """A dataset folder written by :func:`dopplertof.dataset.generate`.
 
@@ -79,6 +90,9 @@ class Dataset:
     schema : dict
         ``{field: {dtype, shape, unit, meaning}}``.
     fields : list of str
+    damaged : list of str
+        Finished shards whose files differ in size from their records (truncated,
+        missing): left out of ``len`` and indexing, with a warning.
     """
 
     def __init__(self, folder):
@@ -89,7 +103,14 @@ class Dataset:
         self.manifest = manifest
         self.schema = manifest["schema"]
         self.fields = list(manifest["fields"])
-        self._shards = [s for s in manifest["shards"] if s["sha256"]]
+        finished = [s for s in manifest["shards"] if s["sha256"]]
+        # A shard file whose size is not its record's (truncated, replaced) is left out, by
+        # name: its tar would fail part way through reading (dataset verify checks the sums).
+        self.damaged = [s["name"] for s in finished if _damaged(self.folder, s)]
+        if self.damaged:
+            warnings.warn(f"{self.folder}: shard(s) {', '.join(self.damaged)} differ from their records and are left out; "
+                          "rerun 'dopplertof dataset generate' with the same command to write them again", stacklevel=3)
+        self._shards = [s for s in finished if s["name"] not in self.damaged]
         self._ends = list(itertools.accumulate(s["count"] for s in self._shards))  # cumulative sample counts
         self._index: dict = {}
         self._len = self._ends[-1] if self._ends else 0

@@ -37,6 +37,12 @@ OUTPUTS = ("record.npz", "sweep.csv", "optimize.csv", "best_sensor.toml", "veloc
 KEY_UNITS = {"modulation_frequency": "Hz", "exposure": "s", "heterodyne": "beat cycles per exposure"}
 
 
+def _render_options(options: dict, resolution) -> list[str]:
+    """The render options given on the command line (a record holds its render: refused
+    beside --record)."""
+    return sorted([f"--{k.replace('_', '-')}" for k in given_settings(options)] + (["--resolution"] if resolution else []))
+
+
 @click.command("design")
 @click.argument("scenes", nargs=-1)
 @click.option("--sensor", "sensor_spec", required=True, metavar="PRESET|FILE.toml", help="The sensor to design from: a preset or a TOML sensor file.")
@@ -57,6 +63,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     """Sweep and optimise SENSOR's parameters on SCENES (one or more, or a dataset's: the
     objective averaged over them) from one render of each (its response record)."""
     from ..backend import signals_as_interrupt
+    from ..folder import check_writable, refuse_other_output
     from ..io import read_record, write_exr, write_record
     from ..render import render
     from ..scene import SceneError
@@ -90,10 +97,11 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
             earlier += sorted(os.path.basename(p) for p in glob.glob(os.path.join(glob.escape(output), "sweep_*.png")))
             if earlier and not overwrite:
                 raise ValueError(f"{output!r} holds an earlier design run ({', '.join(earlier)}); choose another folder or --overwrite")
-            os.makedirs(output, exist_ok=True)  # before the render: an unwritable folder fails first
+            refuse_other_output(output, "design")
+            check_writable(output)  # before the render: an unwritable folder fails first
             if record_paths:
                 records = [read_record(path) for path in record_paths]
-                rendering = sorted([f"--{k.replace('_', '-')}" for k in given_settings(options)] + (["--resolution"] if resolution else []))
+                rendering = _render_options(options, resolution)
                 if rendering:
                     raise ValueError(f"--record: the record holds its render; {', '.join(rendering)} would render another (leave {'them' if len(rendering) > 1 else 'it'} out, or leave out --record)")
                 for path, record, (name, load, identity) in zip(record_paths, records, scenes):
@@ -152,7 +160,9 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
         kept = f"; kept {', '.join(os.path.basename(w) for w in written)}" if written else "; nothing written"
         if records_done and not record_paths:
             recs = " ".join(f"--record {os.path.join(output, named('record.npz', i))}" for i in range(len(records)))
-            click.echo(f"error: interrupted after the record was written{kept}: the same command with {recs} -o ANOTHER_FOLDER sweeps it without rendering", err=True)
+            rendering = _render_options(options, resolution)
+            without = f" and without {', '.join(rendering)}" if rendering else ""  # the record holds its render (refused beside --record)
+            click.echo(f"error: interrupted after the record was written{kept}: the same command with {recs} -o ANOTHER_FOLDER{without} sweeps it without rendering", err=True)
         else:
             if records_done:
                 click.echo(f"error: interrupted after the records were read{kept}", err=True)

@@ -90,7 +90,7 @@ def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo,
     a function of the scene giving its depth when neither the option nor the scene does
     (default the render's)."""
     from .. import scenes
-    from ..folder import check_writable
+    from ..folder import check_writable, refuse_other_output
     from ..raytools import require_ray
     from .common import DEFAULT_MAX_DEPTH, ReferenceCache, default_cache_dir, open_scene
 
@@ -103,6 +103,7 @@ def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo,
     scene = open_scene(scene_arg, resolution)
     folder = output_folder(output, os.path.join("out", "experiments", name, scene.label))
     cache_folder = cache or default_cache_dir()
+    refuse_other_output(folder, "experiment")  # an experiment's own earlier tables it replaces
     check_writable(folder)  # before any rendering, not when its results are due
     try:
         check_writable(cache_folder)
