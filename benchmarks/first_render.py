@@ -1,14 +1,17 @@
 #!/usr/bin/env python
-"""The first render of a new scene, compilation included: per-body loop against the tree.
+"""The first render of a new scene, compilation included: the per-body loop, the tree and
+the body atlas.
 
-    python benchmarks/first_render.py            # 256x256, 32 spp, 2/8/16/32/64 moving cubes (~4 min, 2 cores)
+    python benchmarks/first_render.py            # 256x256, 32 spp, 2/8/16/32/64 moving cubes (~6 min, 2 cores)
     python benchmarks/first_render.py --quick    # smoke test: 32x32, 8 spp, 2 and 16 cubes (< 1 min)
-    python benchmarks/first_render.py --scenes 128-moving 1024-moving --traversals tree
+    python benchmarks/first_render.py --scenes 128-moving 1024-moving --traversals tree atlas
+    python benchmarks/first_render.py --variant cuda_ad_rgb --traversals per-body atlas --timeout-s 120
 
 ``throughput.py`` times renders whose kernels are compiled already (its warm-up run is not
 timed); a new scene's first render also compiles its kernel, which with the per-body loop
 grows with the number of bodies (the loop is unrolled: each body's queries are code) and
-with the tree does not (the bodies are reached through one ``dr.switch``). Every new scene
+with the tree does not (the bodies are reached through one ``dr.switch``, or, with the atlas,
+one trace against a scene of every body: CUDA's traversal). Every new scene
 pays it: each sample of a dataset, each scene of a design study. This script renders each
 scene of ``throughput.py`` (D-ToF, 4 cameras, antithetic + replay) with each traversal in
 a process of its own whose Dr.Jit kernel cache is empty (a temporary ``$HOME``), and
@@ -31,7 +34,7 @@ import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets th
 import _common
 import throughput
 
-TRAVERSALS = ("per-body", "tree")
+TRAVERSALS = ("per-body", "tree", "atlas")  # atlas: the tree without dr.switch (CUDA's traversal)
 SCENES = ("2-moving", "8-moving", "16-moving", "32-moving", "64-moving")
 CSV_FIELDS = ["scene", "bodies", "traversal", "resolution", "spp", "load_s", "stock_load_s", "load_vs_stock", "first_s", "compile_s", "warm_s", "first_vs_per_body", "warm_vs_per_body"]
 
@@ -42,7 +45,8 @@ def parse_args(argv):
     p.add_argument("--spp", type=int, default=None, help="paths per pixel (default 32; quick 8)")
     p.add_argument("--scenes", nargs="+", choices=throughput.ALL_SCENES, default=None, help=f"default {' '.join(SCENES)}")
     p.add_argument("--traversals", nargs="+", choices=TRAVERSALS, default=list(TRAVERSALS),
-                   help="default both (the per-body loop compiles for minutes above ~64 bodies)")
+                   help="default all three (the per-body loop compiles for minutes above ~64 bodies; on CUDA above ~10)")
+    p.add_argument("--timeout-s", type=float, default=600.0, help="seconds a scene's process may take; more is reported as '> N s' (default 600)")
     p.add_argument("--one", nargs=2, metavar=("SCENE", "TRAVERSAL"), help=argparse.SUPPRESS)  # the child of in_fresh_process
     _common.add_output_options(p, "first_render", quick_help="smoke test: 32x32, 8 spp, 2 and 16 cubes", plot=False)
     args = p.parse_args(argv)
@@ -83,9 +87,15 @@ def measure_one(scene_name, traversal, args):
 
 
 def in_fresh_process(scene_name, traversal, args, argv):
-    """:func:`measure_one` in a child process with an empty Dr.Jit kernel cache."""
+    """:func:`measure_one` in a child process with an empty Dr.Jit kernel cache; None
+    where it ran past ``--timeout-s``."""
+    import subprocess
+
     script_args = [*(sys.argv[1:] if argv is None else argv), "--one", scene_name, traversal]
-    out = _common.run_with_empty_kernel_cache(__file__, script_args, capture_output=True, text=True, check=True)
+    try:
+        out = _common.run_with_empty_kernel_cache(__file__, script_args, capture_output=True, text=True, check=True, timeout=args.timeout_s)
+    except subprocess.TimeoutExpired:
+        return None
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -101,6 +111,10 @@ def main(argv=None):
         per_body = None
         for traversal in args.traversals:
             r = in_fresh_process(name, traversal, args, argv)
+            if r is None:
+                run.log(f"[{name}] {traversal:<8} did not finish in {args.timeout_s:g} s")
+                rows.append({"scene": name, "traversal": traversal, "resolution": args.resolution, "spp": args.spp, "first_s": None})
+                continue
             per_body = r if traversal == "per-body" else per_body
             row = {"scene": name, "traversal": traversal, "resolution": args.resolution, "spp": args.spp, **r,
                    "first_vs_per_body": r["first_s"] / per_body["first_s"] if per_body else None,
@@ -109,16 +123,13 @@ def main(argv=None):
             run.log(f"[{name}] {traversal:<8} load {r['load_s']:6.2f} s ({r['load_vs_stock']:.1f}x stock)  "
                     f"first {r['first_s']:7.2f} s (compiling {r['compile_s']:6.2f} s)  second {r['warm_s']:6.2f} s")
     print()
-    print("| scene | load (÷ stock) | per-body: first render (compiling) | tree: first render (compiling) | tree ÷ per-body: first | tree ÷ per-body: second |")
-    print("|---|---:|---:|---:|---:|---:|")
+    print("| scene | " + " | ".join(f"{t}: first render (compiling), second" for t in args.traversals) + " |")
+    print("|---|" + "---:|" * len(args.traversals))
     for name in args.scenes:
         found = {r["traversal"]: r for r in rows if r["scene"] == name}
-        pb, tr = found.get("per-body"), found.get("tree")
-        first = lambda r: f"{r['first_s']:.2f} s ({r['compile_s']:.2f} s)" if r else "–"  # noqa: E731
-        ratio = lambda key: f"{tr[key]:.2f}" if tr and tr[key] is not None else "–"  # noqa: E731
-        load = next(iter(found.values()))
-        print(f"| {name} | {load['load_s']:.2f} s ({load['load_vs_stock']:.1f}×) | {first(pb)} | {first(tr)} | "
-              f"{ratio('first_vs_per_body')} | {ratio('warm_vs_per_body')} |")
+        cells = [f"{r['first_s']:.2f} s ({r['compile_s']:.2f} s), {r['warm_s']:.3f} s" if r["first_s"] is not None
+                 else f"> {args.timeout_s:g} s" for r in (found[t] for t in args.traversals)]
+        print(f"| {name} | " + " | ".join(cells) + " |")
     return run.finish(rows, CSV_FIELDS, total_note=f"; load avg at end {_common.loadavg()}")
 
 

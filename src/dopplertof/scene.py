@@ -511,6 +511,10 @@ class DynamicScene:
         if not (np.isfinite(t0) and np.isfinite(t1) and t0 <= t1):
             raise ValueError(f"time window must be finite with t0 <= t1, got [{t0!r}, {t1!r}] s")
         self._fit_bounds(t0, t1)
+        if self.traversal_in_use() == "atlas":
+            # Built before a render's kernel is traced: shapes made while it is traced change
+            # the layout of its calls over shapes, and the next render compiles it again.
+            self._body_atlas()
 
     def traversal_in_use(self) -> str:
         """The traversal ray queries take: ``"per-body"``, ``"tree"`` or ``"atlas"`` (see
