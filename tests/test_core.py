@@ -458,6 +458,30 @@ def test_standard_errors_do_not_depend_on_the_pass_split(spp):
         np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-12 * np.nanmax(np.abs(a)), err_msg=name)
 
 
+@pytest.mark.parametrize("origin, target", [((0, 0, 0), (0, 0, -1)), ((0.3, 1.1, 5.0), (0.0, 0.2, 0.0)), ((-4.0, 2.0, 7.0), (1.0, -1.0, 3.0))])
+def test_optical_flow_does_not_depend_on_where_the_camera_stands_or_looks(origin, target):
+    """The receding plane placed in the camera's frame, wherever the camera is: the same
+    flow (a camera away from the axes had NaN flow: float32 rounding of its film
+    positions failed pinhole_scales' test of a separable projection)."""
+    speed, n = 10.0, 16
+    T = mi.ScalarTransform4f
+    camera = T().look_at(origin=list(origin), target=list(target), up=[0, 1, 0])
+    d = {
+        "type": "scene",
+        "sensor": {"type": "perspective", "fov": 40, "to_world": camera,
+                   "film": {"type": "hdrfilm", "width": n, "height": n, "rfilter": {"type": "box"}}},
+        "light": {"type": "point", "position": list(origin), "intensity": {"type": "rgb", "value": 10.0}},
+        "plane": {"type": "rectangle", "to_world": camera @ T().translate([0, 0, 5]) @ T().rotate([0, 1, 0], 180) @ T().scale(20),
+                  "motion": {"type": "parametric", "linear_velocity": list(camera @ mi.ScalarVector3f(0, 0, speed))}},
+    }  # fmt: skip
+    flow = dt.render(dt.load_scene(d), spp=128, max_depth=2, exposure=1.5e-3).flow
+    centre = (np.arange(n) + 0.5) - n / 2
+    z = 5.0 + speed * 0.75e-3
+    tolerance = 0.02 * speed / z * n / 2
+    np.testing.assert_allclose(flow[..., 0], np.broadcast_to(-centre[None, :] * speed / z, (n, n)), atol=tolerance)
+    np.testing.assert_allclose(flow[..., 1], np.broadcast_to(-centre[:, None] * speed / z, (n, n)), atol=tolerance)
+
+
 def test_optical_flow_of_a_receding_plane():
     """A plane receding along the optical axis at s shrinks the image towards its centre:
     d/dt (a x/z) = −(u − u_c) s / z pixels per second (u_c the film centre)."""

@@ -630,3 +630,26 @@ def test_workers_end_when_their_driver_is_killed(tmp_path):
             pytest.fail(f"{len(alive)} of the driver's processes outlived it by 30 s")
         time.sleep(0.2)
     assert len(workers) == 2
+
+
+def test_the_reader_takes_integers_and_slices_and_says_what_else_it_refuses(reference):
+    ds = dt.dataset.open(reference)
+    assert [s["__key__"] for s in ds[1:3]] == [ds[1]["__key__"], ds[2]["__key__"]] and ds[-1]["__key__"] == ds[len(ds) - 1]["__key__"]
+    assert ds[np.int64(2)]["__key__"] == ds[2]["__key__"]
+    for bad in (1.0, "a", True):
+        with pytest.raises(TypeError, match="dataset indices must be integers or slices"):
+            ds[bad]
+
+
+def test_verify_tells_shards_not_written_yet_from_damaged_ones(tmp_path, reference):
+    """A generation under way (or stopped) has shards it has not written: not 'bad'."""
+    folder = tmp_path / "part"
+    dt.dataset.generate(folder, **SMALL, shards_range="0:1")
+    res = CliRunner().invoke(main, ["dataset", "verify", str(folder)])
+    assert res.exit_code == 0 and "ok: 1 shards match the manifest; 3 not written yet (the dataset is incomplete)" in res.output, res.output
+    with open(folder / "shard-000000.tar", "r+b") as f:
+        f.truncate(1000)
+    res = CliRunner().invoke(main, ["dataset", "verify", str(folder)])
+    assert res.exit_code == 1 and "shard-000000.tar: corrupt" in res.output and "3 not written yet" in res.output
+    with pytest.warns(UserWarning, match="shard-000000.tar differ from their records and are left out"):
+        assert len(dt.dataset.open(folder)) == 0

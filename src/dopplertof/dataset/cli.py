@@ -99,13 +99,14 @@ def verify_command(folder):
         report = verify(folder)
     except ValueError as exc:
         _fail(str(exc))
+    unwritten = f"; {len(report['unwritten'])} not written yet (the dataset is incomplete)" if report["unwritten"] else ""
     if report["bad"]:
         for name, status in sorted(report["bad"].items()):
             click.echo(f"{name}: {status}")
-        click.echo(f"{len(report['bad'])} bad shard(s), {len(report['ok'])} ok; rerun 'dopplertof dataset generate' with the same "
+        click.echo(f"{len(report['bad'])} bad shard(s), {len(report['ok'])} ok{unwritten}; rerun 'dopplertof dataset generate' with the same "
                    f"arguments to regenerate them", err=True)
         sys.exit(1)
-    click.echo(f"ok: {len(report['ok'])} shards match the manifest")
+    click.echo(f"ok: {len(report['ok'])} shards match the manifest{unwritten}")
 
 
 @dataset_group.command("info")

@@ -165,7 +165,8 @@ def run_local(jobs: list[dict], workers: int, on_done, max_retries: int = 3) -> 
                     del pending[index]
                     on_done({"record": shards.read_record(job["folder"], index), "seconds": {}, "pid": None})
             if attempts > max_retries and pending:
-                raise RuntimeError(f"a worker process died {attempts} times; shards left: {sorted(pending)}") from None
+                raise RuntimeError(f"a worker process died {attempts} times; shards left: {sorted(pending)} (from a script, call generate "
+                                   "under 'if __name__ == \"__main__\":': each worker imports the script again)") from None
         except BaseException:
             # Interrupted (or a shard failed): stop now, keep what is finished.
             for process in list(getattr(pool, "_processes", {}).values()):  # no public kill on Python < 3.14

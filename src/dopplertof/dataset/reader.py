@@ -13,6 +13,7 @@ import bisect
 import io
 import itertools
 import json
+import operator
 import os
 import tarfile
 import warnings
@@ -77,7 +78,8 @@ def _damaged(folder: str, shard: dict) -> bool:
 class Dataset:
     """A dataset folder written by :func:`dopplertof.dataset.generate`.
 
-    ``len(ds)`` is the number of samples in finished shards; ``ds[i]`` and iteration give a
+    ``len(ds)`` is the number of samples in finished shards; ``ds[i]`` (``ds[a:b]`` a list)
+    and iteration give a
     dict ``{field: numpy array, "json": record, "__key__": key}`` (fields as in
     ``ds.schema``). Indexing opens the sample's shard (the member offsets of each shard
     are read once); iteration streams shard by shard.
@@ -92,7 +94,9 @@ class Dataset:
     fields : list of str
     damaged : list of str
         Finished shards whose files differ in size from their records (truncated,
-        missing): left out of ``len`` and indexing, with a warning.
+        missing): left out of ``len`` and indexing, with a warning; later samples' indices
+        move down (their keys stay). A change that keeps the size is found by
+        ``dopplertof dataset verify`` (checksums), not here.
     """
 
     def __init__(self, folder):
@@ -140,8 +144,12 @@ class Dataset:
                 self._index[name] = {m.name: (m.offset_data, m.size) for m in tar.getmembers()}
         return self._index[name]
 
-    def __getitem__(self, i: int) -> dict:
-        shard, index = self._locate(int(i))
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(self._len))]
+        if isinstance(i, (bool, np.bool_)) or not hasattr(i, "__index__"):
+            raise TypeError(f"dataset indices must be integers or slices, not {type(i).__name__}")
+        shard, index = self._locate(operator.index(i))
         key = shards.sample_key(index)
         members = self._members(shard)
         out = {"__key__": key}

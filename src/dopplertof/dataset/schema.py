@@ -50,7 +50,7 @@ SENSOR_MODEL = "sensor.model"  # the `needs` of the fields a dataset has only wi
 FIELDS: tuple[Field, ...] = (
     Field("measurements", "float32", ("C", "H", "W"), "radiance × g1/2",
           "clean D-ToF measurement per camera of the capture set, (1/T)∫W f dt, full global illumination (render.max_depth)"),
-    Field("measurement_stderr", "float32", ("C", "H", "W"), "radiance × g1/2", "Monte Carlo standard error of `measurements`"),
+    Field("measurement_stderr", "float32", ("C", "H", "W"), "radiance × g1/2", "Monte Carlo standard error of `measurements` (exactly 0 where every path of the pixel cancelled, static paths at h ≠ 0: not an exact value, never a weight 1/σ²)"),
     Field("measurements_direct", "float32", ("C", "H", "W"), "radiance × g1/2",
           "the same cameras, single-bounce (direct) light only: max_depth = 2"),
     Field("measurements_direct_stderr", "float32", ("C", "H", "W"), "radiance × g1/2", "Monte Carlo standard error of `measurements_direct`"),

@@ -402,8 +402,10 @@ def verify(folder: str) -> dict:
     Returns
     -------
     dict
-        ``{"ok": [names], "bad": {name: status}}``, status ``missing``, ``unrecorded``
-        or ``corrupt`` (see :func:`shard_status`), and ``complete`` (every shard ok).
+        ``{"ok": [names], "bad": {name: status}, "unwritten": [names]}``, status
+        ``missing``, ``unrecorded`` or ``corrupt`` (see :func:`shard_status`; a shard the
+        manifest never recorded as finished and that has no file is ``unwritten``, not
+        bad: a generation under way or stopped), and ``complete`` (every shard ok).
 
     Raises
     ------
@@ -413,7 +415,7 @@ def verify(folder: str) -> dict:
     manifest = read_manifest(folder)
     if manifest is None:
         raise ValueError(f"{folder}: no {MANIFEST}; not a dopplertof dataset folder")
-    ok, bad = [], {}
+    ok, bad, unwritten = [], {}, []
     for shard in manifest["shards"]:
         index = int(shard["name"][len("shard-"):-len(".tar")])
         status = shard_status(folder, index, shard["count"])
@@ -421,6 +423,8 @@ def verify(folder: str) -> dict:
             status = "corrupt"
         if status == "ok":
             ok.append(shard["name"])
+        elif status == "missing" and shard["sha256"] is None:  # never finished (a generation under way or stopped)
+            unwritten.append(shard["name"])
         else:
             bad[shard["name"]] = status
-    return {"ok": ok, "bad": bad, "complete": not bad}
+    return {"ok": ok, "bad": bad, "unwritten": unwritten, "complete": not bad and not unwritten}

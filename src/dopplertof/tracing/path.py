@@ -484,8 +484,11 @@ def pinhole_scales(sensor):
     except RuntimeError:  # no sample_direction (orthographic)
         return None
     (u0, v0), (ux, vx), (uy, vy) = ([float(c[0]) for c in (q.x, q.y)] for q in uv)
-    if abs(vx - v0) > 1e-6 * abs(ux - u0) or abs(uy - u0) > 1e-6 * abs(vy - v0):
-        return None  # not a separable pinhole projection
+    # A cross term beyond float32 rounding (of film positions reached through a tilted
+    # camera's world transform: 1e-6 px against steps of 0.02 px) is not a separable pinhole
+    # projection; a bound at the rounding itself made every tilted camera's flow NaN.
+    if abs(vx - v0) > 1e-3 * abs(ux - u0) or abs(uy - u0) > 1e-3 * abs(vy - v0):
+        return None
     return (ux - u0) / step, (vy - v0) / step
 
 
