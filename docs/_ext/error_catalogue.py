@@ -494,6 +494,7 @@ TOPICS = [
         ("the body atlas cannot hold …", "`BodyAtlas.build` was given a body whose shape it cannot copy (an instance, a curve)", "check `BodyAtlas.unsupported` first, or use the per-body traversal"),
         ("time window must be finite with t0 <= t1, got […, …] s", "an empty or reversed window", "t0 ≤ t1"),
         ("load_scene expects a file path or a dict, got …", "the API's `load_scene` got something else", "a path or a scene dict"),
+        ("dataset indices must be integers or slices, not …", "`dt.dataset.open(...)[i]` with a float, a string or a bool", "an integer, or a slice for a list of samples"),
         ("film_resolution must be a positive int or a (width, height) pair of them, got …", "a film size of another form", "`64` or `(128, 96)`"),
         ("<dict>: $name substitutions … apply to scene files only", "parameters given for a scene dict", "put the values in the dict"),
         ("<dict>: a scene dict needs 'type': 'scene'", "the dict is not a scene", "`{\"type\": \"scene\", ...}`"),
