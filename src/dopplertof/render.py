@@ -544,6 +544,7 @@ def render(
     if callers_cameras:
         _warn_past_the_shutter(scene, settings)
     resumed_lanes = None if checkpoint is None else _checkpoint_lanes_per_pass(checkpoint, settings)
+    asked_lanes = settings.lanes_per_pass
     if until_noise is not None:
         until_noise = checked_until_noise(until_noise)
         if sensor is None:
@@ -555,8 +556,8 @@ def render(
                          FIELDS["lanes_per_pass"].metadata["minimum"])
         settings = dataclasses.replace(settings, lanes_per_pass=min(settings.lanes_per_pass, pass_lanes))
     if resumed_lanes is not None:
-        if resumed_lanes != settings.lanes_per_pass:  # (the result does not depend on it; its passes do)
-            warnings.warn(f"resuming {os.fspath(checkpoint)!r} in its own passes of {resumed_lanes} lanes, not {settings.lanes_per_pass}", stacklevel=2)
+        if resumed_lanes != asked_lanes:  # (the result depends on the passes; until_noise's own smaller passes are not asked for)
+            warnings.warn(f"resuming {os.fspath(checkpoint)!r} in its own passes of {resumed_lanes} lanes, not {asked_lanes}", stacklevel=2)
         settings = dataclasses.replace(settings, lanes_per_pass=resumed_lanes)
     if record is not None and record is not False:
         from .design.record import as_spec, by_probes, first_grid
