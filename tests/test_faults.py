@@ -713,3 +713,16 @@ def test_a_checkpoint_that_is_not_one_says_so_without_numpys_advice(tmp_path):
     with pytest.raises(ValueError, match="cannot be read") as caught:
         dt.render(dt.scenes.build("cornell-box", resolution=4), spp=4, checkpoint=str(garbage))
     assert "pickle" not in str(caught.value)
+
+
+def test_a_folder_without_the_space_a_render_needs_is_refused_and_not_left_behind(tmp_path):
+    from dopplertof import folder
+
+    out = tmp_path / "new" / "out"
+    with pytest.raises(ValueError, match="MB free; this render writes about"):
+        folder.check_writable(str(out), bytes_needed=1 << 62)
+    assert not out.exists()
+    out.mkdir(parents=True)  # one that was there stays
+    with pytest.raises(ValueError, match="MB free"):
+        folder.check_writable(str(out), bytes_needed=1 << 62)
+    assert out.is_dir()

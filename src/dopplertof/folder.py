@@ -198,6 +198,7 @@ def check_writable(folder: str, bytes_needed: int = 0) -> str:
         raise ValueError(f"output {folder!r} exists and is not a folder")
     if probe != parts and not os.path.isdir(probe):
         raise ValueError(f"output {folder!r} lies under {probe!r}, which is a file")
+    created = not os.path.exists(parts)
     try:
         os.makedirs(parts, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=parts, prefix=".write-test-"):
@@ -206,6 +207,8 @@ def check_writable(folder: str, bytes_needed: int = 0) -> str:
         raise ValueError(f"output folder {folder!r} is not writable ({exc.strerror or exc})") from None
     free = shutil.disk_usage(parts).free
     if bytes_needed and free < bytes_needed:
+        if created:
+            os.rmdir(parts)  # a refused command leaves no empty folder behind
         raise ValueError(f"output folder {folder!r} has {free / 1e6:.1f} MB free; this render writes about {bytes_needed / 1e6:.1f} MB")
     return parts
 
