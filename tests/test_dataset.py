@@ -134,9 +134,9 @@ def test_sigterm_keeps_finished_shards_and_a_rerun_resumes_byte_identically(refe
     assert 1 <= manifest["shards_done"] < 4 and not manifest["complete"]
     done = [s["name"] for s in manifest["shards"] if s["sha256"]]
     assert all(digests(folder)[n] == digests(reference)[n] for n in done)
-    # verify names the missing shards
+    # verify says the dataset is incomplete (exit 1), the shards not written yet not being damage
     res = CliRunner().invoke(main, ["dataset", "verify", str(folder)])
-    assert res.exit_code == 1 and "missing" in res.output
+    assert res.exit_code == 1 and "0 bad shard(s)" in res.output and "not written yet (the dataset is incomplete)" in res.output
     subprocess.run(cmd, env=_run_env(), check=True, capture_output=True, timeout=300)
     assert digests(folder) == digests(reference)
 
@@ -646,7 +646,7 @@ def test_verify_tells_shards_not_written_yet_from_damaged_ones(tmp_path, referen
     folder = tmp_path / "part"
     dt.dataset.generate(folder, **SMALL, shards_range="0:1")
     res = CliRunner().invoke(main, ["dataset", "verify", str(folder)])
-    assert res.exit_code == 0 and "ok: 1 shards match the manifest; 3 not written yet (the dataset is incomplete)" in res.output, res.output
+    assert res.exit_code == 1 and "0 bad shard(s), 1 ok; 3 not written yet (the dataset is incomplete)" in res.output and "finish it" in res.output, res.output
     with open(folder / "shard-000000.tar", "r+b") as f:
         f.truncate(1000)
     res = CliRunner().invoke(main, ["dataset", "verify", str(folder)])

@@ -100,13 +100,13 @@ def verify_command(folder):
     except ValueError as exc:
         _fail(str(exc))
     unwritten = f"; {len(report['unwritten'])} not written yet (the dataset is incomplete)" if report["unwritten"] else ""
-    if report["bad"]:
+    if report["bad"] or report["unwritten"]:  # exit 1: not a complete, sound dataset (a gate for scripts)
         for name, status in sorted(report["bad"].items()):
             click.echo(f"{name}: {status}")
         click.echo(f"{len(report['bad'])} bad shard(s), {len(report['ok'])} ok{unwritten}; rerun 'dopplertof dataset generate' with the same "
-                   f"arguments to regenerate them", err=True)
+                   f"arguments to {'regenerate them' if report['bad'] else 'finish it'}", err=True)
         sys.exit(1)
-    click.echo(f"ok: {len(report['ok'])} shards match the manifest{unwritten}")
+    click.echo(f"ok: {len(report['ok'])} shards match the manifest")
 
 
 @dataset_group.command("info")
