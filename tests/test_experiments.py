@@ -436,3 +436,28 @@ def test_an_experiment_stopped_by_sigterm_says_so_and_exits_143(tmp_path):
     _, stderr = process.communicate(timeout=120)
     assert process.returncode == 143, stderr
     assert stderr.strip().splitlines()[-1].startswith("SIGTERM: stopped; no table was written")
+
+
+def test_an_interrupted_reference_keeps_its_passes_and_the_next_run_continues_them(tmp_path, monkeypatch):
+    """A 16384-spp reference stopped part way lost every pass (a fault trial): it now keeps
+    them in the cache's checkpoint, and the next run continues to the same result."""
+    import dopplertof as dt
+
+    scene = open_scene("cornell-box", 8)
+    cameras = [dt.Camera(heterodyne=1.0)]
+    real = common.render
+    stops = iter([False, False, True])
+    monkeypatch.setattr(common, "render", lambda *a, **k: real(*a, stop=lambda: next(stops, True), **k))
+    cache = ReferenceCache(tmp_path / "cache")
+    args = (scene, cameras, 64, 0, 3, cache, lambda text: None)
+    with pytest.raises(KeyboardInterrupt):
+        common.reference_render(*args, lanes_per_pass=1024)
+    key = cache.key(scene, cameras, 64, common.reference_seed(0), 3, common.REFERENCE_ESTIMATOR)
+    assert cache.checkpoint_path(key).is_file() and not cache.path(key).exists()
+    monkeypatch.setattr(common, "render", real)
+    lines = []
+    continued = common.reference_render(scene, cameras, 64, 0, 3, cache, lines.append, lanes_per_pass=1024)
+    assert any("continuing its checkpoint" in line for line in lines)
+    assert not cache.checkpoint_path(key).exists() and cache.path(key).is_file()
+    whole = common.reference_render(scene, cameras, 64, 0, 3, ReferenceCache(tmp_path / "other"), lambda text: None, lanes_per_pass=1024)
+    np.testing.assert_array_equal(continued.measurements, whole.measurements)

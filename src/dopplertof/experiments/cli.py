@@ -51,8 +51,8 @@ def _one_line_errors():
         fail(str(exc))
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
-        click.echo(f"{signal.Signals(signum).name}: stopped; no table was written; a reference already rendered is "
-                   "cached, and the same command again does not render it again", err=True)
+        click.echo(f"{signal.Signals(signum).name}: stopped; no table was written; a reference already rendered is cached, "
+                   "and one stopped part way keeps its passes there: the same command again continues, rendering neither again", err=True)
         sys.exit(128 + signum)
 
 

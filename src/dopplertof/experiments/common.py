@@ -298,7 +298,8 @@ def check_spp(name: str, spp: int) -> int:
     return spp
 
 
-def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int, seed: int, max_depth: int, progress=False, replicates=None, lanes_per_pass=None, **executor):
+def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int, seed: int, max_depth: int, progress=False, replicates=None, lanes_per_pass=None,
+                 checkpoint=None, **executor):  # fmt: skip
     """(RenderResult, wall seconds) of one render.
 
     Parameters
@@ -318,6 +319,9 @@ def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int
     replicates, lanes_per_pass : int or None, default None
         The render's (None: the render default); ``replicates`` only where the estimator's
         times are not stratified (the others take their errors from their strata).
+    checkpoint : str or Path or None, default None
+        The render's checkpoint (:func:`~dopplertof.render.render`): an interrupted render
+        keeps its passes there, and the next call continues them.
     **executor
         :func:`~dopplertof.render.render`'s ``executor``, ``address``, ``workers``.
 
@@ -334,7 +338,7 @@ def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int
     start = time.perf_counter()
     if stratifies(estimator.time_sampling, estimator.stratified):
         replicates = None  # stratified times take their standard errors from their strata
-    given = {"replicates": replicates, "lanes_per_pass": lanes_per_pass}
+    given = {"replicates": replicates, "lanes_per_pass": lanes_per_pass, "checkpoint": None if checkpoint is None else str(checkpoint)}
     extra = {k: v for k, v in given.items() if v is not None}
     result = render(
         scene.scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth, progress=progress,
@@ -489,6 +493,21 @@ class ReferenceCache:
         """
         return self.folder / f"{key}.npz"
 
+    def checkpoint_path(self, key: str) -> Path:
+        """Where the reference with cache key ``key`` keeps its passes while it renders
+        (``<folder>/<key>.checkpoint.npz``): an interrupted reference continues from it.
+
+        Parameters
+        ----------
+        key : str
+            A cache key (:meth:`key`).
+
+        Returns
+        -------
+        Path
+        """
+        return self.folder / f"{key}.checkpoint.npz"
+
     def load(self, key: str, cameras) -> RenderResult | None:
         """The cached render, or None if there is none (or it cannot be read).
 
@@ -567,7 +586,8 @@ def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_d
     Raises
     ------
     KeyboardInterrupt
-        The reference render was interrupted.
+        The reference render was interrupted; its passes are kept in the cache
+        (:meth:`ReferenceCache.checkpoint_path`), and the next call continues them.
     """
     seed = reference_seed(seed)
     key = cache.key(scene, cameras, spp, seed, max_depth, REFERENCE_ESTIMATOR, replicates)
@@ -575,9 +595,13 @@ def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_d
     if cached is not None:
         echo(f"reference: loaded from cache {cache.path(key)}")
         return cached
-    echo(f"reference: rendering {REFERENCE_ESTIMATOR.label} at {spp} spp (seed {seed}) ...")
+    checkpoint = cache.checkpoint_path(key)
+    resumed = " (continuing its checkpoint)" if checkpoint.is_file() else ""
+    echo(f"reference: rendering {REFERENCE_ESTIMATOR.label} at {spp} spp (seed {seed}){resumed} ...")
+    cache.folder.mkdir(parents=True, exist_ok=True)
     result, seconds = timed_render(
-        scene, cameras, REFERENCE_ESTIMATOR, spp, seed, max_depth, progress=sys.stderr.isatty(), replicates=replicates, lanes_per_pass=lanes_per_pass, **cache.executor,
+        scene, cameras, REFERENCE_ESTIMATOR, spp, seed, max_depth, progress=sys.stderr.isatty(), replicates=replicates, lanes_per_pass=lanes_per_pass,
+        checkpoint=checkpoint, **cache.executor,
     )  # fmt: skip
     path = cache.store(key, result)
     echo(f"reference: rendered in {seconds:.1f} s, cached as {path}")
