@@ -453,11 +453,11 @@ def test_an_interrupted_reference_keeps_its_passes_and_the_next_run_continues_th
     with pytest.raises(KeyboardInterrupt):
         common.reference_render(*args, lanes_per_pass=1024)
     key = cache.key(scene, cameras, 64, common.reference_seed(0), 3, common.REFERENCE_ESTIMATOR)
-    assert cache.checkpoint_path(key).is_file() and not cache.path(key).exists()
+    assert cache.path(key, checkpoint=True).is_file() and not cache.path(key).exists()
     monkeypatch.setattr(common, "render", real)
     lines = []
     continued = common.reference_render(scene, cameras, 64, 0, 3, cache, lines.append, lanes_per_pass=1024)
     assert any("continuing its checkpoint" in line for line in lines)
-    assert not cache.checkpoint_path(key).exists() and cache.path(key).is_file()
+    assert not cache.path(key, checkpoint=True).exists() and cache.path(key).is_file()
     whole = common.reference_render(scene, cameras, 64, 0, 3, ReferenceCache(tmp_path / "other"), lambda text: None, lanes_per_pass=1024)
     np.testing.assert_array_equal(continued.measurements, whole.measurements)

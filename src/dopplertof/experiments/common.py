@@ -479,34 +479,23 @@ class ReferenceCache:
         }
         return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()
 
-    def path(self, key: str) -> Path:
-        """The cache file of the reference with cache key ``key``: ``<folder>/<key>.npz``.
+    def path(self, key: str, checkpoint: bool = False) -> Path:
+        """The cache file of the reference with cache key ``key``: ``<folder>/<key>.npz``;
+        with ``checkpoint``, where it keeps its passes while it renders
+        (``<folder>/<key>.checkpoint.npz``: an interrupted reference continues from it).
 
         Parameters
         ----------
         key : str
             A cache key (:meth:`key`).
+        checkpoint : bool, default False
+            The checkpoint's path, not the reference's.
 
         Returns
         -------
         Path
         """
-        return self.folder / f"{key}.npz"
-
-    def checkpoint_path(self, key: str) -> Path:
-        """Where the reference with cache key ``key`` keeps its passes while it renders
-        (``<folder>/<key>.checkpoint.npz``): an interrupted reference continues from it.
-
-        Parameters
-        ----------
-        key : str
-            A cache key (:meth:`key`).
-
-        Returns
-        -------
-        Path
-        """
-        return self.folder / f"{key}.checkpoint.npz"
+        return self.folder / f"{key}{'.checkpoint' if checkpoint else ''}.npz"
 
     def load(self, key: str, cameras) -> RenderResult | None:
         """The cached render, or None if there is none (or it cannot be read).
@@ -587,7 +576,7 @@ def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_d
     ------
     KeyboardInterrupt
         The reference render was interrupted; its passes are kept in the cache
-        (:meth:`ReferenceCache.checkpoint_path`), and the next call continues them.
+        (:meth:`ReferenceCache.path`), and the next call continues them.
     """
     seed = reference_seed(seed)
     key = cache.key(scene, cameras, spp, seed, max_depth, REFERENCE_ESTIMATOR, replicates)
@@ -595,7 +584,7 @@ def reference_render(scene: ExperimentScene, cameras, spp: int, seed: int, max_d
     if cached is not None:
         echo(f"reference: loaded from cache {cache.path(key)}")
         return cached
-    checkpoint = cache.checkpoint_path(key)
+    checkpoint = cache.path(key, checkpoint=True)
     resumed = " (continuing its checkpoint)" if checkpoint.is_file() else ""
     echo(f"reference: rendering {REFERENCE_ESTIMATOR.label} at {spp} spp (seed {seed}){resumed} ...")
     cache.folder.mkdir(parents=True, exist_ok=True)
