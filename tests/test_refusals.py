@@ -484,3 +484,8 @@ def test_the_command_line_refuses_a_blackbody_in_one_line(tmp_path):
 def test_dict_entries_that_would_be_dropped_or_fail_mid_render_are_refused(entries, fragment):
     with pytest.raises(dt.SceneError, match=fragment):
         dt.load_scene(dict_scene(**entries))
+
+
+def test_an_odd_spp_from_the_files_sampler_says_where_it_came_from(tmp_path):
+    path = xml_scene(tmp_path, sensor_inner='<sampler type="independent"><integer name="sample_count" value="7"/></sampler>')
+    assert_cli_error(cli("render", path, "-o", tmp_path / "out"), "spp=7 must be a multiple of the 2", "the scene's <sampler> sample_count")

@@ -261,7 +261,8 @@ class RenderSettings:
         if self.correlation in PAIRED and n != 2:
             raise ValueError(f"correlation={self.correlation!r} pairs two times (n_times=2), got n_times={n}")
         if self.spp % n:
-            raise ValueError(f"spp={self.spp} must be a multiple of the {n} correlated times per group ({self.time_sampling})")
+            raise ValueError(f"spp={self.spp} must be a multiple of the {n} correlated times per group ({self.time_sampling}); "
+                             "the spp is the render's (--spp, spp=), else the scene's <sampler> sample_count")
         groups = self.spp // n
         uncut = group_cuts(groups, self.wraps)[1]
         if self.stratified and groups >= 3 and uncut:
