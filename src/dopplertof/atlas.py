@@ -94,21 +94,17 @@ class BodyAtlas:
         index = np.arange(len(bodies))
         grid = np.stack([index % n, (index // n) % n, index // (n * n)], axis=1) - (n - 1) / 2
         offsets = grid * cell - 0.5 * (lo + hi)
-        entries, originals = {"type": "scene"}, []
-        for b, body in enumerate(bodies):
-            shift = mi.ScalarTransform4f().translate(mi.ScalarVector3f(*offsets[b].astype(np.float32)))
-            for k, shape in enumerate(body.scene.shapes()):
-                entries[f"atlas-{b}-{k}"] = _shifted_copy(shape, offsets[b], shift)
-                originals.append(shape)
+        originals = [(b, shape) for b, body in enumerate(bodies) for shape in body.scene.shapes()]
+        copies = [_shifted_copy(shape, offsets[b]) for b, shape in originals]
+        entries = {"type": "scene", **{f"atlas-{k}": copy for k, copy in enumerate(copies)}}
         if host is not None:
             from .loader import HOST_KEY
 
             entries[HOST_KEY] = host
         scene = mi.load_dict(entries)
-        copies = [entries[f"atlas-{b}-{k}"] for b, body in enumerate(bodies) for k in range(len(body.scene.shapes()))]
         copy_ids = np.array(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(copies)))
         table = np.zeros(int(copy_ids.max()) + 1, dtype=np.uint32)
-        table[copy_ids] = np.array(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(originals)))
+        table[copy_ids] = np.array(dr.reinterpret_array(mi.UInt32, mi.ShapePtr([shape for _, shape in originals])))
         pad = CELL_PAD * largest + 1e-6
         return cls(scene, offsets, lo + offsets - pad, hi + offsets + pad, table)
 
@@ -151,7 +147,7 @@ class BodyAtlas:
         return meets & self.scene.ray_test(ray, meets)
 
 
-def _shifted_copy(shape, offset_m, shift):
+def _shifted_copy(shape, offset_m):
     """A copy of ``shape`` shifted by ``offset_m`` (a mesh: its vertices; an analytic shape:
     its ``to_world``), for intersection only (no BSDF, no emitter)."""
     import mitsuba as mi
@@ -164,5 +160,6 @@ def _shifted_copy(shape, offset_m, shift):
         target["faces"] = mi.UInt32(shape.faces_buffer())
         target.update()
         return copy
+    shift = mi.ScalarTransform4f().translate(mi.ScalarVector3f(*np.asarray(offset_m, dtype=np.float32)))
     to_world = mi.traverse(shape)["to_world"]
     return mi.load_dict({"type": shape.class_name().lower(), "to_world": shift @ mi.ScalarTransform4f(np.array(to_world.matrix, dtype=np.float64).reshape(4, 4))})

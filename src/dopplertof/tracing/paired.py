@@ -53,7 +53,7 @@ from .. import modulation
 from ..timesampling import ANALYTIC
 from . import lanes
 from .path import (
-    camera_ray, emitter_hit, escaped_length, extend, first_hit, ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction,
+    camera_ray, emitter_hit, emitter_hit_length, extend, first_hit, ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction,
 )  # fmt: skip
 from .sink import Sink
 
@@ -191,7 +191,7 @@ def trace_pair(scene, settings, setup, tables):
             le, light_pdf, visible = emitter_hit(scene, si, body, prev_it, prev_delta, time_s, shown)
             denominator = own_coef[member] * (prev_pdf + light_pdf) + shift_coef[member] * prev_r * (prev_shift + light_pdf)
             weight = dr.select(denominator > 0, prev_pdf / denominator, 0.0)
-            contributions.append((beta * le * weight, dr.select(si.is_valid(), length, escaped_length(scene, length, index, x, ray.d)), visible))
+            contributions.append((beta * le * weight, emitter_hit_length(scene, si, length, index, x, ray.d), visible))
 
         # ---------------------------------------------------- shift decision for this bounce
         bsdf1, bsdf2 = si1.bsdf(ray1), si2.bsdf(ray2)

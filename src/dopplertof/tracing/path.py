@@ -217,7 +217,7 @@ def extend(scene, poses64, hit, x_prev, direction, length_m, index, active, prec
         t64, x_hit = mi.Float64(dr.norm(hit.si.p - mi.Point3f(x_prev))), mi.Vector3d(hit.si.p)
     hit_here = active & hit.si.is_valid()
     # A ray that escapes keeps its origin as the path's last vertex: light from an
-    # infinitely distant emitter is measured to it (escaped_length).
+    # infinitely distant emitter is measured to it (emitter_hit_length).
     return dr.select(hit_here, length_m + mi.Float64(index) * t64, length_m), dr.select(hit_here, x_hit, x_prev), t64
 
 
@@ -332,18 +332,23 @@ def plane_wave_leg_m(scene, x, toward_light):
     return radius - dr.dot(d, mi.Vector3d(x) - mi.Vector3d(centre))
 
 
-def escaped_length(scene, length_m, index, x, direction):
-    """Optical length of a path whose ray from its last vertex ``x`` escapes along
-    ``direction`` to the environment (:func:`plane_wave_leg_m`).
+def emitter_hit_length(scene, si, length_m, index, x, direction):
+    """Optical length of a path at the emitter its ray meets: ``length_m`` where the ray
+    hit the surface ``si`` (its length already counts the segment), plus the plane wave's
+    leg to ``x`` (:func:`plane_wave_leg_m`) where it escaped along ``direction`` to the
+    environment.
 
     Parameters
     ----------
     scene : DynamicScene
+    si : mi.SurfaceInteraction3f
+        What the ray from ``x`` hit (invalid: it escaped).
     length_m : mi.Float64
-        Optical length to ``x``, m.
+        Optical length to the hit, or to ``x`` where the ray escaped, m.
     index : mi.Float
-        Refractive index of the escaping segment.
+        Refractive index of the ray's segment.
     x : mi.Point3d
+        The ray's origin, the path's last vertex.
     direction : mi.Vector3f
 
     Returns
@@ -351,11 +356,12 @@ def escaped_length(scene, length_m, index, x, direction):
     mi.Float64
         m.
     """
+    import drjit as dr
     import mitsuba as mi
 
     if not scene.emitters.has_infinite:
-        return length_m  # nothing to meet: the length is never used
-    return length_m + mi.Float64(index) * plane_wave_leg_m(scene, x, direction)
+        return length_m  # an escaped ray meets nothing: its length is never used
+    return dr.select(si.is_valid(), length_m, length_m + mi.Float64(index) * plane_wave_leg_m(scene, x, direction))
 
 
 def length_to_emitter(scene, length_m, index, x, ds, p_light):

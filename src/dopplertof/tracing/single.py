@@ -15,7 +15,7 @@ import drjit as dr
 import mitsuba as mi
 
 from . import lanes
-from .path import camera_ray, emitter_hit, escaped_length, extend, first_hit, ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction
+from .path import camera_ray, emitter_hit, emitter_hit_length, extend, first_hit, ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction
 from .sink import Sink
 
 
@@ -103,7 +103,7 @@ def trace(scene, settings, setup, tables):
         # ---------------------------------------------------- emitter hit
         shown = active if not hide_emitters else active & (depth > 0)
         le, em_pdf, visible = emitter_hit(scene, si, body, prev_it, prev_delta, time_s, shown)
-        length_le = dr.select(si.is_valid(), length, escaped_length(scene, length, index, x, ray.d))
+        length_le = emitter_hit_length(scene, si, length, index, x, ray.d)
         state = sink.add(state, bank, beta * mis_weight(prev_pdf, em_pdf) * le, length_le, visible)
 
         # ---------------------------------------------------- continue?
