@@ -31,7 +31,8 @@ says why there is no velocity) alone.
 
 Validity. A pixel is valid when the estimator determines its velocity and the standard
 error propagated from the render's per-camera errors and ``measurement_covariance.npy``
-is at most ``max_velocity_stderr`` (m/s; default a tenth of the scene's speed scale,
+is at most ``max_velocity_stderr`` (m/s; default a tenth of the scene's speed scale, or
+0.01 m/s where too few pixels move detectably for one,
 :func:`dopplertof.reconstruct.default_max_velocity_stderr`). That error is Monte Carlo only:
 multipath (global illumination, silhouettes) biases a pixel beyond it.
 
@@ -470,7 +471,7 @@ def parse_speed(text: str) -> float:
               help="Estimator (default: auto, the fit for sinusoidal cameras, else the ratio).")
 @click.option("--max-velocity-stderr", "max_velocity_stderr", default=None, metavar="M/S",
               help="Valid pixels: velocity standard error at most this, m/s (e.g. 0.5 or 0.5m/s; "
-                   "default a tenth of the scene's speed scale).")
+                   "default a tenth of the scene's speed scale, 0.01 where nothing moves detectably).")
 def reconstruct_command(folder, output, method, max_velocity_stderr):
     """Reconstruct radial velocity (and depth) from the measurements in FOLDER, the output of 'dopplertof render'."""
 

@@ -130,7 +130,7 @@ Invalid pixels (amplitude too small, r ≥ 1, non-finite input, Doppler outside 
 range, velocity not identifiable at that pixel) have ``valid == False`` and NaN velocity.
 """
 
-from .errors import DEFAULT_RELATIVE_MAX_VELOCITY_STDERR, default_max_velocity_stderr
+from .errors import DEFAULT_RELATIVE_MAX_VELOCITY_STDERR, UNSCALED_MAX_VELOCITY_STDERR_M_S, default_max_velocity_stderr
 from .estimate import MIN_STDERR_DOF, VelocityResult, depth, unambiguous_speed_m_s, velocity
 from .model import DEFAULT_RELATIVE_MIN_AMPLITUDE, SPEED_OF_LIGHT_M_S, ambiguity_range_m, model_measurements
 from .ratio import RatioPhaseResult, ratio_velocity_per_phase
@@ -138,5 +138,5 @@ from .ratio import RatioPhaseResult, ratio_velocity_per_phase
 __all__ = [
     "DEFAULT_RELATIVE_MAX_VELOCITY_STDERR", "DEFAULT_RELATIVE_MIN_AMPLITUDE", "MIN_STDERR_DOF", "SPEED_OF_LIGHT_M_S", "RatioPhaseResult",
     "VelocityResult", "ambiguity_range_m", "default_max_velocity_stderr", "depth", "model_measurements",
-    "ratio_velocity_per_phase", "unambiguous_speed_m_s", "velocity",
+    "UNSCALED_MAX_VELOCITY_STDERR_M_S", "ratio_velocity_per_phase", "unambiguous_speed_m_s", "velocity",
 ]

@@ -118,8 +118,8 @@ def velocity(
         ``measurement_covariance``); cameras rendered from the same paths are correlated.
     max_velocity_stderr : float, optional
         With errors given: pixels whose velocity standard error (m/s) exceeds this are
-        invalid. Default: a tenth of the scene's speed scale
-        (:func:`default_max_velocity_stderr`); the value used is
+        invalid. Default: a tenth of the scene's speed scale, 0.01 m/s where too few
+        pixels move detectably for one (:func:`default_max_velocity_stderr`); the value used is
         ``result.max_velocity_stderr_m_s``. A pixel is also invalid where no camera
         measures its signal at :data:`MIN_MEASUREMENT_SNR` (3) standard errors or more: too
         few samples contributed for their errors to bound the velocity's (from a single
@@ -231,8 +231,7 @@ def velocity(
         return result
     v_err = result.velocity_stderr
     if max_velocity_stderr is None:
-        speed_range = min(unambiguous_speed_m_s(cams) for cams in sets)
-        limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err, speed_range)
+        limit, result.threshold_reason = default_max_velocity_stderr(result.velocity, v_err)
     else:
         limit, result.threshold_reason = max_velocity_stderr, "given"
     result.max_velocity_stderr_m_s = limit
