@@ -552,3 +552,52 @@ def test_a_moving_area_light_scaled_per_axis_by_its_own_to_world_renders_like_it
     b = dt.render(box(False), spp=256, seed=2, max_depth=3)
     z = (a.intensity - b.intensity) / np.hypot(a.stderr, b.stderr)
     assert abs(np.nanmean(z)) < 0.2 and 0.8 < np.nanstd(z) < 1.25, (np.nanmean(z), np.nanstd(z))
+
+
+# ----------------------------------------------------------------------------------------
+# Errors that name the user's file and line (a trial of scenes written by others)
+
+
+def test_mitsubas_errors_name_the_users_file_and_line_through_defaults_and_includes(tmp_path):
+    """Mitsuba parses the rewritten text ($name substituted, includes expanded): its errors
+    said "At string (line 5, col 60)", a line of that text, not of the file (line 7)."""
+    body = ('  <default name="r" value="0.5"/>\n  <default name="q" value="0.5"/>\n'
+            '  <shape type="sphere"><float name="radius" value="$r"/><bsdf type="nosuchbsdf"/></shape>')
+    path = write_scene(tmp_path, body)  # the sphere's <bsdf> is on line 7 of the file
+    with pytest.raises(dt.SceneError, match=r"At .*scene\.xml \(line 7\): failed to instantiate bsdf plugin") as exc:
+        dt.load_scene(path)
+    assert "string" not in str(exc.value)
+    (tmp_path / "sub dir ü").mkdir()
+    (tmp_path / "sub dir ü" / "inc.xml").write_text(
+        '<scene version="3.0.0">\n  <shape type="sphere"><bsdf type="diffuse"><float name="bogus" value="1"/></bsdf></shape>\n</scene>\n')
+    path = write_scene(tmp_path, '  <default name="r" value="0.5"/>\n  <include filename="sub dir ü/inc.xml"/>', name="main.xml")
+    with pytest.raises(dt.SceneError, match=r"inc\.xml \(line 2\): Found 1 unreferenced property"):
+        dt.load_scene(path)
+
+
+@pytest.mark.parametrize("where, body", [
+    ("bsdf", '<shape type="sphere"><bsdf type="diffuse">{anim}</bsdf></shape>'),
+    ("shape", '<shape type="shapegroup" id="g"><shape type="sphere">{anim}</shape></shape><shape type="instance"><ref id="g"/></shape>'),
+    ("emitter", '<shape type="sphere"><emitter type="area">{anim}<rgb name="radiance" value="1"/></emitter></shape>'),
+])  # fmt: skip
+def test_an_animation_where_nothing_moves_is_refused_naming_its_line(tmp_path, where, body):
+    """It was Mitsuba's "unsupported XML element: <animation>" at a line of the rewritten text."""
+    anim = '<animation name="to_world"><transform time="0"><translate z="0"/></transform><transform time="0.001"><translate z="0.01"/></transform></animation>'
+    path = write_scene(tmp_path, body.format(anim=anim))
+    with pytest.raises(dt.SceneError, match=rf'an <animation> inside <{where} type="\w+"> \(.*scene\.xml \(line 5\)\): only a top-level shape') as exc:
+        dt.load_scene(path)
+    assert_one_line(exc)
+
+
+def test_a_new_film_size_is_refused_beside_a_crop_window_in_files_and_dicts(tmp_path):
+    film = '<integer name="crop_width" value="4"/><integer name="crop_height" value="4"/>'
+    path = tmp_path / "crop.xml"
+    path.write_text(f'<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm"><integer name="width" value="8"/>'
+                    f'<integer name="height" value="8"/>{film}</film></sensor></scene>')
+    says = r"crop_width, crop_height, a crop window of its own size; a new film size \(--resolution, film_resolution=\) would crop something else"
+    with pytest.raises(dt.SceneError, match=says):
+        dt.load_scene(path, film_resolution=16)
+    scene = {"type": "scene", "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 8, "height": 8, "crop_width": 4, "crop_height": 4}}}
+    with pytest.raises(dt.SceneError, match=says):  # the dict's crop was kept with the new size
+        dt.load_scene(scene, film_resolution=16)
+    assert dt.load_scene(scene).resolution == (4, 4)

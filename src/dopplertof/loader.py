@@ -58,6 +58,7 @@ from .settings import PLUGIN_NAMES, STOCK_OTHER_INTEGRATORS, STOCK_PATH_INTEGRAT
 from .lights import MovingLight
 from .scene import Body, DynamicScene, SceneError
 from .tracing.materials import relative_ior
+from .xmlsource import Sources
 from .xmlvalues import property_value
 
 _SHAPE_TAGS = {"shape"}
@@ -152,10 +153,20 @@ def _film_size(resolution) -> tuple[int, int]:
     return int(size[0]), int(size[1])
 
 
+def _refuse_crop_with_new_size(names, where: str) -> None:
+    """A film's crop window is in its own pixels: with another film size it would crop
+    something else."""
+    crop = [name for name in names if name.startswith("crop_")]
+    if crop:
+        raise SceneError(f"{where}: <film> has {', '.join(crop)}, a crop window of its own size; a new film size "
+                         f"(--resolution, film_resolution=) would crop something else: remove the crop window or keep the size")
+
+
 def _dict_with_film_size(scene_dict: dict, size) -> dict:
     out = dict(scene_dict)
     for key, value in scene_dict.items():
         if isinstance(value, dict) and isinstance(value.get("film"), dict):
+            _refuse_crop_with_new_size(value["film"], f"<dict>: {key}")
             out[key] = {**value, "film": {**value["film"], "width": size[0], "height": size[1]}}
     return out
 
@@ -164,17 +175,23 @@ def _dict_with_film_size(scene_dict: dict, size) -> dict:
 # Errors
 
 
-def _mitsuba_error(where: str, exc: Exception) -> SceneError:
-    """One readable line from a Mitsuba/Dr.Jit loader exception."""
+WHAT_MOVES = ("only a top-level shape, emitter or the sensor may move, not a BSDF, a film, an emitter inside a shape "
+              "or a shape inside a shapegroup (move the shapegroup's instance)")
+
+
+def _mitsuba_error(where: str, exc: Exception, locate=None) -> SceneError:
+    """One readable line from a Mitsuba/Dr.Jit loader exception; ``locate`` (text -> text)
+    rewrites a position in the string Mitsuba parsed to the user's file and line."""
     text = " ".join(str(exc).split())
+    if locate is not None:
+        text = locate(text)
     for marker in ("Error while loading", "Exception: "):
         if marker in text and len(text) > 300:
             text = text[text.find(marker):]
     if "unreferenced" in text.lower():
         hint = " (unknown parameter)"
     elif re.search(r'Plugin "(parametric|keyframed)" not found', text):
-        hint = (" (a 'motion' was given where nothing moves: only a top-level shape, emitter or the sensor may "
-                "have one, not a BSDF, a film, an emitter inside a shape or a shape inside a shapegroup)")
+        hint = f" (a 'motion' was given where nothing moves: {WHAT_MOVES})"
     elif re.search(r'Plugin "[^"]*" not found', text):
         hint = " (unknown plugin type)"
     elif "not found" in text.lower() or "does not exist" in text.lower():
@@ -309,11 +326,11 @@ def _substitute(root, values: dict, path: str, found: dict) -> dict:
     return values
 
 
-def _parse(path: str, where: str):
+def _parse(path: str, where: str, sources: Sources):
     if not os.path.isfile(path):
         raise SceneError(f"{where}: scene file not found")
     try:
-        return ET.parse(path).getroot()
+        return sources.parse(path)
     except ET.ParseError as exc:
         raise SceneError(f"{where}: malformed XML ({exc})") from None
 
@@ -324,7 +341,7 @@ def _read_scene(path: str, values: dict, where: str, found: dict, stack: tuple =
     is relative to the including file, else to the scene's folder, where Mitsuba's resolver
     looks). ``values`` gains each file's ``<default>``s; a cycle of includes is an error,
     and so is mixing Mitsuba 0.6 and 3 versions."""
-    root = _parse(path, where)
+    root = _parse(path, where, found["sources"])
     stack = (*stack, os.path.abspath(path))
     values.update(_substitute(root, values, path, found))
     for parent in list(root.iter()):
@@ -350,9 +367,7 @@ def _read_scene(path: str, values: dict, where: str, found: dict, stack: tuple =
 
 def _set_film_size(root, size, path: str) -> None:
     for film in root.iter("film"):
-        crop = [p.attrib["name"] for p in film if p.attrib.get("name", "").startswith("crop_")]
-        if crop:
-            raise SceneError(f"{path}: <film> has {', '.join(crop)}; a film_resolution override would not fit it")
+        _refuse_crop_with_new_size([p.attrib.get("name", "") for p in film], path)
         for p in [p for p in film if p.attrib.get("name") in ("width", "height")]:
             film.remove(p)
         film.extend(ET.Element("integer", {"name": n, "value": str(v)}) for n, v in zip(("width", "height"), size))
@@ -361,7 +376,8 @@ def _set_film_size(root, size, path: str) -> None:
 def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
     import mitsuba as mi
 
-    found = {"defaults": set(), "texts": []}
+    sources = Sources()
+    found = {"defaults": set(), "texts": [], "sources": sources}
     root = _read_scene(path, {k: str(v) for k, v in params.items()}, path, found)
     digest = hashlib.sha256(ET.tostring(root)).hexdigest()  # includes expanded, $names substituted
     known = found["defaults"] | {m for text in found["texts"] for m in _TOKEN.findall(text)}
@@ -431,6 +447,11 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
                 moving.append((motion, (index, el)))
                 root.remove(el)
 
+    for element in [root] + [el for _, (_, el) in moving] + [el for _, el, _ in moving_lights] + [el for el, _ in attached]:
+        for parent in element.iter():
+            for anim in parent.findall("animation"):
+                raise SceneError(f"{path}: an <animation> inside <{parent.tag} type=\"{parent.attrib.get('type', '?')}\"> "
+                                 f"({sources.where(anim) or 'in the scene'}): {WHAT_MOVES}")
     resolver = mi.file_resolver()
     saved_paths = [str(resolver[i]) for i in range(len(resolver))]
     resolver.prepend(scene_dir)
@@ -443,7 +464,7 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
             xml = ET.tostring(root, encoding="unicode")
             static = mi.load_string(xml) if host is None else _load_guest_string(xml, host)
         except Exception as exc:  # noqa: BLE001
-            raise _mitsuba_error(path, exc) from None
+            raise _mitsuba_error(path, exc, lambda text: sources.locate(text, xml, root)) from None
         if not static.sensors():
             raise SceneError(f"{path}: the scene has no <sensor>")
         bodies = []
@@ -457,19 +478,21 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
             for _, el in members:
                 body_root.append(el)
             name = ", ".join(el.attrib.get("id", f"shape #{i}") for i, el in members)
+            body_xml = ET.tostring(body_root, encoding="unicode")
             try:
-                body_scene = _load_guest_string(ET.tostring(body_root, encoding="unicode"), host)
+                body_scene = _load_guest_string(body_xml, host)
             except Exception as exc:  # noqa: BLE001
-                raise _mitsuba_error(f"{path}: moving shape(s) {name}", exc) from None
+                raise _mitsuba_error(f"{path}: moving shape(s) {name}", exc, lambda text: sources.locate(text, body_xml, body_root)) from None
             bodies.append(_make_body(name, body_scene, motion, f"{path}: moving shape(s) {name}"))
 
         def light_scene(element, where):
             light_root = ET.Element("scene", {"version": root.attrib.get("version", "3.0.0")})
             light_root.extend([copy.deepcopy(d) for d in definitions] + [element])
+            light_xml = ET.tostring(light_root, encoding="unicode")
             try:
-                return mi.load_string(ET.tostring(light_root, encoding="unicode"))
+                return mi.load_string(light_xml)
             except Exception as exc:  # noqa: BLE001
-                raise _mitsuba_error(where, exc) from None
+                raise _mitsuba_error(where, exc, lambda text: sources.locate(text, light_xml, light_root)) from None
 
         lights = [MovingLight(where, light_scene(el, where), motion) for where, el, motion in moving_lights]
         for el, where in attached:
