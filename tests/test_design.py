@@ -169,9 +169,24 @@ def test_a_record_spec_refuses_bad_values(cornell, spec, message):
         dt.render(cornell, spp=2, record=spec)
 
 
-def test_a_record_is_rendered_locally_without_checkpoints(cornell, tmp_path):
-    with pytest.raises(ValueError, match="locally and without checkpoints"):
-        dt.render(cornell, spp=2, record=True, checkpoint=tmp_path / "c.npz")
+def test_a_stopped_record_continues_from_its_checkpoint_to_the_same_record(cornell, tmp_path):
+    """A record's render kept no checkpoint: a stop lost every pass. Its sums are now in the
+    render's checkpoint, and the record finished from it is the uninterrupted one, bit for
+    bit, also where a further run of frequencies traces the passes again."""
+    spec = RecordSpec(band_hz=(10e6, 400e6), step_hz=10e6, beats=(0.0, 1.0))  # 40 frequencies: two kernels
+    common = dict(cameras=[dt.Camera(exposure=T)], record=spec, spp=32, max_depth=3, seed=6, lanes_per_pass=1024)
+    whole = dt.render(cornell, **common).record
+    checkpoint, calls = tmp_path / "c.npz", []
+    stopped = dt.render(cornell, **common, checkpoint=checkpoint, stop=lambda: calls.append(1) or len(calls) > 2)
+    assert stopped.interrupted and stopped.record is None and checkpoint.exists()
+    resumed = dt.render(cornell, **common, checkpoint=checkpoint).record
+    assert not checkpoint.exists()
+    for name in ("phasors", "luminance"):
+        np.testing.assert_array_equal(getattr(resumed, name), getattr(whole, name), err_msg=name)
+    with pytest.raises(ValueError, match="rendered locally"):
+        dt.render(cornell, spp=2, record=True, executor="ray")
+    with pytest.raises(ValueError, match="probe cameras, without a checkpoint"):
+        dt.render(cornell, spp=2, record=True, correlation="reconnection", checkpoint=tmp_path / "p.npz")
 
 
 def test_square_waves_through_a_finite_bandwidth_read_out_as_their_direct_renders(cornell):

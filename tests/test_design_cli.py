@@ -34,7 +34,7 @@ def test_design_sweeps_optimises_and_writes_a_sensor_that_render_reads(tmp_path)
     assert again.returncode == 0, again.stderr
     assert (tmp_path / "again" / "sweep.csv").read_text() == (out / "sweep.csv").read_text()
     refused = _run("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=20e6:120e6:6", "--record", str(out / "record.npz"), "-o", str(out))
-    assert refused.returncode == 2 and refused.stderr.strip() == f"error: {str(out)!r} holds an earlier design run (record.npz, sweep.csv, optimize.csv, best_sensor.toml, velocity_crb.exr, depth_crb.exr, velocity_rmse.exr, sweep_modulation_frequency.png); choose another folder or --overwrite"
+    assert refused.returncode == 2 and refused.stderr.strip() == f"error: {str(out)!r} holds an earlier design run (record.npz, sweep.csv, optimize.csv, best_sensor.toml, velocity_crb.exr, depth_crb.exr, velocity_rmse.exr, sweep_modulation_frequency.png); choose another folder, --overwrite, or --resume to continue it"
     # a record is of its scene and its render: another scene, or render options beside it, are refused
     for args, says in [
         (["street"], "error: --record " + str(out / "record.npz") + ": rendered from the built-in scene 'cornell-box', not street (the built-in scene 'street')"),
@@ -160,16 +160,16 @@ def test_design_of_a_scene_where_nothing_moves_says_so(tmp_path, objective):
 
 
 @pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
-def test_design_interrupted_writes_nothing_and_says_so(tmp_path, signame):
+def test_design_interrupted_keeps_its_passes_and_resumes_to_the_same_record(tmp_path, signame):
+    """A signal while the record renders kept nothing: every rendered pass was lost. Its
+    sums are now in record.checkpoint.npz, and --resume finishes the same record (and so the
+    same sweep) as an uninterrupted run."""
     import signal
     import time
 
-    out = tmp_path / "o"
-    # a record long enough to be interrupted while it renders (16 M paths: several passes)
-    process = subprocess.Popen(
-        [sys.executable, "-m", "dopplertof.cli", "design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:10", "--resolution", "64", "--spp", "4096", "-o", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+    # a record long enough to be interrupted while it renders (8 M paths in 32 passes)
+    design = ["design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:4", "--resolution", "32", "--spp", "8192", "--lanes-per-pass", "262144"]
+    process = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *design, "-o", "o"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     deadline = time.time() + 120
     while time.time() < deadline and "rendering the record" not in process.stderr.readline():
         pass
@@ -177,8 +177,25 @@ def test_design_interrupted_writes_nothing_and_says_so(tmp_path, signame):
     process.send_signal(getattr(signal, signame))
     _, stderr = process.communicate(timeout=120)
     assert process.returncode == 128 + getattr(signal, signame), stderr
-    assert stderr.strip().splitlines()[-1] == "error: interrupted before the record was finished; nothing written"
-    assert not (out / "record.npz").exists() and not (out / "sweep.csv").exists()
+    assert stderr.strip().splitlines()[-1] == "error: interrupted before the record was finished; kept the rendered passes in record.checkpoint.npz: continue with the same command and --resume"
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["record.checkpoint.npz"]
+    again = _run(*design, "-o", "o", cwd=tmp_path)
+    assert again.returncode == 2 and again.stderr.strip() == "error: 'o' holds an earlier design run (record.checkpoint.npz); choose another folder, --overwrite, or --resume to continue it"
+    if signame == "SIGINT":
+        return
+    resumed = _run(*design, "-o", "o", "--resume", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    assert "continuing record.checkpoint.npz" in resumed.stderr and not (tmp_path / "o" / "record.checkpoint.npz").exists()
+    whole = _run(*design, "-o", "whole", cwd=tmp_path)
+    assert whole.returncode == 0, whole.stderr
+    assert (tmp_path / "o" / "sweep.csv").read_text() == (tmp_path / "whole" / "sweep.csv").read_text()
+    records = [dt.io.read_record(tmp_path / folder / "record.npz") for folder in ("o", "whole")]
+    np.testing.assert_array_equal(records[0].phasors, records[1].phasors)
+    # a finished record is read, not rendered again; one of another render is refused
+    reread = _run(*design, "-o", "o", "--resume", cwd=tmp_path)
+    assert reread.returncode == 0 and "rendering the record" not in reread.stderr, reread.stderr
+    other = _run(*[a if a != "8192" else "4096" for a in design], "-o", "o", "--resume", cwd=tmp_path)
+    assert other.returncode == 2 and other.stderr.strip().startswith("error: --resume: o/record.npz was rendered by another command"), other.stderr
 
 
 def test_design_interrupted_in_its_sweep_stops_at_once_and_names_what_is_kept(tmp_path):

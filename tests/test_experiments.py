@@ -345,7 +345,7 @@ def test_paper_fig9_and_fig15_quick(tmp_path, cache_dir):
     assert done.returncode == 0, done.stderr
     _, rows = read_csv(out / "results.csv")
     assert {r["waveform"] for r in rows} == {"sinusoidal", "rectangular"}
-    assert {(r["time_sampling"], r["stratify_intervals"]) for r in rows} == {("uniform", "True")} | {
+    assert {(r["time_sampling"], r["stratify_intervals"]) for r in rows} == {("uniform", "False")} | {  # uniform times have no strata
         (m, s) for m in ("stratified", "antithetic", "antithetic_mirror") for s in ("True", "False")
     }
     assert_written(out, "fig9.png")
@@ -385,7 +385,9 @@ def test_estimators_stratify_their_intervals_by_the_settings_default():
     assert FIELDS["stratify_intervals"].default is True
     for method in METHODS:
         estimator = Estimator(method, "replay")
-        assert "stratify_intervals" not in estimator.render_settings() and estimator.stratified
+        # uniform times have no strata: their rows said stratify_intervals True
+        assert "stratify_intervals" not in estimator.render_settings() and estimator.stratified == (method != "uniform")
+        assert estimator.label == f"{method}/replay"
     off = Estimator("antithetic", "replay", stratify_intervals=False)
     assert off.render_settings()["stratify_intervals"] is False and off.label.endswith("no further stratification")
 

@@ -641,6 +641,8 @@ def test_the_command_line_writes_the_images_when_only_the_checkpoint_does_not_fi
     ({"animation.json": {}}, "animation"),
     ({"sweep.csv": None}, "design"),
     ({"record_1.npz": None}, "design"),
+    ({"record.checkpoint.npz": None}, "design"),  # an interrupted design run
+    ({"record_2.checkpoint.npz": None}, "design"),
     ({}, None),
 ])  # fmt: skip
 def test_each_commands_output_is_known_and_another_command_refuses_it(tmp_path, markers, kind):

@@ -136,7 +136,7 @@ def output_kind(folder: str) -> str | None:
         return "dataset"
     if ANIMATION in names or any(name.startswith("frame_") and os.path.isdir(os.path.join(folder, name)) for name in names):
         return "animation"
-    if names & set(DESIGN_OUTPUTS) or any(re.fullmatch(r"record_\d+\.npz", name) for name in names):  # record_<i>: one per scene
+    if names & set(DESIGN_OUTPUTS) or any(re.fullmatch(r"record(_\d+)?(\.checkpoint)?\.npz", name) for name in names):  # record_<i>: one per scene
         return "design"
     if METADATA in names:
         try:

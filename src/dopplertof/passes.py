@@ -287,11 +287,8 @@ class Accumulator(Reducer):
     """
 
     applying = False
-    # (channels, pixels) Float64 sums over lanes of a response record's phasors
-    # (:class:`~dopplertof.tracing.sink.PhasorGrid`), once a pass brought some; no checkpoint holds them
-    record_sum = None
 
-    def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps):
+    def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps, record_channels=0):
         super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps)
         c, n = color_channels + n_cameras, n_pixels
         self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int32)}
@@ -306,6 +303,8 @@ class Accumulator(Reducer):
         truth_channels = sum(o.channels for o in TRUTH)
         self.state.update(truth_sum=np.zeros((truth_channels, n)), hits=np.zeros(n, np.int32), samples=np.zeros(n, np.int32))
         self.state["instance_id"] = np.full(n, -1, np.int32)
+        if record_channels:  # (channels, pixels) Float64 sums over lanes of a response record's phasors (PhasorGrid)
+            self.state["record_sum"] = np.zeros((record_channels, n))
 
     def apply(self, p: Pass, inc: dict):
         """Add one pass's increments (from :meth:`Reducer.reduce`) to the sums."""
@@ -348,9 +347,7 @@ class Accumulator(Reducer):
         s["hits"][pix] += inc["hits"]
         s["samples"][pix] += p.samples
         if "record" in inc:
-            if self.record_sum is None:
-                self.record_sum = np.zeros((inc["record"].shape[0], s["samples"].size))
-            self.record_sum[:, pix] += inc["record"]
+            s["record_sum"][:, pix] += inc["record"]
         if "instance_id" in inc:
             s["instance_id"][pix] = inc["instance_id"]
         s["passes_done"][0] += 1

@@ -208,10 +208,14 @@ def checked_until_noise(ratio) -> float:
     return ratio
 
 
-def fingerprint(scene, settings: RenderSettings) -> str:
-    """What a checkpoint must match to be continued: the settings, the film and the scene,
-    as JSON text (the checkpoint keeps it, and its hash)."""
-    return json.dumps({"settings": settings.as_dict(), "film": list(scene.resolution), "scene": scene.identity(), "motions": len(scene.motions())}, sort_keys=True, default=str)
+def fingerprint(scene, settings: RenderSettings, record=None) -> str:
+    """What a checkpoint must match to be continued: the settings, the film, the scene and
+    the response record's grid (a :class:`~dopplertof.design.RecordSpec`, if any), as JSON
+    text (the checkpoint keeps it, and its hash)."""
+    key = {"settings": settings.as_dict(), "film": list(scene.resolution), "scene": scene.identity(), "motions": len(scene.motions())}
+    if record is not None:
+        key["record"] = record.as_dict()
+    return json.dumps(key, sort_keys=True, default=str)
 
 
 def _digest(key: str) -> str:
@@ -469,9 +473,11 @@ def render(
     record : True, dict or :class:`dopplertof.design.RecordSpec`, optional. Also keep the
         scene's response record of every exposure window (``result.record``), from which
         :func:`dopplertof.design.evaluate` reads out any sensor in its band
-        (:mod:`dopplertof.design.record`). Rendered locally, without checkpoints; a render
-        stopped early has no record (None), and a Ctrl-C while the record is rendered
-        raises KeyboardInterrupt.
+        (:mod:`dopplertof.design.record`). Rendered locally; a ``checkpoint`` holds its
+        sums beside the render's (not for the paired correlations, which record through
+        several renders of probe cameras). A render stopped early has no record (None: its
+        checkpoint continues it), and a Ctrl-C while a record's further frequencies are
+        traced again, after the render's passes, raises KeyboardInterrupt.
     until_noise : float, optional. With ``sensor``: stop a window's passes once the Monte
         Carlo standard error of its raw frames is at most this many times the sensor's own
         noise in 95 % of its pixels (:mod:`dopplertof.design.convergence`); ``spp`` is
@@ -564,8 +570,10 @@ def render(
         from .design.record import check_memory as check_record_memory
 
         record = as_spec(record)
-        if executor != "local" or checkpoint is not None:
-            raise ValueError("record: a response record is rendered locally and without checkpoints (executor='local', checkpoint=None)")
+        if executor != "local":
+            raise ValueError("record: a response record is rendered locally (executor='local')")
+        if checkpoint is not None and by_probes(settings):
+            raise ValueError(f"record: a response record of the {settings.correlation!r} correlation is rendered as several renders of probe cameras, without a checkpoint (checkpoint=None)")
         check_record_memory(record, *scene.resolution, len(settings.windows), by_probes(settings))
         grid = first_grid(record, settings)  # the render's own passes accumulate it
     else:
@@ -580,11 +588,11 @@ def render(
     window_settings = [
         dataclasses.replace(settings, cameras=w.cameras, exposure_start=w.start_s, seed=window_seed(settings.seed, k)) for k, w in enumerate(windows)
     ]  # fmt: skip
-    key = None if checkpoint is None else fingerprint(scene, settings)  # only a checkpoint is matched against it
+    key = None if checkpoint is None else fingerprint(scene, settings, record)  # only a checkpoint is matched against it
 
     def saved_sums():
         """The sums of the checkpoint, else zeros."""
-        accs = [Accumulator(n_pixels, *Reducer.layout(ws)) for ws in window_settings]
+        accs = [Accumulator(n_pixels, *Reducer.layout(ws), record_channels=0 if grid is None else grid.channels) for ws in window_settings]
         if checkpoint is not None and os.path.exists(checkpoint):
             _load_checkpoint(checkpoint, accs, key)
         return accs
@@ -673,7 +681,7 @@ def render(
         info["until_noise"] = {"ratio": until_noise, "reached": [reached[k][-1][1] if k in reached else float("inf") for k in range(len(windows))],
                                "spp": window_spp, "history": [reached.get(k, []) for k in range(len(windows))]}  # fmt: skip
     # finish consumes the sums: what the record needs of each window is taken first
-    recorded = [(acc.record_sum, acc.state["samples"].copy(), int(acc.state["passes_done"][0])) for acc in accs]
+    recorded = [(acc.state.get("record_sum"), acc.state["samples"].copy(), int(acc.state["passes_done"][0])) for acc in accs]
     finished = [acc.finish(height, width, len(w.cameras)) for w, acc in zip(windows, accs)]
     # A stratified render stopped before its last stratum (interrupted, or by until_noise):
     # its errors leave out the spread between the strata it did not draw (at h = 1,

@@ -18,6 +18,10 @@ its moving pixels), and writes into DIR (the scenes: built-in names or files, or
 
 With several scenes the per-scene files carry the scene's index: ``record_0.npz``,
 ``velocity_crb_1.exr``, …
+
+While a record renders, its sums are saved beside it (``record.checkpoint.npz``: every
+minute and when a signal stops the render); ``--resume`` continues an interrupted run:
+the records it finished are read, the unfinished one continues from its checkpoint.
 """
 
 from __future__ import annotations
@@ -56,10 +60,11 @@ def _render_options(options: dict, resolution) -> list[str]:
 @click.option("--dataset-seed", type=click.IntRange(min=0), default=0, show_default=True, help="With --dataset: the dataset seed the scenes are drawn with.")
 @click.option("-o", "--output", required=True, help="Output folder.")
 @click.option("--overwrite", is_flag=True, help="Replace the files of an earlier design run in the output folder.")
+@click.option("--resume", is_flag=True, help="Continue the interrupted design run in the output folder: the same command plus --resume (finished records are read, an unfinished one continues from its checkpoint).")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file. Repeatable.")
 @settings_options(exclude=("exposure",))
-def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, record_paths, rmse_draws, dataset_config, samples, dataset_seed, output, overwrite, resolution, defines, **options):
+def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, record_paths, rmse_draws, dataset_config, samples, dataset_seed, output, overwrite, resume, resolution, defines, **options):
     """Sweep and optimise SENSOR's parameters on SCENES (one or more, or a dataset's: the
     objective averaged over them) from one render of each (its response record)."""
     from ..backend import signals_as_interrupt
@@ -70,6 +75,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     from ..sensors.files import load_sensor, sensor_toml
     from ..settings import RenderSettings, scene_layer
     from .precision import achieved_rmse, crb
+    from .record import by_probes
     from .search import check_moving, optimize, parse_sweep, record_spec, sweep, variant
 
     written = []
@@ -86,19 +92,29 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                 raise ValueError("--sweep: each key once")
             if record_paths and len(record_paths) != len(scenes):
                 raise ValueError(f"--record: give one per scene ({len(scenes)} scene(s), {len(record_paths)} record(s))")
+            if resume and (overwrite or record_paths):
+                raise ValueError(f"--resume continues the records rendered in {output!r}: {'--overwrite' if overwrite else '--record'} excludes it")
 
             def named(name, index):  # record.npz, or record_<index>.npz for several scenes
                 stem, ext = os.path.splitext(name)
                 return name if len(scenes) == 1 else f"{stem}_{index}{ext}"
 
+            def checkpoint_of(index):  # record.checkpoint.npz, record_<index>.checkpoint.npz
+                return os.path.join(output, _checkpoint_name(named("record.npz", index)))
+
             per_scene = ("record.npz", "velocity_crb.exr", "depth_crb.exr", "velocity_rmse.exr")
             names = [named(n, i) if n in per_scene else n for n in OUTPUTS for i in (range(len(scenes)) if n in per_scene else (0,))]
             earlier = [name for name in names if os.path.exists(os.path.join(output, name))]
             earlier += sorted(os.path.basename(p) for p in glob.glob(os.path.join(glob.escape(output), "sweep_*.png")))
-            if earlier and not overwrite:
-                raise ValueError(f"{output!r} holds an earlier design run ({', '.join(earlier)}); choose another folder or --overwrite")
+            earlier += [os.path.basename(checkpoint_of(i)) for i in range(len(scenes)) if os.path.exists(checkpoint_of(i))]
+            if earlier and not overwrite and not resume:
+                raise ValueError(f"{output!r} holds an earlier design run ({', '.join(earlier)}); choose another folder, --overwrite, or --resume to continue it")
             refuse_other_output(output, "design")
             check_writable(output)  # before the render: an unwritable folder fails first
+            if overwrite:  # an earlier run's checkpoints would be continued
+                for index in range(len(scenes)):
+                    if os.path.exists(checkpoint_of(index)):
+                        os.remove(checkpoint_of(index))
             if record_paths:
                 records = [read_record(path) for path in record_paths]
                 rendering = _render_options(options, resolution)
@@ -114,14 +130,22 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                 for index, (scene, load, identity) in enumerate(scenes):
                     dyn = load()
                     settings = RenderSettings.build(scene_layer(dyn, scene), {**given_settings(options), "cameras": cameras}, where=scene)
-                    click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp", err=True)
+                    path, checkpoint = os.path.join(output, named("record.npz", index)), checkpoint_of(index)
+                    if resume and os.path.exists(path):
+                        records.append(_resumed_record(path, read_record(path), scene, identity, spec, settings))
+                        continue
+                    checkpoint_kept = None if by_probes(settings) else checkpoint  # the paired correlations record through several renders
+                    resuming = f", continuing {os.path.basename(checkpoint)}" if checkpoint_kept and os.path.exists(checkpoint) else ""
+                    click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp{resuming}", err=True)
                     with stop:  # SIGINT, SIGTERM, SIGHUP end the render after its pass in progress
-                        record = render(dyn, settings=settings, record=spec, stop=stop).record
-                    if record is None:  # a render stopped early keeps no record
+                        record = render(dyn, settings=settings, record=spec, stop=stop, checkpoint=checkpoint_kept, keep_checkpoint=True).record
+                    if record is None:  # a render stopped early keeps no record (its checkpoint, if any, its sums)
                         raise KeyboardInterrupt
                     record.info["scene"] = identity  # what a later --record is checked against
                     records.append(record)
-                    written.append(str(write_record(os.path.join(output, named("record.npz", index)), records[-1])))
+                    written.append(str(write_record(path, records[-1])))
+                    if checkpoint_kept and os.path.exists(checkpoint):
+                        os.remove(checkpoint)
             records_done = True
             if stop():  # the signal came during the last pass: the record is whole, stop here
                 raise KeyboardInterrupt
@@ -167,7 +191,13 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
             if records_done:
                 click.echo(f"error: interrupted after the records were read{kept}", err=True)
             else:
-                click.echo(f"error: interrupted before the record was finished{kept}", err=True)
+                checkpoints = sorted(glob.glob(os.path.join(glob.escape(output), _checkpoint_name("record*.npz"))))
+                if checkpoints:
+                    passes = f"the rendered passes in {', '.join(map(os.path.basename, checkpoints))}"
+                    kept = f"{kept} and {passes}" if written else f"; kept {passes}"
+                    click.echo(f"error: interrupted before the record was finished{kept}: continue with the same command and --resume", err=True)
+                else:
+                    click.echo(f"error: interrupted before the record was finished{kept}", err=True)
         sys.exit(128 + exc.signum if hasattr(exc, "signum") else stop.exit_status)
     except (ValueError, SceneError, FileNotFoundError) as exc:
         fail(str(exc))
@@ -176,6 +206,21 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     for path in written:
         click.echo(f"  {path}")
     sys.stdout.flush()
+
+
+def _checkpoint_name(record_name: str) -> str:
+    """The checkpoint of the record file ``record_name`` while it renders."""
+    return record_name[: -len(".npz")] + ".checkpoint.npz"
+
+
+def _resumed_record(path, record, name, identity, spec, settings):
+    """The finished ``record`` at ``path`` that ``--resume`` reads instead of rendering it;
+    ValueError where it is of another scene, grid or render than the command asks for."""
+    _check_record_scene(path, record, name, identity)
+    asked = settings.replace(cameras=()).as_dict()
+    if record.spec.as_dict() != spec.as_dict() or record.settings.as_dict() != asked:
+        raise ValueError(f"--resume: {path} was rendered by another command (other sweeps or render settings); remove it, or give that command")
+    return record
 
 
 def _check_record_scene(path, record, name, identity) -> None:

@@ -30,6 +30,7 @@ value is the precision it reaches (its model bias excluded), to set beside the b
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -413,12 +414,14 @@ def achieved_rmse(record_or_result, sensor, *, draws: int = 200, seed: int = 0, 
         raise ValueError(f"achieved_rmse: 'draws' must be an integer >= 2, got {draws!r}")
     result = evaluate(record, sensor)
     clean = measurements_from_readout(sensor, _noiseless_dn(sensor, result.raw))
-    reference = velocity(clean.measurements, clean.cameras, method=method, measurement_stderr=clean.stderr).velocity
+    # every determined pixel: the estimator's spread, not its validity threshold (which can mark them all invalid)
+    every = dict(method=method, max_velocity_stderr=sys.float_info.max)
+    reference = velocity(clean.measurements, clean.cameras, measurement_stderr=clean.stderr, **every).velocity
     squares = np.zeros(reference.shape)
     rng = np.random.SeedSequence(seed)
     for child in rng.spawn(draws):
         readout = measurements_from_readout(sensor, sensor.read_out(result, seed=child))
-        estimate = velocity(readout.measurements, readout.cameras, method=method, measurement_stderr=readout.stderr).velocity
+        estimate = velocity(readout.measurements, readout.cameras, measurement_stderr=readout.stderr, **every).velocity
         squares += (estimate - reference) ** 2
     return np.sqrt(squares / draws).astype(np.float32)
 

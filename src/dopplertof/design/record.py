@@ -573,7 +573,7 @@ def record_scene(scene, settings, spec: RecordSpec, rendered) -> Record:
     settings : RenderSettings, the render's.
     spec : :class:`RecordSpec`.
     rendered : what :func:`dopplertof.render` traced: (settings of each window, per window
-        (the Float64 sums of the first grid, :attr:`~dopplertof.passes.Accumulator.record_sum`;
+        (the Float64 sums of the first grid, an :class:`~dopplertof.passes.Accumulator`'s ``state["record_sum"]``;
         the samples per pixel; the passes done), the passes, the result's maps).
 
     Returns

@@ -208,14 +208,17 @@ class Estimator:
 
     @property
     def stratified(self) -> bool:
-        """Whether each time interval is stratified (the setting resolved)."""
-        return FIELDS["stratify_intervals"].default if self.stratify_intervals is None else self.stratify_intervals
+        """Whether the times are stratified over the pixel's groups: the setting resolved, for
+        a time sampling that has strata (:func:`~dopplertof.timesampling.stratifies`; uniform
+        and analytic times have none)."""
+        return stratifies(self.time_sampling, FIELDS["stratify_intervals"].default if self.stratify_intervals is None else self.stratify_intervals)
 
     @property
     def label(self) -> str:
-        """``time_sampling/correlation`` (and ``/no further stratification`` where the time
-        intervals are not stratified), the estimator's name in tables and plots."""
-        return f"{self.time_sampling}/{self.correlation}" + ("" if self.stratified else "/no further stratification")
+        """``time_sampling/correlation`` (and ``/no further stratification`` where a time
+        sampling with strata has them off), the estimator's name in tables and plots."""
+        off = self.stratify_intervals is False and stratifies(self.time_sampling, True)
+        return f"{self.time_sampling}/{self.correlation}" + ("/no further stratification" if off else "")
 
     def render_settings(self) -> dict:
         """Render settings (:class:`~dopplertof.settings.RenderSettings` fields) of this estimator.
@@ -336,7 +339,7 @@ def timed_render(scene: ExperimentScene, cameras, estimator: Estimator, spp: int
         The render was interrupted.
     """
     start = time.perf_counter()
-    if stratifies(estimator.time_sampling, estimator.stratified):
+    if estimator.stratified:
         replicates = None  # stratified times take their standard errors from their strata
     given = {"replicates": replicates, "lanes_per_pass": lanes_per_pass, "checkpoint": None if checkpoint is None else str(checkpoint)}
     extra = {k: v for k, v in given.items() if v is not None}

@@ -55,7 +55,8 @@ RESULT_COLUMNS = (
     "stderr_rms", "reference_stderr_rms", "render_seconds",
 )  # fmt: skip
 """``shift``: antithetic shift a (units of T), empty for methods without one;
-``stratify_intervals``: per-interval ("further") stratification; ``psi_deg``: ψ in
+``stratify_intervals``: per-interval ("further") stratification in force (false for
+uniform times, which have no strata); ``psi_deg``: ψ in
 degrees; errors in measurement units (see :func:`~.common.image_errors`);
 ``rmse_x_exposure``: the RMSE times the exposure T (s), the error of the exposure integral
 ∫W f dt on which the original scripts' plots are drawn;
