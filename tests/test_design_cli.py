@@ -2,6 +2,7 @@
 
 import csv
 import subprocess
+from pathlib import Path
 import sys
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 import dopplertof as dt
 
 FAST = ["--resolution", "8", "--spp", "4", "--max-depth", "2"]
+DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
 def _run(*args, cwd=None):
@@ -106,13 +108,24 @@ def test_design_over_the_scenes_of_a_dataset_configuration(tmp_path):
         (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--record", "missing.npz"], "missing.npz"),
         (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--dataset", "my.toml", "--samples", "2"], "give SCENE… or --dataset, not both"),
         (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--samples", "2"], "--samples applies to --dataset"),
+        # a sensor design trial's findings: each was a misleading answer or message, or came after the render
+        (["--sensor", "dtof-prototype", "--sweep", "f=-10e6:100e6:10"], "modulation_frequency must be > 0 (Hz), LO is -1e+07"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:8"], "its points are 12857142.86 Hz apart"),
+        (["--sensor", "dtof-prototype", "--sweep", "f=1e7:2e7:2", "--rmse-draws", "1"], "--rmse-draws: 0 (none) or at least 2"),
+        (["--sensor", "mlx75027_square.toml", "--sweep", "h=0.5:1:2"], "every point of the sweep is refused, e.g. the sensor has no heterodyne frame"),
+        (["--sensor", "custom.toml", "--optimize", "modulation_frequency"], "the sensor has no frequency range to search"),
+        (["--sensor", "kinect-v2", "--sweep", "T=0.5e-3:1e-3:2", "--objective", "depth_crb"], "(the frame's modulation_frequency); give the sensor whole-Hz frequencies"),
     ],
 )
 def test_design_refuses_bad_input_with_one_error_line(tmp_path, args, message):
+    (tmp_path / "custom.toml").write_text("taps = 2\n[[frames]]\nmodulation_frequency = 30e6\nheterodyne = 1.0\n[[frames]]\nmodulation_frequency = 30e6\n")
+    (tmp_path / "mlx75027_square.toml").write_text((DOCS / "mlx75027_square.toml").read_text())
     done = _run("design", "cornell-box", *args, "-o", str(tmp_path / "o"), *FAST, cwd=tmp_path)
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], done.stderr
+    assert lines[-1].startswith("error:") and message in lines[-1], done.stderr
+    assert all(not line.startswith("error:") and "Traceback" not in line for line in lines[:-1]), done.stderr
+    assert not (tmp_path / "o").exists()  # a refused run leaves no empty folder
 
 
 def test_render_until_noise_reports_the_spp_it_took(tmp_path):

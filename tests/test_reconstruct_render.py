@@ -372,3 +372,19 @@ def test_two_frequencies_unwrap_the_cornell_box_depth(tmp_path):
     # of all valid pixels off by 3 errors at this size)
     fraction, _ = off_by_three_sigma(rec, result.velocity, region=interior_of_each_object(result.instance_id))
     assert fraction <= 0.02
+
+
+def test_a_sensor_render_reconstructs_from_its_frames_cameras():
+    """dt.reconstruct.velocity(result) of a render with sensor= raised "g1 must be > 0": the
+    cameras that measure the windows' mean light (g1 = 0) went into the estimator. It now
+    takes the frames' cameras, as `dopplertof reconstruct` of such a folder does."""
+    sensor = dt.sensors.preset("dtof-prototype")
+    result = dt.render(dt.scenes.cornell_box(resolution=12), sensor=sensor, spp=64, seed=2)
+    assert len(result.cameras) > sensor.frame_cameras
+    frames = slice(0, sensor.frame_cameras)
+    direct = dt.reconstruct.velocity(result.measurements[frames], result.cameras[frames],
+                                     measurement_covariance=result.maps["measurement_covariance"][frames, frames],
+                                     stderr_dof=result.info["stderr_dof"])
+    from_result = dt.reconstruct.velocity(result)
+    np.testing.assert_array_equal(from_result.velocity, direct.velocity)
+    np.testing.assert_array_equal(from_result.valid, direct.valid)

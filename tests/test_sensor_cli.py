@@ -73,7 +73,10 @@ phase = 0.5
         (None, ["--sensor", "mlx75027", "--camera", "h=1"], "error: --camera and --sensor exclude each other"),
         ('preset = "mlx75027"\n[[frames]]\nmodulation_frequency = 30e6\nexposure = 1.5e-3\nheterodyne_hz = 667.0\nwaveform = "rectangular"\n',
          ["--sensor", "s.toml"], "error: s.toml: MLX75027 cannot capture this schedule: frame 0: heterodyne offset 667 Hz"),
-        ('taps = 2\n[[frames]]\nfrequency = 30e6\n', ["--sensor", "s.toml"], "error: s.toml: frame 0: unknown key 'frequency'"),
+        ('taps = 2\n[[frames]]\nfrequency = 30e6\n', ["--sensor", "s.toml"], "error: s.toml: unknown key frame 0 'frequency'"),
+        # every unknown key at once (only the first was named)
+        ('taps = 2\n[silicon]\nread_noise = 3\n[[frames]]\nmodulation_frequency = 30e6\nphse = 1\n', ["--sensor", "s.toml"],
+         "error: s.toml: unknown keys [silicon] 'read_noise' (did you mean 'read_noise_e'?), frame 0 'phse' (did you mean 'phase'?)"),
         ('preset = "opt8241"\n[silicon]\nf_number = -1.0\n', ["--sensor", "s.toml"], "error: s.toml: Silicon: 'f_number' must be > 0, got -1.0"),
         ('taps = 2\n', ["--sensor", "s.toml"], "error: s.toml: a sensor without a preset needs [[frames]]"),
         ('taps = [', ["--sensor", "s.toml"], "error: s.toml: not valid TOML"),

@@ -58,6 +58,10 @@ SUSPICIOUS_MODULATION_FREQUENCY_HZ = 1e5
 # (the time grid, 2^-23 T, would be coarser than 7 µs), and a T of 1e300 s overflows the
 # scene times t = start + u T.
 MAX_EXPOSURE_S = 60.0
+# Longer than this a D-ToF exposure is likely milliseconds given as seconds; it warns.
+SUSPICIOUS_EXPOSURE_S = 0.1
+# A phase beyond two turns is likely degrees given as radians (90 for pi/2); it warns.
+SUSPICIOUS_PHASE_RAD = 4.0 * math.pi
 
 
 def checked_exposure(name: str, value_s: float, where: str = "") -> float:
@@ -143,6 +147,10 @@ class Camera:
                 "the unit is Hz (30 MHz is 30e6)", stacklevel=3,
             )  # fmt: skip
         checked_exposure("exposure", self.exposure, "Camera")
+        if self.exposure > SUSPICIOUS_EXPOSURE_S:
+            warnings.warn(f"Camera: exposure={self.exposure:g} s; the unit is s (1.5 ms is 1.5e-3)", stacklevel=3)
+        if abs(self.phase) > SUSPICIOUS_PHASE_RAD:
+            warnings.warn(f"Camera: phase={self.phase:g} rad, more than two turns; the unit is rad (90 degrees is pi/2 = 1.5708)", stacklevel=3)
         # A coded camera's light may be pure DC (g1 = 0, the code's mean through g0): the
         # sensor model's mean-light frames are such cameras.
         if self.g1 < 0 or (self.g1 == 0 and not self.coded):

@@ -54,7 +54,7 @@ def _render_options(options: dict, resolution) -> list[str]:
 @click.option("--optimize", "optimize_keys", multiple=True, type=click.Choice(OPTIMIZE_KEYS), help="Minimise the objective over this parameter from the sensor's own value. Repeatable.")
 @click.option("--objective", type=click.Choice(OBJECTIVES), default="velocity_crb", show_default=True, help="Mean Cramér-Rao bound over the moving pixels: velocity (m/s) or depth (m).")
 @click.option("--record", "record_paths", multiple=True, help="Use this record (record.npz of an earlier run) instead of rendering one. Once per SCENE, in their order.")
-@click.option("--rmse-draws", type=click.IntRange(min=0), default=0, show_default=True, help="Also the velocity estimator's per-pixel RMSE (dopplertof.reconstruct.velocity, method auto) for the best sensor over this many noise draws (0: not computed).")
+@click.option("--rmse-draws", type=click.IntRange(min=0), default=0, show_default=True, help="Also the velocity estimator's per-pixel RMSE (dopplertof.reconstruct.velocity, method auto) for the best sensor over this many noise draws (0: not computed; else at least 2).")
 @click.option("--dataset", "dataset_config", default=None, metavar="CONFIG.toml", help="Design over the scenes of a dataset configuration (dopplertof dataset config) instead of SCENES; with --samples.")
 @click.option("--samples", type=click.IntRange(min=1), default=None, help="With --dataset: its first N scenes.")
 @click.option("--dataset-seed", type=click.IntRange(min=0), default=0, show_default=True, help="With --dataset: the dataset seed the scenes are drawn with.")
@@ -81,6 +81,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     written = []
     records_done = False
     stop = StopOnSignal()
+    existed = os.path.isdir(output)  # a run that stops with nothing written leaves no folder it made
     try:
         with signals_as_interrupt():  # the sweep and the optimiser stop at once, a render after its pass (stop)
             if not sweep_specs and not optimize_keys:
@@ -90,6 +91,8 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
             sweeps = [parse_sweep(s) for s in sweep_specs]
             if len({k for k, _ in sweeps}) != len(sweeps):
                 raise ValueError("--sweep: each key once")
+            if rmse_draws == 1:
+                raise ValueError("--rmse-draws: 0 (none) or at least 2 noise draws, got 1")
             if record_paths and len(record_paths) != len(scenes):
                 raise ValueError(f"--record: give one per scene ({len(scenes)} scene(s), {len(record_paths)} record(s))")
             if resume and (overwrite or record_paths):
@@ -161,11 +164,11 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                     raise ValueError("every point of the sweep was refused or has an infinite bound (see sweep.csv)")
                 top = min(good, key=lambda r: r["objective"])
                 best = variant(sensor, {k: top[k] for k, _ in sweeps})
-                click.echo("best of the sweep: " + ", ".join(f"{k}={top[k]:g}" for k, _ in sweeps) + f": {objective} {top['objective']:.4g} {unit}")
+                click.echo("best of the sweep: " + ", ".join(f"{k}={top[k]:g}" for k, _ in sweeps) + f": mean {objective} {top['objective']:.4g} {unit}")
             if optimize_keys:
                 best, history = optimize(records, best, optimize_keys, objective)
                 written.append(_write_csv(os.path.join(output, "optimize.csv"), [{**h, "phases": " ".join(f"{p:.6g}" for p in h["phases"])} for h in history]))
-                click.echo(f"optimised ({', '.join(optimize_keys)}): {objective} {history[0]['objective']:.4g} -> {history[-1]['objective']:.4g} {unit} in {len(history) - 1} step(s); modulation_frequency={best.frames[0].modulation_frequency:g} Hz")
+                click.echo(f"optimised ({', '.join(optimize_keys)}): mean {objective} {history[0]['objective']:.4g} -> {history[-1]['objective']:.4g} {unit} in {len(history) - 1} step(s); modulation_frequency={best.frames[0].modulation_frequency:g} Hz")
             path = os.path.join(output, "best_sensor.toml")
             with open(path, "w", encoding="utf-8") as f:
                 f.write(sensor_toml(best))
@@ -178,7 +181,10 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                 if rmse_draws:
                     rmse = achieved_rmse(record, best, draws=rmse_draws)
                     written.append(str(write_exr(os.path.join(output, named("velocity_rmse.exr", index)), rmse)))
-                    line += f"; estimator RMSE {float(np.nanmedian(rmse[precision.moving])):.4g} m/s over {rmse_draws} draws"
+                    both = precision.moving & np.isfinite(rmse) & np.isfinite(precision.velocity_crb)  # the same pixels for both medians
+                    line += (f"; on the {int(both.sum())} of them where the estimator is determined: velocity_crb "
+                             f"{float(np.median(precision.velocity_crb[both])) if both.any() else float('nan'):.4g} m/s, estimator RMSE "
+                             f"{float(np.median(rmse[both])) if both.any() else float('nan'):.4g} m/s over {rmse_draws} draws")
                 click.echo(line)
     except KeyboardInterrupt as exc:
         kept = f"; kept {', '.join(os.path.basename(w) for w in written)}" if written else "; nothing written"
@@ -198,14 +204,22 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                     click.echo(f"error: interrupted before the record was finished{kept}: continue with the same command and --resume", err=True)
                 else:
                     click.echo(f"error: interrupted before the record was finished{kept}", err=True)
+        _remove_if_made_and_empty(output, existed)
         sys.exit(128 + exc.signum if hasattr(exc, "signum") else stop.exit_status)
     except (ValueError, SceneError, FileNotFoundError) as exc:
+        _remove_if_made_and_empty(output, existed)
         fail(str(exc))
     except OSError as exc:
+        _remove_if_made_and_empty(output, existed)
         fail(f"cannot write {output!r}: {exc.strerror or exc}")
     for path in written:
         click.echo(f"  {path}")
     sys.stdout.flush()
+
+
+def _remove_if_made_and_empty(folder: str, existed: bool) -> None:
+    if not existed and os.path.isdir(folder) and not os.listdir(folder):
+        os.rmdir(folder)
 
 
 def _checkpoint_name(record_name: str) -> str:
@@ -314,6 +328,9 @@ def _plots(output, rows, keys, objective, unit) -> list[str]:
         axes.plot([x for x, _, _ in line], [y for _, _, y in line], "s--", label="median")
         axes.set_xlabel(f"{key} ({KEY_UNITS[key]})")
         axes.set_ylabel(f"{objective} ({unit})")
+        held = [f"{k} = {top[k]:g} {KEY_UNITS[k].split(' ')[0]}" for k in keys if k != key]
+        if held:  # where the other keys are held: the best point's values
+            axes.set_title(f"at {', '.join(held)} (the best point)", fontsize=9)
         axes.legend()
         axes.set_yscale("log")
         axes.grid(True, alpha=0.3)

@@ -74,7 +74,14 @@ def parse_sweep(text: str) -> tuple[str, np.ndarray]:
         raise ValueError(f"--sweep {text!r}: expected KEY=LO:HI:N with numbers LO, HI and a whole N") from None
     if not (math.isfinite(low) and math.isfinite(high)) or count < 1 or (count == 1 and low != high) or high < low:
         raise ValueError(f"--sweep {text!r}: needs finite LO <= HI and N >= 1 (N = 1 only with LO = HI)")
-    return KEYS[key], np.linspace(low, high, count)
+    key = KEYS[key]
+    if key in ("modulation_frequency", "exposure") and not low > 0:
+        raise ValueError(f"--sweep {text!r}: {key} must be > 0 ({'Hz' if key == 'modulation_frequency' else 's'}), LO is {low:g}")
+    values = np.linspace(low, high, count)
+    if key == "modulation_frequency" and any(v != round(v) for v in values):
+        raise ValueError(f"--sweep {text!r}: its points are {(high - low) / (count - 1):.10g} Hz apart, and a record's frequencies "
+                         f"are whole Hz: choose LO, HI and N so that (HI - LO)/(N - 1) is whole Hz")
+    return key, values
 
 
 def variant(sensor, changes: dict):
@@ -96,6 +103,8 @@ def variant(sensor, changes: dict):
     ValueError
         The chip cannot capture the changed frames.
     """
+    if "heterodyne" in {KEYS[key] for key in changes} and all(frame.heterodyne == 0 for frame in sensor.frames):
+        raise ValueError("the sensor has no heterodyne frame (every h = 0): a heterodyne sweep changes nothing")
     frames = []
     for frame in sensor.frames:
         update = {}
@@ -139,12 +148,14 @@ def record_spec(sensor, sweeps, beats_extra=(), optimize=(), doppler=True):
     from .record import RecordSpec, harmonics
 
     _check_size(sweeps)
-    variants = []
+    variants, refused = [], []
     for values in itertools.product(*[v for _, v in sweeps]):
         try:
             variants.append(variant(sensor, dict(zip([k for k, _ in sweeps], values))))
-        except ValueError:
-            continue  # the chip refuses it: the sweep lists it as refused
+        except ValueError as exc:
+            refused.append(str(exc))  # the chip refuses it: the sweep lists it as refused
+    if refused and not variants:  # before a render that nothing could use
+        raise ValueError(f"every point of the sweep is refused, e.g. {refused[0]}")
     variants = variants or [sensor]
     frequencies, beats, cameras = set(), {0.0, *beats_extra}, []
     for v in variants:
@@ -153,13 +164,18 @@ def record_spec(sensor, sweeps, beats_extra=(), optimize=(), doppler=True):
             for m, _ in terms:
                 frequency = m * camera.modulation_frequency
                 if frequency != round(frequency):
-                    raise ValueError(f"frame {index}: a record's frequencies are whole Hz, got {frequency!r} Hz; choose sweep values in whole Hz")
+                    source = (f"{m} x the frame's modulation_frequency {camera.modulation_frequency!r} Hz" if m != 1 else "the frame's modulation_frequency")
+                    raise ValueError(f"frame {index}: a record's frequencies are whole Hz, got {frequency!r} Hz ({source}); "
+                                     f"give the sensor whole-Hz frequencies (a sensor file's [[frames]] modulation_frequency)")
                 frequencies.add(round(frequency))
                 beats.add(m * camera.heterodyne)
         cameras += [c for c in v.cameras() if (c.exposure_start, c.exposure) not in {(x.exposure_start, x.exposure) for x in cameras}]
     if "modulation_frequency" in optimize:
         limits = sensor.limits
         low, high = limits.frequency_hz if limits is not None else (min(frequencies), max(frequencies))
+        if low == high:
+            raise ValueError("--optimize modulation_frequency: the sensor has no frequency range to search (no preset's chip limits, "
+                             "one frequency): give --sweep f=LO:HI:N to span one, or a sensor file with a preset")
         step = (limits.frequency_step_hz if limits is not None and limits.frequency_step_hz else 1e6)
         frequencies |= {round(f) for f in np.arange(math.ceil(low / step), math.floor(high / step) + 1) * step}
     step = math.gcd(*sorted(frequencies))

@@ -101,7 +101,8 @@ def velocity(
     ----------
     measurements : array_like, shape (n_cameras, ...), or a RenderResult
         Rendered (or sensor-reconstructed) measurements, one image per camera, in the
-        units of the standard image times g1/2. A :class:`~dopplertof.render.RenderResult`
+        units of the standard image times g1/2. A :class:`~dopplertof.render.RenderResult` (of a
+        sensor: its frames' cameras, not those of the windows' mean light)
         gives its measurements, cameras, standard errors and covariance at once.
     cameras : sequence of n_cameras camera configurations
         Sharing T (s), at one or two f_g (Hz: the depth is then unwrapped, module
@@ -181,11 +182,14 @@ def velocity(
     """
     if hasattr(measurements, "measurements"):  # a RenderResult
         result = measurements
-        cameras = result.cameras if cameras is None else cameras
-        measurements = result.measurements
+        # a sensor's render ends with one camera per window measuring its mean light (g1 = 0)
+        frames = len(result.cameras) if getattr(result, "sensor", None) is None else result.sensor.frame_cameras
+        cameras = result.cameras[:frames] if cameras is None else cameras
+        measurements = result.measurements[:frames]
         if measurement_stderr is None and measurement_covariance is None:
             measurement_covariance = result.maps.get("measurement_covariance")
-            measurement_stderr = result.measurement_stderr
+            measurement_covariance = None if measurement_covariance is None else measurement_covariance[:frames, :frames]
+            measurement_stderr = result.measurement_stderr[:frames]
             stderr_dof = result.info.get("stderr_dof") if stderr_dof is None else stderr_dof
     if cameras is None:
         raise ValueError("velocity() needs the cameras (or a RenderResult)")

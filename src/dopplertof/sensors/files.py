@@ -110,23 +110,29 @@ def loads_sensor(text: str, folder: str = ".", where: str = "sensor TOML") -> Se
         raise ValueError(f"{where}: {exc}") from None
 
 
-def _unknown(keys, known, where):
+def _unknown(keys, known, where) -> list[str]:
+    """What each key of ``keys`` not in ``known`` is called in an error, with a hint."""
+    found = []
     for key in keys:
         if key not in known:
             close = difflib.get_close_matches(key, known, n=1)
-            hint = f"; did you mean {close[0]!r}?" if close else f"; known: {', '.join(known)}"
-            raise ValueError(f"{where}unknown key {key!r}{hint}")
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (known: {', '.join(known)})"
+            found.append(f"{where}{key!r}{hint}")
+    return found
 
 
 def _from_dict(data: dict, folder: str) -> Sensor:
-    _unknown(data, _FILE_KEYS, "")
     silicon = data.get("silicon", {})
     if not isinstance(silicon, dict):
         raise ValueError(f"[silicon] must be a table of Silicon parameters, got {silicon!r}")
-    _unknown(silicon, _SILICON_KEYS, "[silicon]: ")
     frames_data = data.get("frames")
     if frames_data is not None and (not isinstance(frames_data, list) or not all(isinstance(f, dict) for f in frames_data)):
         raise ValueError("frames must be [[frames]] tables")
+    unknown = _unknown(data, _FILE_KEYS, "") + _unknown(silicon, _SILICON_KEYS, "[silicon] ")
+    for index, frame in enumerate(frames_data or []):
+        unknown += _unknown(frame, _FRAME_KEYS, f"frame {index} ")
+    if unknown:  # every one at once
+        raise ValueError(f"unknown key{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}")
     frames = None if frames_data is None else [_frame(f, k, folder) for k, f in enumerate(frames_data)]
     if "preset" in data:
         if "taps" in data:
@@ -144,7 +150,6 @@ def _from_dict(data: dict, folder: str) -> Sensor:
 
 def _frame(data: dict, index: int, folder: str) -> RawFrame:
     where = f"frame {index}: "
-    _unknown(data, _FRAME_KEYS, where)
     kwargs = dict(data)
     for name in ("light_code", "sensor_code"):
         value = kwargs.get(name)
