@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -177,6 +178,7 @@ def test_a_signal_keeps_the_work_and_resume_is_bit_identical(tmp_path, sig):
     status, stderr, out, args = _interrupt(tmp_path, sig, "interrupted")
     assert status == 128 + sig, stderr
     assert "--resume" in stderr
+    assert re.search(r": stopped after \d+ of \d+ passes, at \d+ of 256 spp; partial result and checkpoint in", stderr), stderr  # (a pass of part of the film said "at 0 of 256 spp")
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["interrupted"] and 0 < meta["spp"] < 256
     assert (out / "checkpoint.npz").exists()

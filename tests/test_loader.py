@@ -2,6 +2,7 @@
 messages for bad input."""
 
 import os
+import re
 
 import mitsuba as mi
 import numpy as np
@@ -601,3 +602,18 @@ def test_a_new_film_size_is_refused_beside_a_crop_window_in_files_and_dicts(tmp_
     with pytest.raises(dt.SceneError, match=says):  # the dict's crop was kept with the new size
         dt.load_scene(scene, film_resolution=16)
     assert dt.load_scene(scene).resolution == (4, 4)
+
+
+def test_emitters_inside_the_sensor_are_refused_in_their_own_words(tmp_path):
+    """An area light in the <sensor> was "a 'area' emitter cannot move", and an <animation>
+    on a light in the sensor named every place but that one."""
+    film = '<film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>'
+    anim = '<animation name="to_world"><transform time="0"><translate z="0"/></transform><transform time="0.001"><translate z="0.01"/></transform></animation>'
+    for emitter, says in [
+        ('<emitter type="area"><rgb name="radiance" value="1"/></emitter>', "an emitter of type 'area' inside the <sensor> would move with the camera"),
+        (f'<emitter type="point">{anim}</emitter>', "or an emitter inside the sensor (it moves with the camera)"),
+    ]:  # fmt: skip
+        path = tmp_path / "s.xml"
+        path.write_text(f'<scene version="3.0.0"><sensor type="perspective">{film}{emitter}</sensor><shape type="rectangle"/></scene>')
+        with pytest.raises(dt.SceneError, match=re.escape(says)):
+            dt.load_scene(path)

@@ -195,7 +195,7 @@ def test_xml_moving_point_light(tmp_path):
 
 
 @pytest.mark.parametrize("extra,match", [
-    ('<emitter type="constant"><animation name="to_world"><transform time="0"/></animation></emitter>', "'constant' emitter cannot move"),
+    ('<emitter type="constant"><animation name="to_world"><transform time="0"/></animation></emitter>', "emitter of type 'constant' cannot move"),
     ('<emitter type="point"><point name="position" value="0 0 0"/><animation name="to_world"><transform time="0"/></animation></emitter>', "position and an <animation>"),
 ])
 def test_xml_lights_that_cannot_move_are_refused(tmp_path, extra, match):
@@ -215,7 +215,7 @@ def test_a_scaling_camera_motion_is_refused():
 def test_an_attached_area_emitter_is_refused():
     scene = _room({})
     scene["sensor"] = {**scene["sensor"], "glow": {"type": "constant"}}
-    with pytest.raises(dt.SceneError, match="'constant' emitter cannot move"):
+    with pytest.raises(dt.SceneError, match="emitter of type 'constant' cannot move"):
         dt.load_scene(scene)
 
 

@@ -388,3 +388,35 @@ def test_a_sensor_render_reconstructs_from_its_frames_cameras():
     from_result = dt.reconstruct.velocity(result)
     np.testing.assert_array_equal(from_result.velocity, direct.velocity)
     np.testing.assert_array_equal(from_result.valid, direct.valid)
+
+
+MOVING_LIGHT_SCENE = """<scene version="3.0.0">
+  <sensor type="perspective">
+    <transform name="to_world"><lookat origin="0, 0, 4" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>
+  <emitter type="point" id="lamp"><rgb name="intensity" value="20"/>
+    <animation name="to_world"><transform time="0"><translate z="4"/></transform><transform time="0.0015"><translate z="3.985"/></transform></animation>
+  </emitter>
+  <shape type="rectangle"><bsdf type="diffuse"/><transform name="to_world"><scale value="10"/></transform></shape>
+</scene>"""
+
+
+def test_a_comparison_with_the_ground_truth_where_lights_move_says_it_is_no_error(tmp_path):
+    """A static camera and wall lit by a light approaching at 10 m/s: the reconstruction is
+    right (dL/dt/2 = -5 cos θ m/s) and the ground truth 0 (the camera rays' hits do not
+    move), and `reconstruct` reported a 5 m/s error with every valid pixel off by > 3
+    standard errors."""
+    (tmp_path / "lamp.xml").write_text(MOVING_LIGHT_SCENE)
+    cameras = [a for c in ("h=0,psi=0", "h=0,psi=90deg", "h=1,psi=0", "h=1,psi=90deg") for a in ("--camera", c)]
+    out = tmp_path / "r"
+    run = CliRunner().invoke(cli.main, ["render", str(tmp_path / "lamp.xml"), "--spp", "64", "--quiet", *cameras, "-o", str(out)])
+    assert run.exit_code == 0, run.output
+    assert json.loads((out / "metadata.json").read_text())["render"]["light_sources_in_motion"] == [f"{tmp_path / 'lamp.xml'}: <emitter type=\"point\" id='lamp'> #1"]
+    done = CliRunner().invoke(cli.main, ["reconstruct", str(out)])
+    assert done.exit_code == 0, done.output
+    assert "(not an error: the ground truth is the motion of the camera rays' hits, and light sources move here" in done.output
+    error = json.loads((out / "velocity_error.json").read_text())
+    assert "light sources move here" in error["note"]
+    reconstructed = io.read_exr(out / "velocity_reconstructed.exr")
+    assert np.nanmedian(reconstructed) == pytest.approx(-5.0, abs=0.5)  # -5 cos θ, θ small

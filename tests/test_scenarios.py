@@ -188,6 +188,10 @@ def one_ms_shutter(tmp_path_factory):
     assert text.count(shutter) == 1
     path = tmp_path_factory.mktemp("shutter") / "one_ms.xml"
     path.write_text(text.replace(shutter, '<float name="shutter_close" value="0.001"/>'))
+    # beside it, the shutter open from 1 to 2 ms
+    opening = '<float name="shutter_open" value="0"/>'
+    assert text.count(opening) == 1
+    (path.parent / "late.xml").write_text(text.replace(shutter, '<float name="shutter_close" value="0.002"/>').replace(opening, '<float name="shutter_open" value="0.001"/>'))
     return path
 
 
@@ -224,9 +228,22 @@ def test_an_api_camera_exposing_past_the_files_shutter_warns(one_ms_shutter):
     """A dt.Camera's own T (default 1.5 ms) wins over a 1 ms shutter, where the command
     line's --camera without T takes the shutter's: it rendered past shutter_close silently."""
     scene = dt.load_scene(one_ms_shutter)
-    with pytest.warns(UserWarning, match=r"the cameras expose 0 to 0\.0015 s, past the scene's shutter \(0 to 0\.001 s\).*Camera\(exposure=0\.001\)"):
+    with pytest.warns(UserWarning, match=r"the cameras expose 0 to 0\.0015 s: they close after the scene's shutter \(0 to 0\.001 s\); to expose for the shutter give exposure_start=0 and exposure=0\.001"):
         dt.render(scene, cameras=[dt.Camera()], spp=2, max_depth=2)
+    with pytest.warns(UserWarning, match=r"they open before the scene's shutter"):  # the advice was about T, which was not the cause
+        dt.render(dt.load_scene(one_ms_shutter.with_name("late.xml")), cameras=[dt.Camera(exposure=1e-3, exposure_start=0.0)], spp=2, max_depth=2)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         dt.render(scene, cameras=[dt.Camera(exposure=1e-3)], spp=2, max_depth=2)
         dt.render(scene, spp=2, max_depth=2)  # the scene's own exposure
+
+
+def test_the_command_line_warns_too_when_its_cameras_expose_outside_the_shutter(one_ms_shutter, tmp_path):
+    """The API warned and the command line, given T=, was silent; without a camera it now
+    says that the render holds no D-ToF measurement."""
+    out = _cli("render", str(one_ms_shutter), "--camera", "h=1,T=1.5e-3", "--spp", "2", "--max-depth", "2", "--resolution", "4", "-o", str(tmp_path / "a"))
+    assert out.returncode == 0 and "warning: the cameras expose 0 to 0.0015 s: they close after the scene's shutter" in out.stderr, out.stderr
+    within = _cli("render", str(one_ms_shutter), "--camera", "h=1", "--spp", "2", "--max-depth", "2", "--resolution", "4", "-o", str(tmp_path / "b"))
+    assert within.returncode == 0 and "shutter" not in within.stderr, within.stderr
+    none = _cli("render", str(one_ms_shutter), "--spp", "2", "--max-depth", "2", "--resolution", "4", "-o", str(tmp_path / "c"))
+    assert none.returncode == 0 and "note: no D-ToF camera" in none.stderr, none.stderr

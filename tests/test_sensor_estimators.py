@@ -168,7 +168,9 @@ def test_reconstruct_velocity_takes_raw_frames_of_a_read_out():
     result = dt.render(oracles.moving_plane_scene(speed, resolution=n), sensor=sensor, spp=64, max_depth=2, seed=3)
     read = est.measurements_from_readout(sensor, sensor.read_out(result, seed=1))
     stderr = np.sqrt(read.stderr**2 + result.measurement_stderr[: len(sensor.frames)].astype(np.float64) ** 2)
-    estimate = rc.velocity(read.measurements, read.cameras, measurement_stderr=stderr)
+    # each pixel's error (~40 m/s) exceeds the 20 m/s motion: no default threshold accepts it,
+    # so every determined pixel is taken (the z-scores are the point)
+    estimate = rc.velocity(read.measurements, read.cameras, measurement_stderr=stderr, max_velocity_stderr=1e3)
     assert estimate.method == "fit" and estimate.valid.mean() > 0.95
     z = ((estimate.velocity - _radial(n, speed)) / estimate.velocity_stderr)[estimate.valid]
     assert np.all(np.abs(z) < 4) and abs(z.mean()) < 0.3 and 0.7 < z.std() < 1.3

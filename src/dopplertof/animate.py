@@ -51,7 +51,7 @@ from . import io, viz
 from .differences import differences
 from .modulation import Camera
 from .reconstruct import MIN_STDERR_DOF
-from .render_folder import describe_error, errors_from, reconstruct, resolve_method, velocity_error, write_reconstruction
+from .render_folder import describe_error, errors_from, ground_truth_note, reconstruct, resolve_method, velocity_error, write_reconstruction
 
 DEFAULT_FPS = 30.0
 DEFAULT_CAMERAS = tuple((h, psi) for h in (0.0, 1.0) for psi in (0.0, math.pi / 2))
@@ -252,9 +252,10 @@ def _render_frame(scene, index, fps, settings, method, folder, progress, stop):
     write_result(result, folder, {"frame": index, "time_s": start_s})
     reconstruction = reconstruct(result.measurements, cameras, method, result.measurement_stderr, result.maps.get("measurement_covariance"),
                                  stderr_dof=result.info["stderr_dof"])
-    write_reconstruction(folder, reconstruction, result.velocity)
+    note = ground_truth_note(result.info["light_sources_in_motion"])
+    write_reconstruction(folder, reconstruction, result.velocity, ground_truth_note=note)
     summary = {"frame": index, "time_s": start_s, "exposure_s": cameras[0].exposure, "stderr_dof": result.info["stderr_dof"],
-               **velocity_error(reconstruction, result.velocity)}
+               **velocity_error(reconstruction, result.velocity, note)}
     _write_done(folder, summary)
     os.remove(checkpoint)
     return summary

@@ -138,7 +138,7 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
     from . import folder as out_folder
     from .backend import BackendError
     from .raytools import require_ray
-    from .render import CheckpointWriteError, check_film_memory, checked_until_noise, checkpoint_disk_bytes
+    from .render import CheckpointWriteError, check_film_memory, checked_until_noise, checkpoint_disk_bytes, warn_outside_the_shutter
     from .render import render as run_render
     from .scene import SceneError
     from .scenes import open_scene
@@ -172,6 +172,11 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
         cameras = {"cameras": sensor.cameras()} if sensor is not None else cameras_layer(camera_specs, options.get("exposure"), base, dyn)
         layer = {**given_settings(options), **cameras}
         settings = RenderSettings.build(base, layer, where=scene)
+        if sensor is None:
+            warn_outside_the_shutter(dyn, settings)
+            if not settings.cameras:
+                click.echo("note: no D-ToF camera (give --camera, or a dopplertof <integrator> in the scene file): "
+                           "intensity and ground truth only", err=True)
         width, height = dyn.resolution
         check_film_memory(width, height, len(settings.cameras), len(settings.windows))
         bytes_needed = out_folder.estimated_bytes(width, height, len(settings.cameras)) + checkpoint_disk_bytes(width, height, settings)
@@ -211,8 +216,9 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
         kept = ("partial result and checkpoint in", "continue with --resume")
         if "checkpoint_error" in result.info:  # its sums could not be saved: what --resume finds is older, or nothing
             kept = ("partial result in", "its checkpoint could not be written: --resume continues from an earlier one, if kept, else from the start")
+        passes = f"after {result.info['passes_done']} of {result.info['passes']} passes, "  # a pass may cover part of the film: its spp is the least pixel's
         click.echo(
-            f"{stop.name}: stopped at {reached} of {settings.spp} spp; {kept[0]} {os.path.abspath(output)}/ ({kept[1]}){partial_errors}", err=True,
+            f"{stop.name}: stopped {passes}at {reached} of {settings.spp} spp; {kept[0]} {os.path.abspath(output)}/ ({kept[1]}){partial_errors}", err=True,
         )  # fmt: skip
         sys.exit(stop.exit_status)
     if until_noise is not None:

@@ -32,11 +32,13 @@ NO_GEOMETRY = -1  # the body index of a group whose emitters cannot be hit (poin
 @dataclass
 class MovingLight:
     """A point or spot emitter that moves: ``scene`` holds it in its local frame, placed in
-    the world at time t by ``motion.pose(t)``."""
+    the world at time t by ``motion.pose(t)``; ``with_camera`` where it rides with the
+    camera (an emitter in the sensor)."""
 
     name: str
     scene: object  # mi.Scene holding the emitter
     motion: object  # dopplertof.motion.Motion
+    with_camera: bool = False
 
 
 @dataclass(frozen=True)

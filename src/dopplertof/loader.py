@@ -175,8 +175,8 @@ def _dict_with_film_size(scene_dict: dict, size) -> dict:
 # Errors
 
 
-WHAT_MOVES = ("only a top-level shape, emitter or the sensor may move, not a BSDF, a film, an emitter inside a shape "
-              "or a shape inside a shapegroup (move the shapegroup's instance)")
+WHAT_MOVES = ("only a top-level shape, emitter or the sensor may move, not a BSDF, a film, an emitter inside a shape, "
+              "a shape inside a shapegroup (move the shapegroup's instance) or an emitter inside the sensor (it moves with the camera)")
 
 
 def _mitsuba_error(where: str, exc: Exception, locate=None) -> SceneError:
@@ -496,8 +496,8 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
 
         lights = [MovingLight(where, light_scene(el, where), motion) for where, el, motion in moving_lights]
         for el, where in attached:
-            _check_movable_emitter(el.attrib.get("type"), where)
-            lights.append(MovingLight(where, light_scene(el, where), _camera_light_motion(static, camera_motion, path)))
+            _check_movable_emitter(el.attrib.get("type"), where, attached=True)
+            lights.append(MovingLight(where, light_scene(el, where), _camera_light_motion(static, camera_motion, path), with_camera=True))
     finally:
         resolver.clear()  # restore Mitsuba's own search path (it finds plugins there)
         for entry in saved_paths:
@@ -525,9 +525,12 @@ def _pull_animation(el, where: str):
     return motion
 
 
-def _check_movable_emitter(kind, where: str) -> None:
+def _check_movable_emitter(kind, where: str, attached: bool = False) -> None:
     if kind not in MOVABLE_EMITTERS:
-        raise SceneError(f"{where}: a {kind!r} emitter cannot move; moving lights are {', '.join(MOVABLE_EMITTERS)} emitters, or area emitters on a moving shape")
+        if attached:
+            raise SceneError(f"{where}: an emitter of type {kind!r} inside the <sensor> would move with the camera, and it cannot move; "
+                             f"the lights a camera carries are {', '.join(MOVABLE_EMITTERS)} emitters")
+        raise SceneError(f"{where}: an emitter of type {kind!r} cannot move; moving lights are {', '.join(MOVABLE_EMITTERS)} emitters, or area emitters on a moving shape")
 
 
 def _camera_light_motion(static, camera_motion, where: str) -> Motion:
@@ -916,6 +919,6 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
             raise _mitsuba_error(where, exc) from None
 
     lights = [MovingLight(where, light_scene(light, where), motion) for where, light, motion in moving_lights]
-    lights += [MovingLight(where, light_scene(light, where), _camera_light_motion(static, camera_motion, where)) for where, light in attached]
+    lights += [MovingLight(where, light_scene(light, where), _camera_light_motion(static, camera_motion, where), with_camera=True) for where, light in attached]
     scene = DynamicScene(static=static, bodies=bodies, integrator_params=integrator_params, **hints, camera_motion=camera_motion, lights=lights, pipeline_host=host)
     return _checked_scene(scene, shutter_given)

@@ -246,20 +246,25 @@ def _checkpoint_names(accs: list) -> list[tuple[str, Accumulator, str]]:
 
 
 
-def _warn_past_the_shutter(scene, settings: RenderSettings) -> None:
-    """Warn where the caller's cameras expose outside the scene file's shutter interval: a
-    ``dopplertof.Camera`` has its own T (default 1.5 ms), which wins over the file's (the
-    command line's ``--camera`` without T takes the shutter's)."""
+def warn_outside_the_shutter(scene, settings: RenderSettings) -> None:
+    """Warn where a window of ``settings`` opens before or closes after the scene file's
+    shutter interval: cameras given with their own T and start (a ``dopplertof.Camera``'s
+    T defaults to 1.5 ms; the command line's ``--camera`` without T takes the shutter's)
+    expose when the file does not."""
     shutter = shutter_interval(scene)
     if shutter is None:
         return
     open_s, length_s = shutter
+    close_s = open_s + length_s
     slack = 1e-6 * length_s
     for w in settings.windows:
-        if w.start_s < open_s - slack or w.start_s + w.exposure_s > open_s + length_s + slack:
-            warnings.warn(f"the cameras expose {w.start_s:g} to {w.start_s + w.exposure_s:g} s, past the scene's shutter "
-                          f"({open_s:g} to {open_s + length_s:g} s): a dopplertof.Camera's own T (default {DEFAULT_EXPOSURE_S:g} s) "
-                          f"wins over the file's; give Camera(exposure={length_s:g}) to expose for the shutter", stacklevel=3)
+        before, after = w.start_s < open_s - slack, w.start_s + w.exposure_s > close_s + slack
+        if before or after:
+            side = " and ".join(s for s, outside in (("open before", before), ("close after", after)) if outside)
+            warnings.warn(f"the cameras expose {w.start_s:g} to {w.start_s + w.exposure_s:g} s: they {side} the scene's shutter "
+                          f"({open_s:g} to {close_s:g} s); to expose for the shutter give exposure_start={open_s:g} and "
+                          f"exposure={length_s:g} (Camera(...), or --camera ...,start={open_s:g},T={length_s:g}); "
+                          f"a dopplertof.Camera's own T defaults to {DEFAULT_EXPOSURE_S:g} s", stacklevel=3)
             return
 
 
@@ -548,7 +553,7 @@ def render(
         raise TypeError(f"settings must be a dopplertof.RenderSettings or a dict of setting names, got {type(settings).__name__}")
     settings = RenderSettings.build(*layers, overrides)
     if callers_cameras:
-        _warn_past_the_shutter(scene, settings)
+        warn_outside_the_shutter(scene, settings)
     resumed_lanes = None if checkpoint is None else _checkpoint_lanes_per_pass(checkpoint, settings)
     asked_lanes = settings.lanes_per_pass
     if until_noise is not None:
@@ -674,7 +679,8 @@ def render(
     window_spp = [int(acc.state["samples"].min()) for acc in accs]  # a stopped schedule's windows differ
     spp_done = min(window_spp)
     info = {"render_seconds": time.perf_counter() - start, "passes": len(passes) * len(windows), "passes_done": done,
-            "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows], "window_spp": window_spp}  # fmt: skip
+            "executor": executor, "windows": [[w.start_s, w.exposure_s] for w in windows], "window_spp": window_spp,
+            "light_sources_in_motion": scene.light_sources_in_motion()}  # fmt: skip
     if checkpoint_error is not None:
         info["checkpoint_error"] = checkpoint_error
     if until_noise is not None:

@@ -178,7 +178,7 @@ def describe_summary(info: dict) -> str:
     return "; ".join(parts)
 
 
-def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s) -> dict:
+def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s, note: str | None = None) -> dict:
     """Error of a reconstructed velocity map against ground truth, on its valid pixels.
 
     Parameters
@@ -186,6 +186,8 @@ def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s) -> dict:
     reconstruction : VelocityResult
     ground_truth_m_s : array_like, shape (H, W)
         Ground-truth radial velocity, m/s; NaN where the camera ray hits nothing.
+    note : str, optional
+        Why the comparison measures no error (:func:`ground_truth_note`), kept as ``note``.
 
     Returns
     -------
@@ -209,7 +211,7 @@ def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s) -> dict:
     sigma = reconstruction.velocity_stderr
     off = np.abs(error) > 3.0 * sigma[valid] if sigma is not None else np.zeros(0)
     off_moving = off[np.abs(truth[valid]) > MOVING_PIXEL_M_S] if off.size else off
-    return {
+    out = {
         "valid_fraction": float(valid.sum() / n_seen) if n_seen else 0.0,
         # the calibration of velocity_stderr: ≈ 0.3 % for Gaussian errors where the model holds
         "off_by_3_stderr_fraction": float(off.mean()) if off.size else math.nan,
@@ -219,24 +221,29 @@ def velocity_error(reconstruction: rc.VelocityResult, ground_truth_m_s) -> dict:
         "mean_abs_error_m_s": stat(lambda e: np.mean(np.abs(e))),
         "rmse_m_s": stat(lambda e: np.sqrt(np.mean(e * e))),
     }
+    if note is not None:
+        out["note"] = note
+    return out
 
 
 def describe_error(error: dict) -> str:
     """One line for :func:`velocity_error`'s result."""
     if not error["n_valid"]:
         return "no valid pixel"
+    note = f" (not an error: {error['note']})" if "note" in error else ""
     return (
         f"velocity error on {100 * error['valid_fraction']:.0f}% valid pixels: "
-        f"median {error['median_abs_error_m_s']:.3g} m/s, RMSE {error['rmse_m_s']:.3g} m/s"
+        f"median {error['median_abs_error_m_s']:.3g} m/s, RMSE {error['rmse_m_s']:.3g} m/s{note}"
     )
 
 
 def write_reconstruction(folder: str, reconstruction: rc.VelocityResult, ground_truth_m_s=None,
-                         vmax_m_s: float | None = None, depth_truth_m=None) -> list[str]:
+                         vmax_m_s: float | None = None, depth_truth_m=None, ground_truth_note: str | None = None) -> list[str]:
     """Write the files of the module table into ``folder``; returns their paths.
 
     ``ground_truth_m_s`` (H, W, m/s) adds the comparison figure and ``velocity_error.json``;
     ``depth_truth_m`` (H, W, m; NaN where nothing is hit) adds ``depth_wrapped.png``;
+    ``ground_truth_note`` (:func:`ground_truth_note`) goes into ``velocity_error.json``;
     ``vmax_m_s`` fixes the colour range of the velocity pictures (default:
     :func:`dopplertof.viz.auto_vmax` of the ground truth if given, else of the
     reconstruction).
@@ -269,7 +276,7 @@ def write_reconstruction(folder: str, reconstruction: rc.VelocityResult, ground_
             {"ground truth": ground_truth_m_s, f"reconstructed ({reconstruction.method})": velocity},
             vmax=vmax_m_s, unit="m/s", title="radial velocity",
         )
-        io.write_json(path(ERROR_FILE), velocity_error(reconstruction, ground_truth_m_s))
+        io.write_json(path(ERROR_FILE), velocity_error(reconstruction, ground_truth_m_s, ground_truth_note))
     if depth_truth_m is not None:
         _write_wrapped(path("depth_wrapped.png"), depth_truth_m, reconstruction.depth_range_m)
     files = [os.path.basename(f) for f in written] + [SUMMARY_FILE]  # what a new render of the folder removes (folder.prepare)
@@ -395,6 +402,24 @@ def read_depth_truth(folder: str):
     return depth
 
 
+def read_light_sources_in_motion(folder: str) -> list:
+    """The render's lights that move on their own and its emitting moving bodies
+    (``metadata.json``'s ``render.light_sources_in_motion``; empty where an older render
+    does not say)."""
+    names = io.read_json(os.path.join(folder, METADATA_FILE)).get("render", {}).get("light_sources_in_motion")
+    return names if isinstance(names, list) else []
+
+
+def ground_truth_note(light_sources_in_motion: list) -> str | None:
+    """Why the comparison with the ground truth is no error measure where light sources move
+    (:meth:`~dopplertof.scene.DynamicScene.light_sources_in_motion`), else None."""
+    if not light_sources_in_motion:
+        return None
+    return (f"the ground truth is the motion of the camera rays' hits, and light sources move here "
+            f"({', '.join(light_sources_in_motion)}): the measured dL/dt also holds their motion (and a path straight from "
+            f"a moving emitter is one-way, half a round trip), so the difference is not an error of the reconstruction")
+
+
 def read_stderr_dof(folder: str) -> int | None:
     """The degrees of freedom of the render's standard errors (``metadata.json``'s
     ``render.stderr_dof``), or None where a render older than it does not say."""
@@ -444,10 +469,11 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
             raise no_velocity from None
         written, info = write_depth(output or folder, depth_m, cameras, depth_truth, str(no_velocity))
         return None, written, info
-    written = write_reconstruction(output or folder, result, truth, depth_truth_m=depth_truth)
+    note = ground_truth_note(read_light_sources_in_motion(folder))
+    written = write_reconstruction(output or folder, result, truth, depth_truth_m=depth_truth, ground_truth_note=note)
     info = summary(result, depth_truth)
     if truth is not None:
-        info.update(velocity_error(result, truth))
+        info.update(velocity_error(result, truth, note))
     return result, written, info
 
 

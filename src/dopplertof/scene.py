@@ -592,6 +592,17 @@ class DynamicScene:
         size = self.sensor.film().crop_size()
         return int(size[0]), int(size[1])
 
+    def light_sources_in_motion(self) -> list[str]:
+        """The names of the lights that move on their own (not with the camera) and of the
+        moving bodies that emit: with them a measured dL/dt holds more than the motion of the
+        camera rays' hits, which the ground-truth velocity is.
+
+        Returns
+        -------
+        list of str
+        """
+        return [light.name for light in self.lights if not light.with_camera] + [body.name for body in self.bodies if len(body.scene.emitters())]
+
     def motions(self) -> list:
         """Every motion of the scene: its bodies', its camera's and its moving lights'.
 

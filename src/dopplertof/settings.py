@@ -617,9 +617,16 @@ def shutter_interval(scene) -> tuple[float, float] | None:
     -------
     tuple of float, or None
     """
+    from decimal import Decimal
+
     sensor = scene.sensor
-    open_s, length_s = float32_decimal(sensor.shutter_open()), float32_decimal(sensor.shutter_open_time())
-    return (open_s, length_s) if length_s > 0 else None
+    open_f32, length_f32 = np.float32(sensor.shutter_open()), np.float32(sensor.shutter_open_time())
+    if not length_f32 > 0:
+        return None
+    # Mitsuba keeps the length as the float32 difference close - open (0.0025 - 0.001 is
+    # 0.0014999999): the file's length is the difference of the decimals it wrote.
+    open_s, close_s = float32_decimal(open_f32), float32_decimal(open_f32 + length_f32)
+    return open_s, float(Decimal(repr(close_s)) - Decimal(repr(open_s)))
 
 
 def scene_layer(scene, where: str | None = None) -> dict:
