@@ -651,5 +651,24 @@ def test_verify_tells_shards_not_written_yet_from_damaged_ones(tmp_path, referen
         f.truncate(1000)
     res = CliRunner().invoke(main, ["dataset", "verify", str(folder)])
     assert res.exit_code == 1 and "shard-000000.tar: corrupt" in res.output and "3 not written yet" in res.output
-    with pytest.warns(UserWarning, match="shard-000000.tar differ from their records and are left out"):
+    with pytest.warns(UserWarning, match="shard-000000.tar are missing or differ from their records and are left out"):
         assert len(dt.dataset.open(folder)) == 0
+
+
+def test_a_shard_whose_bytes_changed_is_refused_when_read(tmp_path, reference):
+    """Random bytes in a shard of the right size were read as data (a field off by 5.6e37)
+    while only `dataset verify` noticed; the reader checks each shard's SHA-256 the first
+    time it reads it."""
+    import shutil
+
+    folder = tmp_path / "copy"
+    shutil.copytree(reference, folder)
+    ds = dt.dataset.open(folder)
+    shard = ds._shards[0]["name"]
+    with open(folder / shard, "r+b") as f:
+        f.seek(2000)
+        f.write(b"\x7f" * 64)  # inside the first sample's arrays: the tar still reads
+    for read in (lambda d: d[0], lambda d: next(iter(d))):
+        with pytest.raises(ValueError, match=rf"{shard}: its contents differ from its record \(SHA-256\)"):
+            read(dt.dataset.open(folder))
+    assert len(dt.dataset.open(folder)[len(ds) - 1]) > 1  # the other shards read as before

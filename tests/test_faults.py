@@ -730,3 +730,87 @@ def test_a_folder_without_the_space_a_render_needs_is_refused_and_not_left_behin
     with pytest.raises(ValueError, match="MB free"):
         folder.check_writable(str(out), bytes_needed=1 << 62)
     assert out.is_dir()
+
+
+def test_a_second_signal_while_the_first_checkpoint_is_written_keeps_it(tmp_path, monkeypatch):
+    """A second Ctrl-C 0.3 s after the first, while the render wrote its first checkpoint,
+    left none: every finished pass was lost, and the command said none had finished. The
+    signal now comes once the checkpoint is whole."""
+    from dopplertof.clitools import StopOnSignal
+
+    render_module = sys.modules["dopplertof.render"]  # (dopplertof.render is the function)
+
+    write = render_module.save_checkpoint
+
+    def write_under_a_second_signal(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)  # the second signal, as the checkpoint is written
+        write(*args, **kwargs)
+
+    monkeypatch.setattr(render_module, "save_checkpoint", write_under_a_second_signal)
+    signals, calls = StopOnSignal(), []
+
+    def stop():
+        calls.append(1)
+        if len(calls) == 2:  # the first signal, after the first pass
+            os.kill(os.getpid(), signal.SIGINT)
+        return signals()
+
+    checkpoint = tmp_path / "c.npz"
+    with signals, pytest.raises(KeyboardInterrupt):
+        dt.render(dt.scenes.cornell_box(resolution=16), spp=64, lanes_per_pass=4096, checkpoint=checkpoint, stop=stop)
+    assert _passes_in_checkpoint(checkpoint) == 1
+
+
+@pytest.mark.parametrize("command", [
+    ["render", "cornell-box", "--resolution", "4", "--spp", "2"],
+    ["design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:40e6:4", "--resolution", "4", "--spp", "4"],
+    ["experiment", "velocity", "cornell-box", "--quick"],
+])  # fmt: skip
+def test_a_folder_another_process_is_writing_is_refused(tmp_path, command):
+    """Two renders into one folder both reported success and left files of each (and two
+    design runs replaced each other's record). The second is refused while the first holds
+    the folder, and the folder is free again afterwards."""
+    from dopplertof.folder import LOCK, held
+
+    out = tmp_path / "out"
+    out.mkdir()
+    with held(str(out)):  # another process's hold, as far as the command can tell
+        run = _cli(*command, "-o", str(out))
+    assert run.returncode == 2 and run.stderr.strip().splitlines()[-1] == (
+        f"error: output folder {str(out)!r} is being written by another dopplertof process; wait for it to finish, or choose another folder"), run.stderr
+    again = _cli(*command, "-o", str(out))
+    assert again.returncode == 0, again.stderr
+    assert not (out / LOCK).exists()
+
+
+def test_an_experiment_into_another_experiments_folder_is_refused(tmp_path):
+    """`experiment shifts` replaced a velocity experiment's results.csv and metadata.json and
+    left its plots; the same experiment still replaces its own tables."""
+    out = tmp_path / "e"
+    assert _cli("experiment", "velocity", "cornell-box", "--quick", "-o", str(out)).returncode == 0
+    other = _cli("experiment", "shifts", "cornell-box", "--quick", "-o", str(out))
+    assert other.returncode == 2 and "holds the 'velocity' experiment's tables; this one ('shifts') would replace them" in other.stderr
+    assert _cli("experiment", "velocity", "cornell-box", "--quick", "-o", str(out)).returncode == 0
+
+
+def test_a_resume_whose_checkpoint_was_removed_says_so(tmp_path):
+    """--resume on an interrupted render whose checkpoint was deleted said the folder held
+    "a finished render"."""
+    out = tmp_path / "r"
+    args = ("render", "cornell-box", "--resolution", "4", "--spp", "4", "-o", str(out))
+    assert _cli(*args).returncode == 0
+    metadata = json.loads((out / "metadata.json").read_text())
+    (out / "metadata.json").write_text(json.dumps({**metadata, "interrupted": True}))  # as a stopped render leaves it, its checkpoint gone
+    run = _cli(*args, "--resume")
+    assert run.returncode == 2 and "holds an interrupted render whose checkpoint is gone (nothing to resume from)" in run.stderr, run.stderr
+
+
+def test_a_design_record_that_does_not_fit_the_disk_is_refused_before_it_renders(small_disk):
+    """A design rendered its record for 10 s into a nearly full disk, then lost it: the
+    space is now checked before the render, as a render's is."""
+    free = os.statvfs(small_disk).f_bavail * os.statvfs(small_disk).f_frsize
+    with open(small_disk / "filler", "wb") as filler:
+        filler.write(b"\0" * (free - 200_000))  # 0.2 MB left: a 32² record with its checkpoint needs more
+    run = _cli("design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:4", "--resolution", "32", "--spp", "64", "-o", str(small_disk / "g"))
+    assert run.returncode == 2 and "has 0.2 MB free; this render writes about" in run.stderr and "rendering the record" not in run.stderr, run.stderr
+    assert not (small_disk / "g").exists()

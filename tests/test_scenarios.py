@@ -246,4 +246,4 @@ def test_the_command_line_warns_too_when_its_cameras_expose_outside_the_shutter(
     within = _cli("render", str(one_ms_shutter), "--camera", "h=1", "--spp", "2", "--max-depth", "2", "--resolution", "4", "-o", str(tmp_path / "b"))
     assert within.returncode == 0 and "shutter" not in within.stderr, within.stderr
     none = _cli("render", str(one_ms_shutter), "--spp", "2", "--max-depth", "2", "--resolution", "4", "-o", str(tmp_path / "c"))
-    assert none.returncode == 0 and "note: no D-ToF camera" in none.stderr, none.stderr
+    assert none.returncode == 0 and "(no D-ToF camera: intensity and ground truth only; give --camera)" in none.stdout, none.stdout

@@ -337,10 +337,11 @@ def signals_as_interrupt():
 
 
 @contextlib.contextmanager
-def _signals_held():
+def signals_held():
     """Hold the Python-level handlers of SIGINT, SIGTERM and SIGHUP, and deliver what came
     when the block ends: a KeyboardInterrupt raised while Dr.Jit's extension initialises
-    crashes the process (SIGSEGV)."""
+    crashes the process (SIGSEGV), and one raised while a checkpoint is written leaves none
+    (a second Ctrl-C during a render's first save lost every finished pass)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -359,7 +360,7 @@ def _signals_held():
 
 
 def _import_mitsuba():
-    """``import mitsuba`` (which starts Dr.Jit), with signals held (:func:`_signals_held`) and
+    """``import mitsuba`` (which starts Dr.Jit), with signals held (:func:`signals_held`) and
     Dr.Jit's own old-libLLVM message held back."""
     if "drjit" in sys.modules:  # started already: nothing left to protect or hold back
         import mitsuba
@@ -369,7 +370,7 @@ def _import_mitsuba():
 
     sys.stderr.flush()
     saved = os.dup(2)
-    with _signals_held(), tempfile.TemporaryFile() as capture:
+    with signals_held(), tempfile.TemporaryFile() as capture:
         os.dup2(capture.fileno(), 2)
         try:
             import mitsuba
@@ -500,7 +501,7 @@ def set_variant(variant: str | None = None, mono: bool = False) -> str:
         )
     if mi.variant() != name:
         try:
-            with _signals_held():  # the variant's modules are extensions too
+            with signals_held():  # the variant's modules are extensions too
                 mi.set_variant(name)
         except Exception as exc:  # noqa: BLE001 - turn Dr.Jit's message into one line
             raise BackendError(

@@ -8,6 +8,7 @@ names, types, defaults and help are the settings' own.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 
@@ -138,7 +139,7 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
     from . import folder as out_folder
     from .backend import BackendError
     from .raytools import require_ray
-    from .render import CheckpointWriteError, check_film_memory, checked_until_noise, checkpoint_disk_bytes, warn_outside_the_shutter
+    from .render import CheckpointWriteError, check_film_memory, checked_until_noise, checkpoint_disk_bytes, passes_in_checkpoint, warn_outside_the_shutter
     from .render import render as run_render
     from .scene import SceneError
     from .scenes import open_scene
@@ -147,6 +148,7 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
     output = output_folder(output, os.path.join("out", os.path.splitext(os.path.basename(scene))[0]))
     checkpoint = os.path.join(output, out_folder.CHECKPOINT)
     result = None
+    hold = contextlib.ExitStack()  # the output folder, held while this render writes it
     try:
         checked_checkpoint_interval(checkpoint_interval_s)
         if overwrite and resume:
@@ -174,13 +176,11 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
         settings = RenderSettings.build(base, layer, where=scene)
         if sensor is None:
             warn_outside_the_shutter(dyn, settings)
-            if not settings.cameras:
-                click.echo("note: no D-ToF camera (give --camera, or a dopplertof <integrator> in the scene file): "
-                           "intensity and ground truth only", err=True)
         width, height = dyn.resolution
         check_film_memory(width, height, len(settings.cameras), len(settings.windows))
         bytes_needed = out_folder.estimated_bytes(width, height, len(settings.cameras)) + checkpoint_disk_bytes(width, height, settings)
         out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=bytes_needed)
+        hold.enter_context(out_folder.held(output))
         if resume and not os.path.isfile(checkpoint):
             click.echo(f"note: no checkpoint in {os.path.abspath(output)}/ to continue: rendering from the start", err=True)
         executor = {"executor": "ray", "address": address, "workers": workers} if use_ray else {}
@@ -194,11 +194,12 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
         written = out_folder.write_result(result, output, metadata)
         if not result.interrupted and os.path.isfile(checkpoint):
             os.remove(checkpoint)
-    except KeyboardInterrupt:  # before the first pass, or a second signal while the result is saved or written
-        if os.path.isfile(checkpoint):
-            click.echo(f"error: interrupted while saving; the rendered sums are kept in {checkpoint!r} (continue with --resume)", err=True)
+    except KeyboardInterrupt:  # before the first pass, or a second signal (stop at once)
+        kept = passes_in_checkpoint(checkpoint) if os.path.isfile(checkpoint) else None
+        if kept:
+            click.echo(f"error: stopped at once; the checkpoint {checkpoint!r} keeps {kept} finished pass{'es' if kept > 1 else ''} (continue with --resume)", err=True)
         else:
-            click.echo("error: interrupted before the first pass finished; nothing written", err=True)
+            click.echo("error: stopped before a pass was saved; nothing written", err=True)
         sys.exit(stop.exit_status)
     except CheckpointWriteError as exc:
         again = "continue with the same command and --resume" if os.path.isfile(checkpoint) else "run the command again"
@@ -208,6 +209,8 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
     except OSError as exc:
         kept = f"; the rendered sums are kept in {checkpoint!r}: free space, then write the images with the same command and --resume" if result is not None and os.path.isfile(checkpoint) else ""
         fail(f"cannot write {output!r}: {exc.strerror or exc}{kept}")
+    finally:
+        hold.close()
     if result.interrupted:
         done = result.info["window_spp"]
         reached = f"{result.spp}" if len(done) == 1 else f"{', '.join(map(str, done))} (per exposure window)"
@@ -227,7 +230,8 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
         verdict = "reached" if reached <= until_noise else f"not reached within --spp {settings.spp}"
         spp = f"{result.spp} spp" if len(stopped["spp"]) == 1 else f"{', '.join(map(str, stopped['spp']))} spp (per exposure window)"
         click.echo(f"until-noise {until_noise:g} {verdict}: Monte Carlo error {reached:.3g} x the sensor's noise (95% of pixels) at {spp}")
-    click.echo(f"rendered {scene} at {result.spp} spp; images in {os.path.abspath(output)}/")
+    cameras = "" if result.cameras else " (no D-ToF camera: intensity and ground truth only; give --camera)"
+    click.echo(f"rendered {scene} at {result.spp} spp{cameras}; images in {os.path.abspath(output)}/")
     for path in written:
         click.echo(f"  {path}")
 

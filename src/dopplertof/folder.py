@@ -29,6 +29,7 @@ render's ``metadata.json`` (or checkpoint) names and nothing else.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -250,12 +251,62 @@ def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes
     if not overwrite:
         if CHECKPOINT in owned and METADATA not in owned:
             what = "an interrupted render (continue it with --resume)"
+        elif resume and _interrupted(parts):
+            what = "an interrupted render whose checkpoint is gone (nothing to resume from)"
         elif resume:
             what = "a finished render (nothing to resume: its checkpoint goes when a render completes)"
         else:
             what = "another render's files"
         raise ValueError(f"output folder {folder!r} holds {what}; use --overwrite to replace them, or another folder")
     _remove_files(parts, owned)
+
+
+def _interrupted(folder: str) -> bool:
+    """Whether the render in ``folder`` says it was interrupted (``metadata.json``)."""
+    try:
+        with open(os.path.join(folder, METADATA), encoding="utf-8") as f:
+            return json.load(f).get("interrupted") is True
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+LOCK = ".dopplertof.lock"
+
+
+@contextlib.contextmanager
+def held(folder: str):
+    """Hold ``folder`` for one command while it writes there: a second process that asks
+    for it meanwhile gets a ValueError (two renders into one folder both reported success
+    and left files of each). An exclusive ``flock`` on ``DIR/.dopplertof.lock``, which the
+    kernel releases when the process ends, however it ends; a no-op where flock is
+    unavailable.
+
+    Parameters
+    ----------
+    folder : str
+        An existing folder.
+
+    Raises
+    ------
+    ValueError
+        Another process holds it.
+    """
+    try:
+        import fcntl
+    except ImportError:  # not POSIX
+        yield
+        return
+    path = os.path.join(folder, LOCK)
+    with open(path, "a+b") as f:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ValueError(f"output folder {folder!r} is being written by another dopplertof process; wait for it to finish, or choose another folder") from None
+        try:
+            yield
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(path)  # before the lock goes, so the next holder makes its own
 
 
 def estimated_bytes(width: int, height: int, n_cameras: int) -> int:

@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .backend import signals_held
 from .io import NPZ_READ_ERRORS
 from .outputs import BY_NAME, ESTIMATES, TRUTH
 from .passes import MAX_COVARIANCE_CAMERAS, Accumulator, PassTracer, Reducer, schedule
@@ -334,8 +335,18 @@ def save_checkpoint(path, accs: list, key: str):
             np.savez(f, fingerprint=np.array(_digest(key)), fingerprint_text=np.array(key), **arrays)
 
 
-def _passes_in(path) -> int | None:
-    """Passes done that the checkpoint at ``path`` holds (all windows); None without one."""
+def passes_in_checkpoint(path) -> int | None:
+    """Passes done that the checkpoint at ``path`` holds (all windows).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    int or None
+        None where there is no readable checkpoint.
+    """
     try:
         with np.load(path, allow_pickle=False) as data:
             return sum(int(data[name][0]) for name in data.files if name.rpartition(".")[2] == "passes_done")
@@ -348,7 +359,7 @@ def _save_or_explain(path, accs: list, key: str, total_passes: int):
     try:
         save_checkpoint(path, accs, key)
     except OSError as exc:
-        kept = _passes_in(path)
+        kept = passes_in_checkpoint(path)
         what = "no earlier checkpoint is kept" if kept is None else f"the checkpoint of {kept} of {total_passes} passes is kept"
         raise CheckpointWriteError(exc.errno, f"cannot write the checkpoint {os.fspath(path)!r} ({exc.strerror or exc}); {what}") from exc
 
@@ -617,7 +628,8 @@ def render(
         done = sum(passes_done())
         if checkpoint is None or done == saved or not (due or time.monotonic() - last_save_s >= checkpoint_interval_s):
             return
-        _save_or_explain(checkpoint, accs, key, len(passes) * len(windows))
+        with signals_held():  # a signal is delivered once the checkpoint is whole
+            _save_or_explain(checkpoint, accs, key, len(passes) * len(windows))
         saved, last_save_s = done, time.monotonic()
 
     bar = None

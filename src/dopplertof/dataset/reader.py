@@ -112,11 +112,12 @@ class Dataset:
         # name: its tar would fail part way through reading (dataset verify checks the sums).
         self.damaged = [s["name"] for s in finished if _damaged(self.folder, s)]
         if self.damaged:
-            warnings.warn(f"{self.folder}: shard(s) {', '.join(self.damaged)} differ from their records and are left out; "
+            warnings.warn(f"{self.folder}: shard(s) {', '.join(self.damaged)} are missing or differ from their records and are left out; "
                           "rerun 'dopplertof dataset generate' with the same command to write them again", stacklevel=3)
         self._shards = [s for s in finished if s["name"] not in self.damaged]
         self._ends = list(itertools.accumulate(s["count"] for s in self._shards))  # cumulative sample counts
         self._index: dict = {}
+        self._verified: set = set()  # shards whose SHA-256 was checked (_checked)
         self._len = self._ends[-1] if self._ends else 0
 
     def __len__(self) -> int:
@@ -137,10 +138,21 @@ class Dataset:
         shard = self._shards[k]
         return shard, shard["first"] + i - (self._ends[k] - shard["count"])
 
+    def _checked(self, shard: dict) -> str:
+        """The path of ``shard``'s file, its SHA-256 checked against its record the first time
+        this dataset reads it (random bytes in a shard of the right size were read as data)."""
+        path = os.path.join(self.folder, shard["name"])
+        if shard["name"] not in self._verified:
+            if shards.sha256_file(path) != shard["sha256"]:
+                raise ValueError(f"{path}: its contents differ from its record (SHA-256): damaged since it was written; "
+                                 "'dopplertof dataset verify' lists such shards, and the same 'dataset generate' command writes them again")
+            self._verified.add(shard["name"])
+        return path
+
     def _members(self, shard: dict) -> dict:
         name = shard["name"]
         if name not in self._index:
-            with tarfile.open(os.path.join(self.folder, name)) as tar:
+            with tarfile.open(self._checked(shard)) as tar:
                 self._index[name] = {m.name: (m.offset_data, m.size) for m in tar.getmembers()}
         return self._index[name]
 
@@ -163,7 +175,7 @@ class Dataset:
 
     def __iter__(self):
         for shard in self._shards:
-            for key, sample in _samples_of(os.path.join(self.folder, shard["name"])):
+            for key, sample in _samples_of(self._checked(shard)):
                 yield {"__key__": key, **sample}
 
     def torch(self):

@@ -337,7 +337,8 @@ def read_manifest(folder: str) -> dict | None:
     except FileNotFoundError:
         return None
     except ValueError as exc:
-        raise ValueError(f"{os.path.join(folder, MANIFEST)} is not valid JSON ({exc})") from None
+        raise ValueError(f"{os.path.join(folder, MANIFEST)} is not valid JSON ({exc}); remove it: the same 'dataset generate' "
+                         "command rebuilds it from the shards' records") from None
 
 
 def rebuild_manifest(folder: str, header: dict, layout: list[tuple[int, int, int]]) -> dict:

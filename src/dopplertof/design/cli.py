@@ -26,6 +26,7 @@ the records it finished are read, the unfinished one continues from its checkpoi
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import glob
 import os
@@ -68,7 +69,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     """Sweep and optimise SENSOR's parameters on SCENES (one or more, or a dataset's: the
     objective averaged over them) from one render of each (its response record)."""
     from ..backend import signals_as_interrupt
-    from ..folder import check_writable, refuse_other_output
+    from ..folder import check_writable, held, refuse_other_output
     from ..io import read_record, write_exr, write_record
     from ..render import render
     from ..scene import SceneError
@@ -82,6 +83,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
     records_done = False
     stop = StopOnSignal()
     existed = os.path.isdir(output)  # a run that stops with nothing written leaves no folder it made
+    hold = contextlib.ExitStack()  # the output folder, held while this run writes it
     try:
         with signals_as_interrupt():  # the sweep and the optimiser stop at once, a render after its pass (stop)
             if not sweep_specs and not optimize_keys:
@@ -114,6 +116,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                 raise ValueError(f"{output!r} holds an earlier design run ({', '.join(earlier)}); choose another folder, --overwrite, or --resume to continue it")
             refuse_other_output(output, "design")
             check_writable(output)  # before the render: an unwritable folder fails first
+            hold.enter_context(held(output))
             if overwrite:  # an earlier run's checkpoints would be continued
                 for index in range(len(scenes)):
                     if os.path.exists(checkpoint_of(index)):
@@ -138,6 +141,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                         records.append(_resumed_record(path, read_record(path), scene, identity, spec, settings))
                         continue
                     checkpoint_kept = None if by_probes(settings) else checkpoint  # the paired correlations record through several renders
+                    check_writable(output, _record_disk_bytes(spec, dyn.resolution, settings, checkpoint_kept is not None))
                     resuming = f", continuing {os.path.basename(checkpoint)}" if checkpoint_kept and os.path.exists(checkpoint) else ""
                     click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp{resuming}", err=True)
                     with stop:  # SIGINT, SIGTERM, SIGHUP end the render after its pass in progress
@@ -204,22 +208,39 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                     click.echo(f"error: interrupted before the record was finished{kept}: continue with the same command and --resume", err=True)
                 else:
                     click.echo(f"error: interrupted before the record was finished{kept}", err=True)
-        _remove_if_made_and_empty(output, existed)
+        _release(hold, output, existed)
         sys.exit(128 + exc.signum if hasattr(exc, "signum") else stop.exit_status)
     except (ValueError, SceneError, FileNotFoundError) as exc:
-        _remove_if_made_and_empty(output, existed)
+        _release(hold, output, existed)
         fail(str(exc))
     except OSError as exc:
-        _remove_if_made_and_empty(output, existed)
-        fail(f"cannot write {output!r}: {exc.strerror or exc}")
+        kept = sorted(glob.glob(os.path.join(glob.escape(output), _checkpoint_name("record*.npz"))))
+        kept = f"; the rendered passes are kept in {', '.join(map(os.path.basename, kept))}: free space, then the same command with --resume" if kept else ""
+        _release(hold, output, existed)
+        fail(f"cannot write {output!r}: {exc.strerror or exc}{kept}")
+    hold.close()
     for path in written:
         click.echo(f"  {path}")
     sys.stdout.flush()
 
 
-def _remove_if_made_and_empty(folder: str, existed: bool) -> None:
+def _release(hold, folder: str, existed: bool) -> None:
+    """Let go of the output folder (``hold``), and remove it if this run made it and left
+    it empty (a refused or stopped run)."""
+    hold.close()
     if not existed and os.path.isdir(folder) and not os.listdir(folder):
         os.rmdir(folder)
+
+
+def _record_disk_bytes(spec, resolution, settings, checkpointed: bool) -> int:
+    """Disk space a record needs while it renders (bytes): the record file and, with a
+    checkpoint, the render's checkpoint with the record's Float64 sums (about twice the
+    record's complex64 size), twice while a save replaces the previous one."""
+    from ..render import checkpoint_disk_bytes
+
+    width, height = resolution
+    record = spec.bytes_per_pixel(len(settings.windows)) * width * height
+    return record + (checkpoint_disk_bytes(width, height, settings) + 4 * record if checkpointed else 0)
 
 
 def _checkpoint_name(record_name: str) -> str:

@@ -8,10 +8,11 @@ finishes in seconds). Bad input prints one line ``error: ...`` and exits with st
 from __future__ import annotations
 
 import contextlib
+import functools
+import json
+import os
 import signal
 import sys
-import functools
-import os
 
 import click
 
@@ -94,7 +95,7 @@ def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo,
     a function of the scene giving its depth when neither the option nor the scene does
     (default the render's)."""
     from .. import scenes
-    from ..folder import check_writable, refuse_other_output
+    from ..folder import check_writable, held, refuse_other_output
     from ..raytools import require_ray
     from .common import DEFAULT_MAX_DEPTH, ReferenceCache, default_cache_dir, open_scene
 
@@ -108,7 +109,9 @@ def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo,
     folder = output_folder(output, os.path.join("out", "experiments", name, scene.label))
     cache_folder = cache or default_cache_dir()
     refuse_other_output(folder, "experiment")  # an experiment's own earlier tables it replaces
+    _refuse_another_experiment(folder, _METADATA_NAMES.get(name, name))
     check_writable(folder)  # before any rendering, not when its results are due
+    _HELD.enter_context(held(folder))  # until the command ends (_experiment_command)
     try:
         check_writable(cache_folder)
     except ValueError as exc:
@@ -119,6 +122,27 @@ def _prepare(name, scene_arg, output, resolution, quick, cache, max_depth, echo,
     if max_depth is None:
         max_depth = default_depth(scene) if default_depth else scene.max_depth if scene.max_depth is not None else DEFAULT_MAX_DEPTH
     return scene, folder, cache, max_depth
+
+
+# The output folders this process's experiment command holds while it writes them
+# (:func:`dopplertof.folder.held`), let go when the command ends.
+_HELD = contextlib.ExitStack()
+# The experiment a command writes into metadata.json, where it is not the command's name.
+_METADATA_NAMES = {"paper-fig15": "shifts"}
+
+
+def _refuse_another_experiment(folder: str, own: str) -> None:
+    """ValueError where ``folder`` holds another experiment's tables: this one would replace
+    its results.csv and metadata.json and leave its plots (a mixed folder)."""
+    from ..folder import METADATA
+
+    try:
+        with open(os.path.join(folder, METADATA), encoding="utf-8") as f:
+            earlier = json.load(f).get("experiment")
+    except (OSError, ValueError, AttributeError):
+        return
+    if isinstance(earlier, str) and earlier != own:
+        raise ValueError(f"{folder!r} holds the {earlier!r} experiment's tables; this one ({own!r}) would replace them and leave its plots: choose another folder")
 
 
 def _estimators(time_samplings, correlations, quick):
@@ -164,7 +188,7 @@ def _experiment_command(name, defaults=(NORMAL, QUICK), depth_help=_DEPTH_HELP):
     def wrap(function):
         @functools.wraps(function)
         def run(**kwargs):
-            with _one_line_errors():
+            with _one_line_errors(), _HELD:
                 _check_counts(kwargs)
                 function(**kwargs)
 
