@@ -196,6 +196,19 @@ def test_reconstruct_command_refuses_a_folder_that_lost_part_of_its_errors(rende
     assert not (tmp_path / "velocity_reconstructed.exr").exists()
 
 
+def test_reconstruct_refuses_a_measurement_changed_after_the_render(rendered, tmp_path):
+    """Random bytes in a measurement's EXR (its size kept) were read as measurements: values
+    up to 1.8e38 and velocities off by 0.22 m/s, exit 0."""
+    write_result(rendered, tmp_path)
+    (measurement,) = tmp_path.glob("measurement_0_*[0-9]deg.exr")
+    data = bytearray(measurement.read_bytes())
+    data[400:430] = bytes(range(30))
+    measurement.write_bytes(bytes(data))
+    code, output = run_reconstruct(tmp_path)
+    assert code == 2 and output.strip().splitlines() == [
+        f"error: {tmp_path}: {measurement.name} changed since the render wrote it (SHA-256 in metadata.json); render again, or restore it"]
+
+
 # ------------------------------------------------------------------ calibrated validity
 
 

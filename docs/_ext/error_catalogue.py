@@ -292,6 +292,7 @@ TOPICS = [
         ("field … is not rendered for this capture set", "a camera covariance needs 2 to 8 cameras", "remove the field from the config's fields"),
         ("… is not valid JSON (…); remove it: the same 'dataset generate' command rebuilds it from the shards' records", "the manifest is damaged", "remove `dataset.json` and run the same `dataset generate` command: it rebuilds the manifest"),
         ("…: its contents differ from its record (SHA-256): damaged since it was written; 'dopplertof dataset verify' lists such shards, and the same 'dataset generate' command writes them again", "a shard's bytes changed after it was written (same size, other contents)", "`dataset verify`, then the same `dataset generate` command"),
+        ("…: … changed since the render wrote … (SHA-256 in …); render again, or restore …", "a render folder's file was edited or damaged after the render wrote it (its bytes are not those `metadata.json` records)", "render again, or restore the file"),
     ]),
     ("Sensors", "`--sensor PRESET|FILE.toml` (see [sensors](sensors.md)).", [
         ("--sensor …: neither a preset (…) nor a .toml file", "`--sensor` names no preset and no file", "a preset listed or a TOML file"),

@@ -18,6 +18,7 @@ file                   content
                        keeps the sensor and the schedule of its frames (``"sensor"``)
 ``metadata.json``      written last: scene, film, settings, cameras, spp done and asked,
                        versions, variant, device, render time, command line, the files
+                       and their SHA-256 (``reconstruct`` refuses a file changed since)
 =====================  ==================================================================
 
 Every file is written under a temporary name and renamed (:func:`dopplertof.io.atomic_path`),
@@ -397,6 +398,8 @@ def write_result(result, folder: str, metadata: dict | None = None) -> list[str]
         "render": result.info,
         "versions": versions(),
         "files": written + ([CHECKPOINT] if result.interrupted and os.path.isfile(os.path.join(folder, CHECKPOINT)) else []),
+        # what reading the folder checks its files against: a changed or damaged file is not read as data
+        "sha256": {name: io.sha256_file(os.path.join(folder, name)) for name in written},
     }
     io.write_json(os.path.join(folder, METADATA), meta)
     return [os.path.join(folder, name) for name in written + [METADATA]]

@@ -28,6 +28,7 @@ RGB(A) images and the stored (alphabetical) order otherwise.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import re
@@ -452,6 +453,25 @@ def _to_jsonable(obj: Any) -> Any:
     if isinstance(obj, os.PathLike):
         return os.fspath(obj)
     return obj
+
+
+def sha256_file(path: str) -> str:
+    """The SHA-256 of the file at ``path``, as hex digits (read in 1 MiB blocks).
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    str
+        64 hex digits.
+    """
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def write_json(path: PathLike, obj: Any) -> Path:

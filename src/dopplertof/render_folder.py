@@ -334,6 +334,19 @@ def _measurement_file(folder: str, index: int) -> str:
     return found[0]
 
 
+def _check_unchanged(folder: str, metadata: dict) -> None:
+    """ValueError naming the files of ``folder`` whose SHA-256 is not what the render
+    recorded (``metadata.json``'s ``sha256``; a render older than it records none): random
+    bytes in a measurement's EXR were read as measurements."""
+    recorded = metadata.get("sha256")
+    if not isinstance(recorded, dict):
+        return
+    changed = [name for name, digest in recorded.items() if os.path.isfile(os.path.join(folder, name)) and io.sha256_file(os.path.join(folder, name)) != digest]
+    if changed:
+        raise ValueError(f"{folder}: {', '.join(changed)} changed since the render wrote {'them' if len(changed) > 1 else 'it'} "
+                         f"(SHA-256 in {METADATA_FILE}); render again, or restore {'them' if len(changed) > 1 else 'it'}")
+
+
 def read_render_folder(folder: str):
     """Cameras, measurements and ground truth of a ``dopplertof render`` output folder.
 
@@ -368,6 +381,7 @@ def read_render_folder(folder: str):
         cameras = cameras[: metadata["sensor"]["frame_cameras"]]  # the rest measure a sensor's mean light
     if not cameras:
         raise ValueError(f"{folder}: the render has no D-ToF camera; render with e.g. --camera h=0,psi=0 --camera h=0,psi=90deg --camera h=1,psi=0 --camera h=1,psi=90deg")
+    _check_unchanged(folder, metadata)
     images = [io.read_exr(_measurement_file(folder, i)) for i in range(len(cameras))]
     shapes = {m.shape for m in images}
     if len(shapes) != 1 or len(next(iter(shapes))) != 2:

@@ -20,6 +20,7 @@ import warnings
 
 import numpy as np
 
+from ..io import sha256_file
 from . import shards
 
 
@@ -143,7 +144,7 @@ class Dataset:
         this dataset reads it (random bytes in a shard of the right size were read as data)."""
         path = os.path.join(self.folder, shard["name"])
         if shard["name"] not in self._verified:
-            if shards.sha256_file(path) != shard["sha256"]:
+            if sha256_file(path) != shard["sha256"]:
                 raise ValueError(f"{path}: its contents differ from its record (SHA-256): damaged since it was written; "
                                  "'dopplertof dataset verify' lists such shards, and the same 'dataset generate' command writes them again")
             self._verified.add(shard["name"])

@@ -31,6 +31,8 @@ import tarfile
 
 import numpy as np
 
+from ..io import sha256_file
+
 MANIFEST = "dataset.json"
 RECORDS = ".manifest"
 SHARD_PATTERN = "shard-{:06d}.tar"
@@ -185,25 +187,6 @@ def shard_bytes(samples) -> bytes:
             data = dumps_json(record)
             tar.addfile(_member(f"{key}.json", len(data)), io.BytesIO(data))
     return buf.getvalue()
-
-
-def sha256_file(path: str) -> str:
-    """The SHA-256 of the file at ``path``, as hex digits (read in 1 MiB blocks).
-
-    Parameters
-    ----------
-    path : str
-
-    Returns
-    -------
-    str
-        64 hex digits.
-    """
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def write_shard(folder: str, index: int, first: int, samples) -> dict:
