@@ -141,11 +141,7 @@ def output_kind(folder: str) -> str | None:
     if names & set(DESIGN_OUTPUTS) or any(re.fullmatch(r"record(_\d+)?(\.checkpoint)?\.npz", name) for name in names):  # record_<i>: one per scene
         return "design"
     if METADATA in names:
-        try:
-            with open(os.path.join(folder, METADATA), encoding="utf-8") as f:
-                return "experiment" if "experiment" in json.load(f) else "render"
-        except (OSError, ValueError):
-            return "render"
+        return "experiment" if "experiment" in (read_metadata(folder) or {}) else "render"
     return "render" if CHECKPOINT in names else None
 
 
@@ -252,7 +248,7 @@ def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes
     if not overwrite:
         if CHECKPOINT in owned and METADATA not in owned:
             what = "an interrupted render (continue it with --resume)"
-        elif resume and _interrupted(parts):
+        elif resume and (read_metadata(parts) or {}).get("interrupted") is True:
             what = "an interrupted render whose checkpoint is gone (nothing to resume from)"
         elif resume:
             what = "a finished render (nothing to resume: its checkpoint goes when a render completes)"
@@ -262,13 +258,24 @@ def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes
     _remove_files(parts, owned)
 
 
-def _interrupted(folder: str) -> bool:
-    """Whether the render in ``folder`` says it was interrupted (``metadata.json``)."""
+def read_metadata(folder: str) -> dict | None:
+    """The ``metadata.json`` of ``folder`` as a dict; None where there is none, or it is
+    not a JSON object.
+
+    Parameters
+    ----------
+    folder : str
+
+    Returns
+    -------
+    dict or None
+    """
     try:
         with open(os.path.join(folder, METADATA), encoding="utf-8") as f:
-            return json.load(f).get("interrupted") is True
-    except (OSError, ValueError, AttributeError):
-        return False
+            metadata = json.load(f)
+    except (OSError, ValueError):
+        return None
+    return metadata if isinstance(metadata, dict) else None
 
 
 LOCK = ".dopplertof.lock"

@@ -201,7 +201,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
             if records_done:
                 click.echo(f"error: interrupted after the records were read{kept}", err=True)
             else:
-                checkpoints = sorted(glob.glob(os.path.join(glob.escape(output), _checkpoint_name("record*.npz"))))
+                checkpoints = _kept_checkpoints(output)
                 if checkpoints:
                     passes = f"the rendered passes in {', '.join(map(os.path.basename, checkpoints))}"
                     kept = f"{kept} and {passes}" if written else f"; kept {passes}"
@@ -214,7 +214,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
         _release(hold, output, existed)
         fail(str(exc))
     except OSError as exc:
-        kept = sorted(glob.glob(os.path.join(glob.escape(output), _checkpoint_name("record*.npz"))))
+        kept = _kept_checkpoints(output)
         kept = f"; the rendered passes are kept in {', '.join(map(os.path.basename, kept))}: free space, then the same command with --resume" if kept else ""
         _release(hold, output, existed)
         fail(f"cannot write {output!r}: {exc.strerror or exc}{kept}")
@@ -246,6 +246,11 @@ def _record_disk_bytes(spec, resolution, settings, checkpointed: bool) -> int:
 def _checkpoint_name(record_name: str) -> str:
     """The checkpoint of the record file ``record_name`` while it renders."""
     return record_name[: -len(".npz")] + ".checkpoint.npz"
+
+
+def _kept_checkpoints(folder: str) -> list[str]:
+    """The records' checkpoints in ``folder`` (an interrupted run's rendered passes)."""
+    return sorted(glob.glob(os.path.join(glob.escape(folder), _checkpoint_name("record*.npz"))))
 
 
 def _resumed_record(path, record, name, identity, spec, settings):

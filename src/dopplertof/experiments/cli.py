@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import json
 import os
 import signal
 import sys
@@ -134,13 +133,9 @@ _METADATA_NAMES = {"paper-fig15": "shifts"}
 def _refuse_another_experiment(folder: str, own: str) -> None:
     """ValueError where ``folder`` holds another experiment's tables: this one would replace
     its results.csv and metadata.json and leave its plots (a mixed folder)."""
-    from ..folder import METADATA
+    from ..folder import read_metadata
 
-    try:
-        with open(os.path.join(folder, METADATA), encoding="utf-8") as f:
-            earlier = json.load(f).get("experiment")
-    except (OSError, ValueError, AttributeError):
-        return
+    earlier = (read_metadata(folder) or {}).get("experiment")
     if isinstance(earlier, str) and earlier != own:
         raise ValueError(f"{folder!r} holds the {earlier!r} experiment's tables; this one ({own!r}) would replace them and leave its plots: choose another folder")
 
