@@ -28,7 +28,7 @@ import numpy as np
 
 from .. import io, reconstruct, viz
 from ..outputs import MOVING_PIXEL_M_S
-from ..reconstruct.errors import _covariance
+from ..reconstruct.errors import covariance_from_errors
 from ..sensor import SensorModel, luminance
 from .common import (
     REFERENCE_ESTIMATOR,
@@ -237,7 +237,7 @@ def run_velocity(
         # The render's covariance, plus the sensor's own noise (independent between cameras)
         # for the noisy measurements: the reconstruction marks as invalid what they cannot resolve.
         # (a cache older than the covariance gives the standard errors alone)
-        covariance = _covariance(result.measurement_stderr, result.maps.get("measurement_covariance"), result.measurements.shape)
+        covariance = covariance_from_errors(result.measurement_stderr, result.maps.get("measurement_covariance"), result.measurements.shape)
         noisy_covariance = covariance.copy()
         for i, (measurement, camera) in enumerate(zip(result.measurements, cameras)):
             noisy_covariance[i, i] += sensor.measurement_std(luma, measurement, camera) ** 2

@@ -63,8 +63,28 @@ def default_max_velocity_stderr(velocity_m_s, velocity_stderr_m_s) -> tuple[floa
         f"(--max-velocity-stderr) to accept noisier pixels")
 
 
-def _covariance(stderr, covariance, shape):
-    """(n, n, pixels...) covariance from either argument, or None."""
+def covariance_from_errors(stderr, covariance, shape):
+    """The measurements' covariance from either description of their errors.
+
+    Parameters
+    ----------
+    stderr : array_like, shape ``shape``, or None
+        Per-camera standard errors (uncorrelated cameras); NaN where unknown.
+    covariance : array_like, shape (n, n) + ``shape[1:]``, or None
+        The full covariance; it wins over ``stderr``.
+    shape : tuple
+        (n_cameras, pixels...) of the measurements.
+
+    Returns
+    -------
+    ndarray, shape (n, n) + ``shape[1:]``, or None
+        None where neither is given.
+
+    Raises
+    ------
+    ValueError
+        A shape that is not the measurements', or a negative standard error.
+    """
     n = shape[0]
     if covariance is not None:
         c = np.asarray(covariance, dtype=np.float64)

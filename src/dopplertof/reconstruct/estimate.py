@@ -9,7 +9,7 @@ import numpy as np
 
 from ..modulation import SPEED_OF_LIGHT_M_S
 from ..validation import checked
-from .errors import _covariance, _gradients, _stderr, _velocity_floor_m_s, default_max_velocity_stderr
+from .errors import _gradients, _stderr, _velocity_floor_m_s, covariance_from_errors, default_max_velocity_stderr
 from .fit import _depth_and_amplitude, _velocity_fit
 from .frequencies import _frequency_groups, beat_range_m, inverse_variance_weights, unwrap_depth
 from .identify import _PROBE_DOPPLER_PHASE, _column_rank, _velocity_identifiable
@@ -212,7 +212,7 @@ def velocity(
             raise ValueError(f"max_velocity_stderr must be > 0 m/s, got {max_velocity_stderr!r}")
     if len(sets) > 1:
         _check_frequency_pair(sets)
-    covariance = _covariance(measurement_stderr, measurement_covariance, m.shape)
+    covariance = covariance_from_errors(measurement_stderr, measurement_covariance, m.shape)
     if covariance is None and max_velocity_stderr is not None:
         raise ValueError(
             f"max_velocity_stderr={max_velocity_stderr!r} m/s needs the measurements' errors "
