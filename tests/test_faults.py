@@ -783,6 +783,19 @@ def test_a_folder_another_process_is_writing_is_refused(tmp_path, command):
     assert not (out / LOCK).exists()
 
 
+def test_an_overwrite_into_a_folder_being_rendered_removes_nothing(tmp_path):
+    """--overwrite removed the running render's checkpoint before the hold refused it."""
+    from dopplertof.folder import held
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "checkpoint.npz").write_bytes(b"the running render's sums")
+    with held(str(out)):
+        run = _cli("render", "cornell-box", "--resolution", "4", "--spp", "2", "--overwrite", "-o", str(out))
+    assert run.returncode == 2 and "is being written by another dopplertof process" in run.stderr, run.stderr
+    assert (out / "checkpoint.npz").read_bytes() == b"the running render's sums"
+
+
 def test_an_experiment_into_another_experiments_folder_is_refused(tmp_path):
     """`experiment shifts` replaced a velocity experiment's results.csv and metadata.json and
     left its plots; the same experiment still replaces its own tables."""
