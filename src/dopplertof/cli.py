@@ -107,7 +107,7 @@ def scenes():
 @main.command()
 @click.argument("scene")
 @click.option("-o", "--output", "output", default=None, help="Output folder (default: out/<scene name>).")
-@click.option("--camera", "camera_specs", multiple=True, help="A camera, e.g. 'h=1,psi=0' or 'h=0,psi=90deg,f=30e6'. Repeatable. Keys: h, psi (rad or 90deg), f (Hz), T (s; default --exposure, else the scene's shutter interval), start (s: when its exposure opens), waveform, g1, g0, low_pass.")
+@click.option("--camera", "camera_specs", multiple=True, help="A camera, e.g. 'h=1,psi=0' or 'h=0,psi=90deg,f=30e6'. Repeatable. Keys (defaults those of dopplertof.Camera): h (default 1: heterodyne), psi (rad or 90deg; 0), f (Hz; 30e6), T (s; default --exposure, else the scene's shutter interval, else 1.5e-3), start (s: when its exposure opens; the shutter's, else 0), waveform (sinusoidal), g1 (0.5), g0 (0.5), low_pass (true).")
 @click.option("--sensor", "sensor_spec", default=None, metavar="PRESET|FILE.toml", help="Render a sensor's raw frames instead of --camera: a preset (mlx75027, opt8241, imx556, kinect-v2, dtof-prototype) or a TOML file (dopplertof.sensors.files). Writes raw_electrons.npy, raw_dn.npy and the schedule in metadata.json.")
 @click.option("--until-noise", "until_noise", type=float, default=None, metavar="RATIO", help="With --sensor: stop once the Monte Carlo error of the raw frames is at most RATIO x the sensor's own noise in 95% of the pixels (--spp is then the most it may take).")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")

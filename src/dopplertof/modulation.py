@@ -86,11 +86,14 @@ class Camera:
         (a wavelength over 3 km) it warns. Default 30 MHz.
     exposure : float, s. Exposure T, in (0, 60] s (:data:`MAX_EXPOSURE_S`). Default 1.5 ms.
     heterodyne : float. h, beat cycles per exposure (0 homodyne, 1 "perfect" heterodyne).
-    phase : float, rad. Sensor phase offset ψ.
+        Default 1: a camera given no h is heterodyne (``h=0`` for a homodyne one).
+    phase : float, rad. Sensor phase offset ψ. Default 0.
     waveform : str. One of ``sinusoidal``, ``rectangular``, ``triangular``, ``trapezoidal``.
+        Default ``sinusoidal``.
     g1, g0 : float. Light modulation amplitude (> 0; >= 0 with codes) and DC offset (>= 0; g0 enters
-        full-waveform only, and, for codes, the low-pass weight as g0 s̄).
+        full-waveform only, and, for codes, the low-pass weight as g0 s̄). Default 0.5 each.
     low_pass : bool. Low-pass (correlation) model if True, else the full waveform product.
+        Default True.
     light_code, sensor_code : array_like or :class:`dopplertof.codes.Code`, optional.
         One period of the light modulation g and of the sensor demodulation s as sampled
         chips (1-D, N >= 8 samples, binary or not) or Fourier coefficients
@@ -104,7 +107,7 @@ class Camera:
         opens; None: the render's ``exposure_start``. Its window is
         [exposure_start, exposure_start + exposure]: configurations with the same window
         share paths, each other window is traced with its own (a capture schedule, such as
-        four phase images one after another; README "Capture schedules").
+        four phase images one after another; docs/reconstruction.md, "Capture schedules").
 
     Examples
     --------

@@ -17,8 +17,8 @@ for replay to depth 3 is reconnection, not an error, and a caller's cameras set 
 scene whose sensor has a shutter interval.
 
 Each field of :class:`RenderSettings` declares its kind, unit, default, meaning and range
-in its metadata; :meth:`RenderSettings.table` lists them (the README's table and the
-command-line help come from it).
+in its metadata; :meth:`RenderSettings.table` lists them (the docs' settings table,
+docs/cli.md "Render settings", and the command-line help come from it).
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ class RenderSettings:
     stratify_intervals: bool = _setting(True, "bool", "", "stratify each time interval over the pixel's groups, two groups per stratum")
     correlation: str = _setting("replay", "str", "", "how the paths of a group are correlated", choices=MODES)
     correlation_depth: int | None = _setting(
-        None, "int", "", "replay cut-off: 0 none, 1 pixel, k: pixel + k-1 bounces (replay only)",
+        None, "int", "", "replay cut-off: 0 none, 1 pixel, k: pixel + k-1 bounces (replay only; default: every bounce)",
         minimum=0, follows="correlation", optional=True,
     )  # fmt: skip
     reconnection_threshold: float | None = _setting(
@@ -297,7 +297,7 @@ class RenderSettings:
 
     @staticmethod
     def table() -> list[tuple[str, str, str, str]]:
-        """(name, unit, default, meaning) of every setting, for help texts and the README.
+        """(name, unit, default, meaning) of every setting, for help texts and the docs.
 
         Returns
         -------
@@ -482,7 +482,7 @@ def integrator_layer(params: dict, where: str = "integrator") -> dict:
 
     ``dopplertof``/``dopplertofpath`` take the original M3 names (reference §8.2) and the
     SI names (an SI name together with the original one it replaces is an error); the
-    original names accepted are listed in the README. A stock path-tracing integrator
+    original names accepted are listed in docs/scene-format.md. A stock path-tracing integrator
     (:data:`STOCK_PATH_INTEGRATORS`) gives ``max_depth``, ``rr_depth`` and
     ``hide_emitters``, each Mitsuba's default where the file leaves it out
     (:data:`STOCK_PATH_DEFAULTS`: ``<integrator type="path"/>`` is unbounded, as in

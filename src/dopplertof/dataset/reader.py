@@ -1,7 +1,7 @@
 """Reading a dataset: :func:`open_dataset` (``dopplertof.dataset.open``) and a PyTorch adapter.
 
 The shards are plain tar files of ``.npy`` and ``.json`` members, so ``tarfile`` and numpy
-alone read them (README, "Datasets"), and so does the ``webdataset`` package::
+alone read them (docs/datasets.md), and so does the ``webdataset`` package::
 
     import webdataset as wds
     ds = wds.WebDataset("DIR/shard-{000000..000003}.tar").decode()   # sample["measurements.npy"], sample["json"]

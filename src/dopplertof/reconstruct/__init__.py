@@ -80,7 +80,7 @@ velocities averaged and their depths unwrapped to c/(2 |f_1 − f_2|)
 (:mod:`dopplertof.reconstruct.frequencies`).
 
 Capture schedules. Cameras may expose at different times (``exposure_start``, s: a
-render's cameras one after another, README "Capture schedules"). The model then takes
+render's cameras one after another, docs/reconstruction.md, "Capture schedules"). The model then takes
 each pixel to see *one* path over the whole schedule, its length growing at a constant
 rate and its radiance constant (β = 0: with β free, four windows of four cameras leave
 several exact solutions): camera i, whose window opens δ_i = (s_i − s_0)/T

@@ -150,7 +150,7 @@ def velocity(
         ``"auto"`` uses the fit for sinusoidal cameras, else the ratio.
     max_doppler_hz : float, optional
         Fit only: the search range |Δf| (Hz); default 1/(2T), i.e. |a| ≤ π. At f_g = 30
-        MHz, T = 1.5 ms that is |v| ≤ 1665 m/s.
+        MHz, T = 1.5 ms that is |v| ≤ 1666 m/s.
 
     Returns
     -------

@@ -266,7 +266,7 @@ class Sink:
 
         The original ramped a contribution missing at the end to zero (L held) and dropped
         one missing at the start; holding it constant was this package's earlier rule. Both
-        are further from the unbiased estimate (README, ``benchmarks/analytic_bias.py``).
+        are further from the unbiased estimate (docs/estimators.md, "Measured: the analytic mode's bias"; ``benchmarks/analytic_bias.py``).
 
         Parameters
         ----------
