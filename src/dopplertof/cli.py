@@ -179,9 +179,7 @@ def _render(stop, scene, output, camera_specs, sensor_spec, until_noise, resolut
         width, height = dyn.resolution
         check_film_memory(width, height, len(settings.cameras), len(settings.windows))
         bytes_needed = out_folder.estimated_bytes(width, height, len(settings.cameras)) + checkpoint_disk_bytes(width, height, settings)
-        out_folder.check_writable(output, bytes_needed)  # makes the folder, to hold it before anything in it is removed
-        hold.enter_context(out_folder.held(output))
-        out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=bytes_needed)
+        out_folder.prepare(output, overwrite=overwrite, resume=resume, bytes_needed=bytes_needed, hold=hold)
         if resume and not os.path.isfile(checkpoint):
             click.echo(f"note: no checkpoint in {os.path.abspath(output)}/ to continue: rendering from the start", err=True)
         executor = {"executor": "ray", "address": address, "workers": workers} if use_ray else {}

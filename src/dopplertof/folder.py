@@ -92,14 +92,8 @@ def _owned_files(folder: str) -> list[str]:
     """The files of the render in ``folder`` (from its metadata), checkpoint and
     reconstruction included."""
     files = []
-    meta = os.path.join(folder, METADATA)
-    if os.path.isfile(meta):
-        try:
-            with open(meta, encoding="utf-8") as f:
-                files = list(json.load(f).get("files", []))
-        except (OSError, ValueError):
-            files = []
-        files.append(METADATA)
+    if os.path.isfile(os.path.join(folder, METADATA)):
+        files = [*(read_metadata(folder) or {}).get("files", []), METADATA]
     files += _reconstruction_files(folder)
     if os.path.isfile(os.path.join(folder, CHECKPOINT)):
         files.append(CHECKPOINT)
@@ -211,7 +205,7 @@ def check_writable(folder: str, bytes_needed: int = 0) -> str:
     return parts
 
 
-def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes_needed: int = 0) -> None:
+def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes_needed: int = 0, hold=None) -> None:
     """Check (and create) a render's output folder before any rendering; ValueError if
     unusable (:func:`check_writable`) or holding another render (its ``metadata.json``
     or checkpoint), unless ``overwrite`` (which removes that render's files) or
@@ -227,17 +221,23 @@ def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes
         Continue the checkpoint found there.
     bytes_needed : int, bytes, default 0
         Free space the render's files need.
+    hold : contextlib.ExitStack, optional
+        Takes the folder's hold (:func:`held`) as soon as the folder exists, before
+        anything in it is removed (another process's half-written files, or with
+        ``overwrite`` its render); it lasts until the stack is closed.
 
     Raises
     ------
     ValueError
-        An unusable folder, or one holding another render (without ``overwrite`` or
-        ``resume``).
+        An unusable folder, one another process holds, or one holding another render
+        (without ``overwrite`` or ``resume``).
     """
     from .io import remove_stale_partials
 
     refuse_other_output(folder, "render")
     parts = check_writable(folder, bytes_needed)
+    if hold is not None:
+        hold.enter_context(held(parts))
     remove_stale_partials(parts)  # a killed render's half-written files: no one's data
     owned = _owned_files(parts)
     if not owned:

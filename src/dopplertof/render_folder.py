@@ -416,14 +416,6 @@ def read_depth_truth(folder: str):
     return depth
 
 
-def read_light_sources_in_motion(folder: str) -> list:
-    """The render's lights that move on their own and its emitting moving bodies
-    (``metadata.json``'s ``render.light_sources_in_motion``; empty where an older render
-    does not say)."""
-    names = io.read_json(os.path.join(folder, METADATA_FILE)).get("render", {}).get("light_sources_in_motion")
-    return names if isinstance(names, list) else []
-
-
 def ground_truth_note(light_sources_in_motion: list) -> str | None:
     """Why the comparison with the ground truth is no error measure where light sources move
     (:meth:`~dopplertof.scene.DynamicScene.light_sources_in_motion`), else None."""
@@ -434,11 +426,14 @@ def ground_truth_note(light_sources_in_motion: list) -> str | None:
             f"a moving emitter is one-way, half a round trip), so the difference is not an error of the reconstruction")
 
 
-def read_stderr_dof(folder: str) -> int | None:
-    """The degrees of freedom of the render's standard errors (``metadata.json``'s
-    ``render.stderr_dof``), or None where a render older than it does not say."""
-    dof = io.read_json(os.path.join(folder, METADATA_FILE)).get("render", {}).get("stderr_dof")
-    return dof if isinstance(dof, int) and not isinstance(dof, bool) else None
+def read_render_info(folder: str) -> tuple[int | None, list]:
+    """What ``metadata.json``'s ``render`` says of the render's errors and lights: the
+    degrees of freedom of its standard errors (``stderr_dof``) and its lights that move on
+    their own and emitting moving bodies (``light_sources_in_motion``); None and [] where
+    a render older than them does not say."""
+    info = io.read_json(os.path.join(folder, METADATA_FILE)).get("render", {})
+    dof, lights = info.get("stderr_dof"), info.get("light_sources_in_motion")
+    return (dof if isinstance(dof, int) and not isinstance(dof, bool) else None), (lights if isinstance(lights, list) else [])
 
 
 def reconstruct_folder(folder: str, output: str | None = None, method: str | None = None,
@@ -474,8 +469,9 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
     cameras, measurements, truth, stderr, covariance = read_render_folder(folder)
     check_writable(output or folder)
     depth_truth = read_depth_truth(folder)
+    stderr_dof, light_sources_in_motion = read_render_info(folder)
     try:
-        result = reconstruct(measurements, cameras, method, stderr, covariance, max_velocity_stderr, read_stderr_dof(folder))
+        result = reconstruct(measurements, cameras, method, stderr, covariance, max_velocity_stderr, stderr_dof)
     except ValueError as no_velocity:
         try:
             depth_m = rc.depth(measurements, cameras)
@@ -483,7 +479,7 @@ def reconstruct_folder(folder: str, output: str | None = None, method: str | Non
             raise no_velocity from None
         written, info = write_depth(output or folder, depth_m, cameras, depth_truth, str(no_velocity))
         return None, written, info
-    note = ground_truth_note(read_light_sources_in_motion(folder))
+    note = ground_truth_note(light_sources_in_motion)
     written = write_reconstruction(output or folder, result, truth, depth_truth_m=depth_truth, ground_truth_note=note)
     info = summary(result, depth_truth)
     if truth is not None:

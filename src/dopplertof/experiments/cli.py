@@ -22,10 +22,11 @@ from ..timesampling import METHODS
 NORMAL = {"resolution": 64, "spp": 256, "reference_spp": 16384, "h_steps": 11, "phases": 4, "shift_steps": 11}
 QUICK = {"resolution": 16, "spp": 16, "reference_spp": 256, "h_steps": 3, "phases": 2, "shift_steps": 3}
 QUICK_CORRELATIONS = ("none", "replay")  # the extremes; every mode still runs without --quick
-VELOCITY_QUICK = {**QUICK, "spp": 64, "reference_spp": 1024}
-"""``experiment velocity``'s smoke test: 64 spp, the fewest at which antithetic renders' errors
-have the 15 degrees of freedom a valid pixel needs (:data:`~dopplertof.reconstruct.MIN_STDERR_DOF`;
-at 16 spp every compared estimator had none, and only the reference had numbers)."""
+VELOCITY_DEFAULTS = (NORMAL, {**QUICK, "spp": 64, "reference_spp": 1024})
+"""``experiment velocity``'s settings and smoke test: 64 spp, the fewest at which antithetic
+renders' errors have the 15 degrees of freedom a valid pixel needs
+(:data:`~dopplertof.reconstruct.MIN_STDERR_DOF`; at 16 spp every compared estimator had
+none, and only the reference had numbers)."""
 PAPER = {"resolution": 64, "spp": 1024, "reference_spp": 131072, "h_steps": 11, "phase_steps": 11, "shift_steps": 11}
 """The original scripts' protocol (:mod:`.paper`; their films were 256², built-in scenes here default to 64²)."""
 PAPER_QUICK = {"resolution": 16, "spp": 16, "reference_spp": 256, "h_steps": 3, "phase_steps": 5, "shift_steps": 3}
@@ -248,7 +249,7 @@ def shifts_command(scene, output, spp, reference_spp, resolution, seed, max_dept
     _report(run_shifts(dyn, folder, methods, shift_values, correlation, settings, cache, click.echo))
 
 
-@_experiment_command("velocity", defaults=(NORMAL, VELOCITY_QUICK))
+@_experiment_command("velocity", defaults=VELOCITY_DEFAULTS)
 @click.option("--time-sampling", "time_samplings", multiple=True, help="Time sampling; repeatable, crossed with --correlation (default: uniform/none, stratified/replay, antithetic/replay).")
 @click.option("--correlation", "correlations", multiple=True, help=f"Correlation mode; repeatable ({', '.join(MODES)}).")
 @click.option("--signal-electrons", type=float, default=20000.0, show_default=True, help="Photo-electrons of the 99th-percentile pixel per exposure, both taps.")
@@ -260,10 +261,9 @@ def velocity_command(scene, output, spp, reference_spp, resolution, seed, max_de
         estimators = _estimators(time_samplings, correlations or ("replay",), quick)
     else:
         estimators = list(DEFAULT_ESTIMATORS)
-    quick_defaults = (NORMAL, VELOCITY_QUICK)
-    dyn, folder, cache, max_depth = _prepare("velocity", scene, output, resolution, quick, cache, max_depth, click.echo, use_ray, address, defaults=quick_defaults)
+    dyn, folder, cache, max_depth = _prepare("velocity", scene, output, resolution, quick, cache, max_depth, click.echo, use_ray, address, defaults=VELOCITY_DEFAULTS)
     _report(run_velocity(
-        dyn, folder, estimators, _setting("spp", spp, quick, quick_defaults), _setting("reference_spp", reference_spp, quick, quick_defaults),
+        dyn, folder, estimators, _setting("spp", spp, quick, VELOCITY_DEFAULTS), _setting("reference_spp", reference_spp, quick, VELOCITY_DEFAULTS),
         seed, max_depth, signal_electrons, cache, click.echo,
     ))  # fmt: skip
 
