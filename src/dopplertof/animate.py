@@ -49,6 +49,7 @@ from .clitools import StopOnSignal, cameras_layer, fail, given_settings, output_
 
 from . import io, viz
 from .differences import differences
+from .folder import ANIMATION_SETTINGS
 from .modulation import Camera
 from .reconstruct import MIN_STDERR_DOF
 from .render_folder import describe_error, errors_from, ground_truth_note, reconstruct, resolve_method, velocity_error, write_reconstruction
@@ -57,7 +58,7 @@ DEFAULT_FPS = 30.0
 DEFAULT_CAMERAS = tuple((h, psi) for h in (0.0, 1.0) for psi in (0.0, math.pi / 2))
 """(heterodyne h, phase ψ in rad) of the default cameras."""
 
-SETTINGS_FILE = "animation.json"
+SETTINGS_FILE = ANIMATION_SETTINGS
 DONE_FILE = "done.json"
 SUMMARY_FILE = "summary.csv"
 GIF_FILE = "velocity.gif"

@@ -47,6 +47,12 @@ METADATA = "metadata.json"
 RAW_ELECTRONS = "raw_electrons.npy"  # a sensor's frames: (frames, taps, H, W) e⁻ before noise
 RAW_DN = "raw_dn.npy"  # the same read out (noise chain, seed = the render's), DN
 CHECKPOINT = "checkpoint.npz"
+# Files by which output_kind knows the other commands' folders. They are kept here, below
+# the commands that write them, which take the names from here: this module imports none
+# of them.
+ANIMATION_SETTINGS = "animation.json"  # dopplertof animate: the clip's settings
+DESIGN_OUTPUTS = ("record.npz", "sweep.csv", "optimize.csv", "best_sensor.toml", "velocity_crb.exr", "depth_crb.exr", "velocity_rmse.exr")
+RECONSTRUCTION_SUMMARY = "reconstruction.json"  # dopplertof reconstruct, in a render's folder
 _PREVIEWS = {"intensity": "save_intensity_png", "signed": "save_signed_png", "velocity": "save_velocity_png"}
 
 
@@ -71,11 +77,9 @@ def measurement_stem(index: int, camera) -> str:
 def _reconstruction_files(folder: str) -> list[str]:
     """The files of a reconstruction of the render in ``folder`` (its
     ``reconstruction.json`` lists them): stale once the render changes."""
-    from .render_folder import SUMMARY_FILE
-
     try:
-        with open(os.path.join(folder, SUMMARY_FILE), encoding="utf-8") as f:
-            return [*json.load(f).get("files", []), SUMMARY_FILE]
+        with open(os.path.join(folder, RECONSTRUCTION_SUMMARY), encoding="utf-8") as f:
+            return [*json.load(f).get("files", []), RECONSTRUCTION_SUMMARY]
     except (OSError, ValueError):
         return []
 
@@ -121,16 +125,14 @@ def output_kind(folder: str) -> str | None:
     -------
     str or None
     """
-    from .animate import SETTINGS_FILE as ANIMATION
     from .dataset.shards import MANIFEST
-    from .design.cli import OUTPUTS as DESIGN_OUTPUTS
 
     if not os.path.isdir(folder):
         return None
     names = set(os.listdir(folder))
     if MANIFEST in names:
         return "dataset"
-    if ANIMATION in names or any(name.startswith("frame_") and os.path.isdir(os.path.join(folder, name)) for name in names):
+    if ANIMATION_SETTINGS in names or any(name.startswith("frame_") and os.path.isdir(os.path.join(folder, name)) for name in names):
         return "animation"
     if names & set(DESIGN_OUTPUTS) or any(re.fullmatch(r"record(_\d+)?(\.checkpoint)?\.npz", name) for name in names):  # record_<i>: one per scene
         return "design"

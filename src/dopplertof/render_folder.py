@@ -60,11 +60,12 @@ from .clitools import fail
 from . import reconstruct as rc
 from .reconstruct.frequencies import beat_range_m
 from .modulation import Camera
+from .folder import METADATA, RECONSTRUCTION_SUMMARY
 from .outputs import MOVING_PIXEL_M_S
 
-METADATA_FILE = "metadata.json"
+METADATA_FILE = METADATA
 ERROR_FILE = "velocity_error.json"
-SUMMARY_FILE = "reconstruction.json"
+SUMMARY_FILE = RECONSTRUCTION_SUMMARY
 
 
 def resolve_method(cameras, method: str | None = None) -> str:

@@ -36,9 +36,10 @@ import click
 import numpy as np
 
 from ..clitools import StopOnSignal, fail, given_settings, settings_options
+from ..folder import DESIGN_OUTPUTS
 from .search import OBJECTIVES, OPTIMIZE_KEYS
 
-OUTPUTS = ("record.npz", "sweep.csv", "optimize.csv", "best_sensor.toml", "velocity_crb.exr", "depth_crb.exr", "velocity_rmse.exr")
+OUTPUTS = DESIGN_OUTPUTS
 KEY_UNITS = {"modulation_frequency": "Hz", "exposure": "s", "heterodyne": "beat cycles per exposure"}
 
 
