@@ -26,9 +26,9 @@ every scene alive, so no two scenes are alive at once)::
   per render is the fixed cost a kernel pays whatever its size (tracing, launch, film).
   A dopplertof kernel traces a larger symbolic loop than ``path``, so the smallest of the
   forms' is the lower bound;
-  the fixed cost of a whole ``dopplertof.render`` call (D-ToF, 4 cameras, one antithetic
-  pair per pixel against ``--spp``, on the static scene of ``throughput.py``: its host work
-  included) is the upper bound;
+  the fixed cost of a whole ``dopplertof.render`` call (D-ToF, 4 cameras, one stratum of
+  two antithetic pairs per pixel against ``--spp``, on the static scene of ``throughput.py``:
+  its host work included) is the upper bound;
 * **per kernel, frozen**: the same 1-spp render of the one-mesh scene after each slice update,
   traced each time against replayed by ``dr.freeze`` (which skips the Python tracing), and
   whether the two images are the same.
@@ -53,6 +53,7 @@ import throughput
 FORMS = ("merged", "one-mesh", "own-meshes", "instances")
 ONE_SPP_RENDERS = 5  # per repetition: the fixed cost is a small difference of noisy times
 FROZEN_CALLS = 5  # replays of the frozen render timed
+STRATUM_SPP = 4  # a dopplertof render's smallest whole unit: one stratum of two antithetic pairs
 
 
 def scene_dict(name, form, resolution, max_depth):
@@ -121,25 +122,26 @@ def slice_update_s(scene, form, shift_m):
 
 
 def dopplertof_fixed_s(args, log):
-    """Fixed cost of one ``dopplertof.render`` call: 1 pair per pixel against ``--spp``."""
+    """Fixed cost of one ``dopplertof.render`` call: one stratum per pixel (two antithetic
+    pairs, ``STRATUM_SPP``: a whole unit, reduced as a full render's are) against ``--spp``."""
     import math
 
     ours, _ = throughput.scene_dicts("static", args.resolution, args.max_depth)
     scene = dopplertof.load_scene(ours)
     cameras = [dopplertof.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
 
-    def render_s(spp, seed):
+    def ours_s(spp, seed):
         t0 = time.perf_counter()
         dopplertof.render(scene, cameras=cameras, spp=spp, seed=seed, max_depth=args.max_depth, time_sampling="antithetic", correlation="replay")
         return time.perf_counter() - t0
 
-    render_s(args.spp, 0), render_s(2, 0)
-    full, pair = [], []
+    ours_s(args.spp, 0), ours_s(STRATUM_SPP, 0)
+    full, stratum = [], []
     for rep in range(args.reps):
-        full.append(render_s(args.spp, rep + 1))
-        pair += [render_s(2, 10 * rep + k) for k in range(ONE_SPP_RENDERS)]
-    fixed = max(0.0, statistics.median(pair) - 2 * statistics.median(full) / args.spp)
-    log(f"[dopplertof] static scene: {statistics.median(full):.3f}s at {args.spp} spp, {statistics.median(pair):.4f}s at 2 spp: fixed {1e3 * fixed:.1f} ms")
+        full.append(ours_s(args.spp, rep + 1))
+        stratum += [ours_s(STRATUM_SPP, 10 * rep + k) for k in range(ONE_SPP_RENDERS)]
+    fixed = max(0.0, statistics.median(stratum) - STRATUM_SPP * statistics.median(full) / args.spp)
+    log(f"[dopplertof] static scene: {statistics.median(full):.3f}s at {args.spp} spp, {statistics.median(stratum):.4f}s at {STRATUM_SPP} spp: fixed {1e3 * fixed:.1f} ms")
     return fixed
 
 
@@ -249,8 +251,8 @@ def parse_args(argv=None):
     quick = dict(resolution=32, spp=8, reps=1)
     _common.fill_defaults(args, quick if args.quick else dict(resolution=256, spp=32, reps=3))
     _common.require_positive(parser, args, ["resolution", "spp", "reps"])
-    if args.spp < 2:
-        parser.error("--spp must be at least 2 (the fixed cost is 1 spp against --spp)")
+    if args.spp <= STRATUM_SPP:
+        parser.error(f"--spp must be above {STRATUM_SPP} (the fixed costs are 1 and {STRATUM_SPP} spp against --spp)")
     _common.default_output_paths(args, "slice_cost")
     return args
 
