@@ -66,12 +66,9 @@ def scene_dict(name, form, resolution, max_depth):
         (stock["moving-mesh"],) = mi.load_dict(cubes).shapes()
     if form != "instances":
         return stock
-    group = None
-    for key, m0, _ in throughput._bodies(name):
-        cube = stock.pop(key)
-        if group is None:
-            group = {"type": "shapegroup", "cube": {"type": "cube", "bsdf": cube["bsdf"]}}
-            stock["cube-group"] = group
+    bodies = throughput._bodies(name)
+    stock["cube-group"] = {"type": "shapegroup", "cube": {"type": "cube", "bsdf": stock[bodies[0][0]]["bsdf"]}}
+    for key, m0, _ in bodies:
         stock[key] = {"type": "instance", "shapegroup": {"type": "ref", "id": "cube-group"}, "to_world": m0}
     return stock
 
@@ -124,15 +121,13 @@ def slice_update_s(scene, form, shift_m):
 def dopplertof_fixed_s(args, log):
     """Fixed cost of one ``dopplertof.render`` call: one stratum per pixel (two antithetic
     pairs, ``STRATUM_SPP``: a whole unit, reduced as a full render's are) against ``--spp``."""
-    import math
-
     ours, _ = throughput.scene_dicts("static", args.resolution, args.max_depth)
     scene = dopplertof.load_scene(ours)
-    cameras = [dopplertof.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
+    dtof4 = {spp: throughput.make_runners(scene, None, spp, args.max_depth)["dtof4"] for spp in (args.spp, STRATUM_SPP)}
 
     def ours_s(spp, seed):
         t0 = time.perf_counter()
-        dopplertof.render(scene, cameras=cameras, spp=spp, seed=seed, max_depth=args.max_depth, time_sampling="antithetic", correlation="replay")
+        dtof4[spp](seed)
         return time.perf_counter() - t0
 
     ours_s(args.spp, 0), ours_s(STRATUM_SPP, 0)

@@ -45,10 +45,9 @@ import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets th
 
 import _common
 from _common import CAMERA_GRID
-from variance import build_scene, moving_mask
+from variance import REFERENCE, REFERENCE_SEED, build_scene, moving_mask, render_config
 
 SCENE_NAMES = ("cornell-box", "rotating")
-REFERENCE_SEED = 1_000_003  # the test renders use seeds 0 .. repeats-1
 STREAM_SLICE = 0x5EED5100  # the slices' times: a stream the package does not use
 PER_LANE = 0  # configuration "per-lane": today's tracer
 
@@ -90,10 +89,6 @@ def slices(count):
         lanes.sample_time = shipped
 
 
-def render(scene, cameras, spp, seed, max_depth):
-    return dopplertof.render(scene, cameras=cameras, spp=spp, seed=seed, max_depth=max_depth, time_sampling="antithetic", correlation="replay")
-
-
 def measure(scene, cameras, count, args, reference, masks):
     """{(camera, region): (mse, z_spread, fraction of |z| > 3, variance over repeats / stated)}
     over ``args.repeats`` renders with ``count`` slices."""
@@ -106,7 +101,7 @@ def measure(scene, cameras, count, args, reference, masks):
     with slices(count):
         for rep in range(args.repeats):
             t = time.perf_counter()
-            result = render(scene, cameras, args.spp, rep, args.max_depth)
+            result = render_config(scene, cameras, *REFERENCE, args.spp, rep, args.max_depth)
             seconds.append(time.perf_counter() - t)
             x = result.measurements.astype(np.float64)
             var = result.measurement_stderr.astype(np.float64) ** 2
@@ -132,7 +127,7 @@ def bench_scene(name, args, log):
     scene, description = build_scene(name, args.resolution)
     cameras = [dopplertof.Camera(heterodyne=h, phase=psi) for h, psi in CAMERA_GRID]
     t = time.perf_counter()
-    reference = render(scene, cameras, args.ref_spp, REFERENCE_SEED, args.max_depth)
+    reference = render_config(scene, cameras, *REFERENCE, args.ref_spp, REFERENCE_SEED, args.max_depth)
     log(f"[{name}] {description}; reference {args.ref_spp} spp: {time.perf_counter() - t:.1f} s")
     masks = {"all": np.ones(reference.measurements.shape[1:], dtype=bool), "moving": moving_mask(reference)}
     log(f"[{name}] moving pixels: {int(masks['moving'].sum())} of {masks['moving'].size}")
