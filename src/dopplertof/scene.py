@@ -143,7 +143,9 @@ class Hit:
     body (world frame for static geometry); ``n_local`` the geometric normal there;
     ``plane_local`` a point of the hit primitive's plane in that frame that is the same
     for every hit of the primitive (a triangle's first vertex; ``p_local`` for analytic
-    shapes), so distances recomputed against it cancel exactly between correlated paths.
+    shapes), so distances recomputed against it cancel exactly between correlated paths;
+    ``pose`` the body's float32 :class:`~dopplertof.motion.Pose` at the lane's time (the
+    identity for static geometry and misses), evaluated once per hit.
     """
 
     si: object
@@ -151,6 +153,7 @@ class Hit:
     p_local: object
     n_local: object
     plane_local: object
+    pose: object
 
 
 class LanePoses:
@@ -711,13 +714,13 @@ class DynamicScene:
         pi = self.static.ray_intersect_preliminary(ray, coherent=coherent, active=active)
         ray_hit = mi.Ray3f(ray)
         body_index = mi.UInt32(0)
+        pose = _identity_pose(False)
         if self.bodies:
-            poses = poses if poses is not None else self.poses(time_s)
             if self.uses_tree():
-                pi, body_index = self._tree_closest(ray, mi.Float64(time_s), pi, active)
-                pose = self.select_pose(poses, body_index)
+                pi, body_index, pose = self._tree_closest(ray, mi.Float64(time_s), pi, active)
                 ray_hit = dr.select(body_index > 0, self._to_local(ray, pose, ray.maxt), ray_hit)
             else:
+                poses = poses if poses is not None else self.poses(time_s)
                 pi, ray_hit, body_index, pose = self._per_body_closest(ray, poses, pi, active)
         si = pi.compute_surface_interaction(ray_hit, mi.RayFlags.All, active)
         p_local, n_local = mi.Point3f(si.p), mi.Normal3f(si.n)
@@ -740,7 +743,7 @@ class DynamicScene:
             si.wi = si.to_local(-ray.d)
             si.dp_du = pose.vector_to_world(si.dp_du)
             si.dp_dv = pose.vector_to_world(si.dp_dv)
-        return Hit(si=si, body=body_index, p_local=p_local, n_local=n_local, plane_local=plane_local)
+        return Hit(si=si, body=body_index, p_local=p_local, n_local=n_local, plane_local=plane_local, pose=pose)
 
     def occluded(self, ray, time_s, active=True, poses=None):
         """True where world-space ``ray`` (up to ``ray.maxt``) is blocked at its lane's time.
@@ -854,10 +857,11 @@ class DynamicScene:
 
     def _walk(self, ray, time_s, active, state, t_max_m, on_leaf, done, label):
         """Visit, in ``ray``'s order, each body whose swept box the ray enters before
-        ``t_max_m(state)`` until ``done(state)``: ``on_leaf(state, b, ray_local, query)``
+        ``t_max_m(state)`` until ``done(state)``: ``on_leaf(state, b, ray_local, pose, query)``
         returns the new state (``b``: 0-based body index, ``ray_local`` the ray in its
         frame at the lane's time up to ``ray.maxt``, as in the per-body loop: a shorter one
-        would drop hits tied with the closest so far; ``query`` the lanes that visit a body)."""
+        would drop hits tied with the closest so far; ``pose`` the body's pose there;
+        ``query`` the lanes that visit a body)."""
         import drjit as dr
         import mitsuba as mi
 
@@ -868,8 +872,8 @@ class DynamicScene:
             node, leaf_body = tree.walk_to_leaf(ray, octant, node, t_max_m(state), self._box_hit)
             query = leaf_body > 0
             body = dr.select(query, leaf_body - 1, 0)
-            ray_local = self._to_local(ray, poses.pose(body, time_s, False, query), ray.maxt)
-            state = on_leaf(state, body, ray_local, query)
+            pose = poses.pose(body, time_s, False, query)
+            state = on_leaf(state, body, self._to_local(ray, pose, ray.maxt), pose, query)
             return dr.select(query, node + 1, node), state
 
         node = dr.select(active & ~done(state), mi.UInt32(0), tree.size)
@@ -877,7 +881,8 @@ class DynamicScene:
 
     def _tree_closest(self, ray, time_s, pi, active):
         """The closest of ``pi`` (the static scene's preliminary intersection) and the
-        bodies' hits, and the body index (0: static)."""
+        bodies' hits, the body index (0: static) and the body's pose (the identity for 0),
+        carried by the walk so that the hit's pose is not evaluated again."""
         import drjit as dr
         import mitsuba as mi
 
@@ -887,18 +892,19 @@ class DynamicScene:
             targets = self._switch_targets("closest")
             leaf_closest = lambda body, ray_local, query: dr.switch(body, targets, ray_local, query)  # noqa: E731
 
-        def on_leaf(state, body, ray_local, query):
-            pi, body_index = state
+        def on_leaf(state, body, ray_local, pose, query):
+            pi, body_index, pose_hit = state
             pib = leaf_closest(body, ray_local, query)
             # Ties (coplanar faces of overlapping bodies) go to the lower index, as in the
             # per-body loop, so that the tree gives the per-body loop's hits bit for bit
             # (the atlas, finding each body's hit in a shifted cell, breaks them by rounding).
             tie = (pib.t == pi.t) & (body_index > 0) & (body + 1 < body_index)
             closer = query & pib.is_valid() & ((pib.t < dr.minimum(ray.maxt, pi.t)) | tie)
-            return dr.select(closer, pib, pi), dr.select(closer, body + 1, body_index)
+            return dr.select(closer, pib, pi), dr.select(closer, body + 1, body_index), dr.select(closer, pose, pose_hit)
 
         return self._walk(
-            ray, time_s, active, (pi, mi.UInt32(0)), lambda state: dr.minimum(ray.maxt, state[0].t), on_leaf, lambda state: mi.Bool(False), "dopplertof bodies: closest"
+            ray, time_s, active, (pi, mi.UInt32(0), _identity_pose(False)), lambda state: dr.minimum(ray.maxt, state[0].t), on_leaf,
+            lambda state: mi.Bool(False), "dopplertof bodies: closest",
         )  # fmt: skip
 
     def _tree_blocked(self, ray, time_s, blocked, active):
@@ -911,7 +917,7 @@ class DynamicScene:
             targets = self._switch_targets("blocked")
             leaf_blocked = lambda body, ray_local, query: dr.switch(body, targets, ray_local, query)  # noqa: E731
 
-        def on_leaf(blocked, body, ray_local, query):
+        def on_leaf(blocked, body, ray_local, pose, query):
             return blocked | leaf_blocked(body, ray_local, query)
 
         return self._walk(ray, time_s, active, blocked, lambda blocked: ray.maxt, on_leaf, lambda blocked: blocked, "dopplertof bodies: blocked")

@@ -53,7 +53,7 @@ from .. import modulation
 from ..timesampling import ANALYTIC
 from . import lanes
 from .path import (
-    camera_ray, emitter_hit, emitter_hit_length, extend, first_hit, ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction,
+    camera_ray, emitter_hit, emitter_hit_length, extend, ground_truth, next_hit, place_camera_ray, sample_emitter, segment_index, vertex_interaction,
 )  # fmt: skip
 from .sink import Sink
 
@@ -122,12 +122,12 @@ def trace_pair(scene, settings, setup, tables):
     ray, ray_weight, x0 = camera_ray(scene.sensor, tables.film, setup, pixel, time1, rng.next_float32, lambda: mi.Point2f(rng.next_float32(), rng.next_float32()))
     ray1, x0_1 = place_camera_ray(scene, ray, x0, time1)
     ray2, x0_2 = place_camera_ray(scene, ray, x0, time2)
-    hit1 = first_hit(scene, ray1, time1, poses1, settings.hide_emitters)
-    hit2 = first_hit(scene, ray2, time2, poses2, settings.hide_emitters)
+    hit1 = next_hit(scene, ray1, time1, poses1, settings.hide_emitters)
+    hit2 = next_hit(scene, ray2, time2, poses2, settings.hide_emitters)
     length1, x1, t1 = extend(scene, poses1_64, hit1, x0_1, ray1.d, mi.Float64(0), mi.Float(1), True)
     length2, x2, t2 = extend(scene, poses2_64, hit2, x0_2, ray2.d, mi.Float64(0), mi.Float(1), True)
-    truth1, valid1 = ground_truth(scene, hit1, ray1.d, t1, time1, poses1, tables.pinhole)
-    truth2, valid2 = ground_truth(scene, hit2, ray2.d, t2, time2, poses2, tables.pinhole)
+    truth1, valid1 = ground_truth(scene, hit1, ray1.d, t1, time1, tables.pinhole)
+    truth2, valid2 = ground_truth(scene, hit2, ray2.d, t2, time2, tables.pinhole)
     label = truth1.pop("instance_id")
     truth2.pop("instance_id")
     truth = {k: truth1[k] + truth2[k] for k in truth1}
@@ -242,7 +242,8 @@ def trace_pair(scene, settings, setup, tables):
         # (Jacobian 1), so the shift stays its own inverse for paths that leave the scene.
         reconnect &= next1
         at_infinity = reconnect & ~hit1n.si.is_valid()
-        target2 = scene.select_pose(poses2, hit1n.body).point_to_world(hit1n.p_local)
+        pose2 = scene.select_pose(poses2, hit1n.body)  # P1's next body at P2's time
+        target2 = pose2.point_to_world(hit1n.p_local)
         origin2 = si2.spawn_ray_to(target2).o  # aim from the offset origin the ray will use
         d2 = dr.select(at_infinity, ray1_next.d, dr.normalize(target2 - origin2))
         value_r, pdf_r = bsdf2.eval_pdf(bsdf_ctx, si2, si2.to_local(d2), reconnect)
@@ -273,7 +274,7 @@ def trace_pair(scene, settings, setup, tables):
         x1n = dr.select(at_point, x1r, x1n)
         x2n = dr.select(at_point & landed, x2r, x2n)
         # The shift's Jacobian is that of the direction towards the target, whatever P2 hits.
-        target_n2 = scene.select_pose(poses2, hit1n.body).normal_to_world(hit1n.n_local)
+        target_n2 = pose2.normal_to_world(hit1n.n_local)
         g1n = dr.select(at_infinity, 1.0, _geometry_term(si1.p, hit1n.si.p, hit1n.si.n))
         g2n = dr.select(at_infinity, 1.0, _geometry_term(si2.p, target2, target_n2))
         own_pdf2 = dr.select(reconnect, pdf_r, bs2.pdf)

@@ -7,8 +7,8 @@ phase                   what it does
                         aperture, wavelength), its weight, and its Float64 origin on the
                         aperture; :func:`place_camera_ray` puts it where a moving camera
                         is at the lane's time
-:func:`first_hit`       the camera ray's first surface at the lane's time; with
-                        ``hide_emitters`` it passes through emitter surfaces (stock path)
+:func:`next_hit`        the surface a ray hits at the lane's time; a camera ray with
+                        ``hide_emitters`` passes through emitter surfaces (stock path)
 :func:`extend`          the Float64 optical length to a new vertex: index × distance, the
                         distance recomputed against the hit primitive's plane in the body's
                         frame (DESIGN §3.5). **The one place the refractive index enters**,
@@ -117,9 +117,10 @@ def place_camera_ray(scene, ray, x0, time_s):
     return placed, scene.camera_pose(time_s, precise=True).point_to_world(x0)
 
 
-def first_hit(scene, ray, time_s, poses, hide_emitters):
-    """First hit of the camera ray (a :class:`~dopplertof.scene.Hit`); with
-    ``hide_emitters`` it passes through up to ``MAX_HIDDEN_LAYERS`` emitter surfaces.
+def next_hit(scene, ray, time_s, poses, hide_emitters, active=True, from_camera=True):
+    """The surface ``ray`` hits at the lanes' times (a :class:`~dopplertof.scene.Hit`);
+    where it is a camera ray (``from_camera``) and ``hide_emitters``, it passes through up
+    to ``MAX_HIDDEN_LAYERS`` emitter surfaces.
 
     Parameters
     ----------
@@ -130,6 +131,9 @@ def first_hit(scene, ray, time_s, poses, hide_emitters):
     poses : object
         The bodies' poses at the lanes' times (``scene.poses``).
     hide_emitters : bool
+    active : bool or mi.Bool, default True
+    from_camera : bool or mi.Bool, default True
+        The lanes whose ``ray`` is the camera ray.
 
     Returns
     -------
@@ -137,9 +141,9 @@ def first_hit(scene, ray, time_s, poses, hide_emitters):
     """
     import drjit as dr
 
-    hit = scene.intersect(ray, time_s, True, poses=poses)
+    hit = scene.intersect(ray, time_s, active, poses=poses)
     for _ in range(MAX_HIDDEN_LAYERS if hide_emitters else 0):
-        hidden = hit.si.is_valid() & (hit.si.emitter(scene.static) != None)  # noqa: E711 - Dr.Jit pointer test
+        hidden = active & from_camera & hit.si.is_valid() & (hit.si.emitter(scene.static) != None)  # noqa: E711 - Dr.Jit pointer test
         beyond = scene.intersect(hit.si.spawn_ray(ray.d), time_s, hidden, poses=poses)
         hit = dr.select(hidden, beyond, hit)
     return hit
@@ -519,7 +523,7 @@ def image_position(sensor, p_world):
     return ds.uv
 
 
-def ground_truth(scene, hit, ray_d, depth_m, time_s, poses, pinhole):
+def ground_truth(scene, hit, ray_d, depth_m, time_s, pinhole):
     """Ground-truth maps of the camera ray's hit: a dict of per-lane values (0 where no hit)
     and the hit mask. See :data:`dopplertof.outputs.OUTPUTS` for their meaning; with a
     moving camera, velocities are relative to its frame (the scene as the camera sees it).
@@ -535,8 +539,6 @@ def ground_truth(scene, hit, ray_d, depth_m, time_s, poses, pinhole):
         Distance from the aperture to the hit, m.
     time_s : mi.Float64
         Each lane's time, s.
-    poses : object
-        The bodies' poses at the lanes' times.
     pinhole : tuple or None
         :func:`pinhole_scales` of the sensor (for the optical flow).
 
@@ -550,7 +552,7 @@ def ground_truth(scene, hit, ray_d, depth_m, time_s, poses, pinhole):
     si = hit.si
     valid = si.is_valid()
     to_sensor = scene.sensor.world_transform().inverse()  # rest frame -> sensor (x left, y up, z forward)
-    v = scene.surface_velocity(si.p, hit.body, time_s, poses=poses)
+    v = hit.pose.velocity(si.p)  # the hit body's rigid velocity; 0 for static geometry
     camera = scene.camera_pose(time_s)
     if camera is None:
         p_rest, v_rest = si.p, v
@@ -572,6 +574,21 @@ def ground_truth(scene, hit, ray_d, depth_m, time_s, poses, pinhole):
         "velocity_3d": v_camera,
         "flow": mi.Vector2f(flow),
     }
-    values = {k: dr.select(valid, x, 0.0) for k, x in values.items()}
-    values["instance_id"] = dr.select(valid, mi.Float(mi.Int32(hit.body)) - 1.0, -1.0)
-    return values, valid
+    values["instance_id"] = mi.Float(mi.Int32(hit.body)) - 1.0
+    missed, _ = no_ground_truth()
+    return {k: dr.select(valid, x, missed[k]) for k, x in values.items()}, valid
+
+
+def no_ground_truth():
+    """:func:`ground_truth` of a camera ray that hit nothing: every value 0 but the body id
+    (-1), and the hit mask False (also the path loop's state before its camera ray's hit).
+
+    Returns
+    -------
+    tuple of (dict, mi.Bool)
+    """
+    import mitsuba as mi
+
+    zero = mi.Float(0)
+    values = {"depth": zero, "velocity": zero, "point_velocity": zero, "velocity_3d": mi.Vector3f(0), "flow": mi.Vector2f(0), "instance_id": mi.Float(-1)}
+    return values, mi.Bool(False)

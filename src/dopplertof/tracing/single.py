@@ -15,7 +15,7 @@ import drjit as dr
 import mitsuba as mi
 
 from . import lanes
-from .path import camera_ray, emitter_hit, emitter_hit_length, extend, first_hit, ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction
+from .path import camera_ray, emitter_hit, emitter_hit_length, extend, ground_truth, next_hit, no_ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction
 from .sink import Sink
 
 
@@ -73,14 +73,10 @@ def trace(scene, settings, setup, tables):
     ray, ray_weight, x0 = camera_ray(
         scene.sensor, tables.film, setup, pixel, time_s, lambda: streams.next_1d(corr_pixel), lambda: streams.next_2d(corr_pixel)
     )  # fmt: skip
-    ray, x0 = place_camera_ray(scene, ray, x0, time_s)
-    hit = first_hit(scene, ray, time_s, poses, settings.hide_emitters)
+    ray, x = place_camera_ray(scene, ray, x0, time_s)
     sink = Sink(settings.cameras, setup.grid)
     bank = sink.bank(u)
     precise = sink.needs_length
-    length, x, depth_m = extend(scene, poses64, hit, x0, ray.d, mi.Float64(0), mi.Float(1), True, precise)
-    truth, hit_mask = ground_truth(scene, hit, ray.d, depth_m, time_s, poses, tables.pinhole)
-    label = truth.pop("instance_id")
 
     bsdf_ctx = mi.BSDFContext()
     # Data, not literals: a render of another depth (a dataset's direct-light render) reuses the kernel.
@@ -89,8 +85,10 @@ def trace(scene, settings, setup, tables):
     hide_emitters = settings.hide_emitters
 
     # ---------------------------------------------------------------- loop state
+    # The camera ray is traced in the loop, at depth 0: one ray query in the kernel, not two.
     state = sink.empty()
-    si, body = hit.si, hit.body
+    truth, hit_mask = no_ground_truth()
+    length = mi.Float64(0)  # optical length to the current vertex, m
     beta = mi.Spectrum(ray_weight)
     index = mi.Float(1)  # refractive index of the medium the path travels in
     prev_it = dr.zeros(mi.Interaction3f)
@@ -100,6 +98,15 @@ def trace(scene, settings, setup, tables):
     active = mi.Bool(True)
 
     while dr.hint(active, label="dopplertof path", max_iterations=-1, exclude=[scene, settings, correlation, bank, poses, poses64, tables, sink, bsdf_ctx, precise, grouped]):
+        # ---------------------------------------------------- the vertex (at the lane's time)
+        hit = next_hit(scene, ray, time_s, poses, hide_emitters, active, depth == 0)
+        length, x, distance_m = extend(scene, poses64, hit, x, ray.d, length, index, active, precise)
+        si, body = hit.si, hit.body
+        truth, hit_mask = dr.if_stmt(  # the camera ray's hit: ground truth (a branch: later bounces skip it)
+            (truth, hit_mask), depth == 0, lambda *_: ground_truth(scene, hit, ray.d, distance_m, time_s, tables.pinhole), lambda *old: old,
+            label="dopplertof path: ground truth",
+        )  # fmt: skip
+
         # ---------------------------------------------------- emitter hit
         shown = active if not hide_emitters else active & (depth > 0)
         le, em_pdf, visible = emitter_hit(scene, si, body, prev_it, prev_delta, time_s, shown)
@@ -132,19 +139,15 @@ def trace(scene, settings, setup, tables):
         beta_next = dr.select(rr_active & survive, beta_next * dr.rcp(q), beta_next)
         go_on &= survive & (beta_max != 0) & (bs.pdf > 0)
 
-        # ---------------------------------------------------- next vertex (at the lane's time)
-        ray = si.spawn_ray(si.to_world(bs.wo))
-        hit_next = scene.intersect(ray, time_s, go_on, poses=poses)
-        length, x, _ = extend(scene, poses64, hit_next, x, ray.d, length, index_next, go_on, precise)
-
         # ---------------------------------------------------- update
+        ray = si.spawn_ray(si.to_world(bs.wo))
         prev_it = vertex_interaction(si)
         prev_pdf = bs.pdf
         prev_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
-        si, body = hit_next.si, hit_next.body
         beta = beta_next
         index = index_next
         depth += 1
         active = go_on
 
+    label = truth.pop("instance_id")
     return sink.outputs(state, truth, dr.select(hit_mask, mi.Float(1), 0.0), label, u)
