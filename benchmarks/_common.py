@@ -33,6 +33,34 @@ DEFAULT_VARIANT = "llvm_ad_rgb"
 CAMERA_GRID = [(h, psi) for h in (0.0, 0.5, 1.0) for psi in (0.0, math.pi / 2)]
 
 
+REPO = os.path.dirname(HERE)
+
+
+def import_baseline(revision, folder, name="dopplertof_baseline"):
+    """The package ``dopplertof`` at git ``revision``, imported as ``name`` beside the current
+    one (its imports within the package are relative), extracted into ``folder``.
+
+    Parameters
+    ----------
+    revision : str
+        A commit of this repository.
+    folder : str
+        An empty folder that outlives the import (a ``tempfile.TemporaryDirectory``).
+    name : str, default "dopplertof_baseline"
+
+    Returns
+    -------
+    module
+    """
+    import importlib
+
+    archive = subprocess.run(["git", "-C", REPO, "archive", revision, "src/dopplertof"], check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
+    os.rename(os.path.join(folder, "src", "dopplertof"), os.path.join(folder, name))
+    sys.path.insert(0, folder)
+    return importlib.import_module(name)
+
+
 # ----------------------------------------------------------------------------------------
 # Machine
 

@@ -17,12 +17,8 @@ each, and the table reports median times and the ratio current / baseline per ro
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
-import os
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 
@@ -32,16 +28,6 @@ import _common
 import throughput
 
 BASELINE = "bba5c87"
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def load_baseline(folder):
-    """Import the package at ``BASELINE`` as ``dopplertof_baseline``."""
-    archive = subprocess.run(["git", "-C", REPO, "archive", BASELINE, "src/dopplertof"], check=True, capture_output=True).stdout
-    subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
-    os.rename(os.path.join(folder, "src", "dopplertof"), os.path.join(folder, "dopplertof_baseline"))
-    sys.path.insert(0, folder)
-    return importlib.import_module("dopplertof_baseline")
 
 
 def main(argv=None):
@@ -56,7 +42,7 @@ def main(argv=None):
     reps = args.reps or reps
     dopplertof.set_variant("llvm_ad_rgb")
     with tempfile.TemporaryDirectory() as folder:
-        old = load_baseline(folder)
+        old = _common.import_baseline(BASELINE, folder)
         print(_common.machine_line("llvm_ad_rgb", f"{resolution}x{resolution}", f"{spp} spp", f"{reps} reps", f"baseline {BASELINE}"))
         cam1 = [dict(heterodyne=1.0)]
         cam4 = [dict(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
