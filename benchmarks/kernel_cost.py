@@ -17,7 +17,9 @@ kernels differ, so neither finds the other's), alternating which package goes fi
   (:func:`dopplertof.dataset.sample.render_record`: the full and the direct-light render,
   which shares the full render's kernel, and the sensor model);
 * ``throughput.py``'s scenes (``static``, ``8-moving``: the per-body loop, ``32-moving`` and
-  ``128-moving``: the tree), rendered with D-ToF, 4 cameras, antithetic + replay.
+  ``128-moving``: the tree), rendered with D-ToF, 4 cameras, antithetic + replay; and
+  ``area-hidden``: the built-in ``cornell-box-area`` (its moving boxes and area light) with
+  ``hide_emitters``, whose camera rays pass through the light.
 
 Reported per scene and package: the first render's wall time, the operations of its largest
 kernel and the time Dr.Jit spent compiling (kernel history), and for the throughput scenes
@@ -31,6 +33,7 @@ hit carried its body's pose), imported as ``dopplertof_baseline``.
 from __future__ import annotations
 
 import importlib
+import itertools
 import math
 import os
 import statistics
@@ -46,7 +49,8 @@ import _common
 import throughput
 
 BASELINE = "1c8b874"
-SCENES = ("static", "8-moving", "32-moving", "128-moving")
+SCENES = ("static", "8-moving", "32-moving", "128-moving", "area-hidden")
+HIDDEN_EMITTER_SCENE = "cornell-box-area"  # "area-hidden": this built-in scene with hide_emitters (its camera rays pass through the light)
 PACKAGES = ("baseline", "current")
 CSV_FIELDS = ["scene", "bodies", "package", "first_s", "compile_s", "kernel_ops", "warm_s", "identical"]
 FRESH_CACHE_ENV = "DOPPLERTOF_BENCH_FRESH_KERNEL_CACHE"  # set in the process main() starts with an empty kernel cache
@@ -57,7 +61,7 @@ def parse_args(argv):
     p.add_argument("--baseline", default=BASELINE, help=f"git revision to compare with (default {BASELINE})")
     p.add_argument("--samples", type=int, default=None, help="street samples (default 6; quick 2)")
     p.add_argument("--street-bodies", type=int, default=20, metavar="N", help="street scenes with N to N+4 moving bodies (default 20)")
-    p.add_argument("--scenes", nargs="*", choices=SCENES, default=None, help="throughput.py scenes (default all four; quick static and 32-moving)")
+    p.add_argument("--scenes", nargs="*", choices=SCENES, default=None, help="throughput.py scenes and area-hidden (default all five; quick static and 32-moving)")
     p.add_argument("--resolution", type=int, default=None, help="film size (default 128; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel (default 64; quick 8)")
     p.add_argument("--reps", type=int, default=None, help="later renders of each throughput scene per package, interleaved (default 5; quick 2)")
@@ -121,16 +125,18 @@ def street_jobs(args, packages):
 
 
 def scene_jobs(args, packages):
-    """(name, bodies, {package: (first render, a later render)}) of each throughput.py scene."""
+    """(name, bodies, {package: (first render, a later render)}) of each throughput.py scene
+    (and ``area-hidden``)."""
     cameras = [dict(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
     for name in args.scenes:
-        ours, _ = throughput.scene_dicts(name, args.resolution, 5)
+        hidden = name == "area-hidden"
+        ours = None if hidden else throughput.scene_dicts(name, args.resolution, 5)[0]
         runs = {}
         for which, package in packages.items():
-            scene = package.load_scene(ours)
-            options = dict(cameras=[package.Camera(**c) for c in cameras], spp=args.spp, max_depth=5, time_sampling="antithetic", correlation="replay")
+            scene = package.scenes.build(HIDDEN_EMITTER_SCENE, resolution=args.resolution) if hidden else package.load_scene(ours)
+            options = dict(cameras=[package.Camera(**c) for c in cameras], spp=args.spp, max_depth=5, time_sampling="antithetic", correlation="replay", hide_emitters=hidden)
             runs[which] = (lambda p=package, s=scene, o=options: p.render(s, seed=1, **o), lambda p=package, s=scene, o=options: p.render(s, seed=2, **o))  # fmt: skip
-        yield name, 0 if name == "static" else int(name.split("-")[0]), runs
+        yield name, len(scene.bodies), runs
 
 
 def main(argv=None):
@@ -148,7 +154,8 @@ def main(argv=None):
     rows = []
     with tempfile.TemporaryDirectory(prefix="dopplertof-baseline-") as folder:
         packages = {"baseline": _common.import_baseline(args.baseline, folder), "current": dopplertof}
-        jobs = [*street_jobs(args, packages), *scene_jobs(args, packages)]
+        # One job's scenes at a time: every Mitsuba object alive shapes every kernel's virtual calls.
+        jobs = itertools.chain(street_jobs(args, packages), scene_jobs(args, packages))
         for k, (name, bodies, runs) in enumerate(jobs):
             order = PACKAGES if k % 2 == 0 else PACKAGES[::-1]
             row, results = {}, {}

@@ -141,12 +141,18 @@ def next_hit(scene, ray, time_s, poses, hide_emitters, active=True, from_camera=
     """
     import drjit as dr
 
+    def pass_hidden(hit):
+        for _ in range(MAX_HIDDEN_LAYERS):
+            hidden = active & from_camera & hit.si.is_valid() & (hit.si.emitter(scene.static) != None)  # noqa: E711 - Dr.Jit pointer test
+            beyond = scene.intersect(hit.si.spawn_ray(ray.d), time_s, hidden, poses=poses)
+            hit = dr.select(hidden, beyond, hit)
+        return hit
+
     hit = scene.intersect(ray, time_s, active, poses=poses)
-    for _ in range(MAX_HIDDEN_LAYERS if hide_emitters else 0):
-        hidden = active & from_camera & hit.si.is_valid() & (hit.si.emitter(scene.static) != None)  # noqa: E711 - Dr.Jit pointer test
-        beyond = scene.intersect(hit.si.spawn_ray(ray.d), time_s, hidden, poses=poses)
-        hit = dr.select(hidden, beyond, hit)
-    return hit
+    if not hide_emitters:
+        return hit
+    # A branch: in the path loop, where no lane's ray is a camera ray, the layers are skipped.
+    return dr.if_stmt((hit,), active & from_camera, pass_hidden, lambda hit: hit, label="dopplertof: hidden emitters")
 
 
 def hit_distance64(scene, poses64, hit, x_prev, direction):
