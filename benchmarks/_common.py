@@ -126,6 +126,45 @@ def run_with_empty_kernel_cache(script, args, **run_options):
         return subprocess.run([sys.executable, os.path.abspath(script), *args], env=env, **run_options)
 
 
+FRESH_KERNEL_CACHE_ENV = "DOPPLERTOF_BENCH_FRESH_KERNEL_CACHE"  # set in a script's rerun with an empty kernel cache
+
+
+def rerun_with_empty_kernel_cache(script, argv):
+    """The exit status of ``script`` rerun with ``argv`` (None: ``sys.argv[1:]``) in a
+    process whose Dr.Jit kernel cache is empty (:func:`run_with_empty_kernel_cache`); None
+    where this process is that rerun, which then goes on itself.
+
+    Parameters
+    ----------
+    script : str
+        The script's path (its ``__file__``).
+    argv : list of str or None
+
+    Returns
+    -------
+    int or None
+    """
+    if os.environ.get(FRESH_KERNEL_CACHE_ENV):
+        return None
+    args = sys.argv[1:] if argv is None else argv
+    return run_with_empty_kernel_cache(script, args, env={FRESH_KERNEL_CACHE_ENV: "1"}).returncode
+
+
+def compile_seconds(history):
+    """Seconds Dr.Jit spent generating and compiling the kernels of ``history``
+    (``drjit.kernel_history()``, whose times are in ms).
+
+    Parameters
+    ----------
+    history : list of dict
+
+    Returns
+    -------
+    float
+    """
+    return sum(k.get("backend_time", 0.0) + k.get("codegen_time", 0.0) for k in history) / 1e3
+
+
 # ----------------------------------------------------------------------------------------
 # Command line
 

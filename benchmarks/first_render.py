@@ -78,7 +78,7 @@ def measure_one(scene_name, traversal, args):
     t = time.perf_counter()
     render(1)
     first = time.perf_counter() - t
-    compile_s = sum(k.get("backend_time", 0.0) + k.get("codegen_time", 0.0) for k in dr.kernel_history()) / 1e3
+    compile_s = _common.compile_seconds(dr.kernel_history())
     t = time.perf_counter()
     render(2)
     warm = time.perf_counter() - t

@@ -35,7 +35,6 @@ from __future__ import annotations
 import importlib
 import itertools
 import math
-import os
 import statistics
 import sys
 import tempfile
@@ -53,7 +52,6 @@ SCENES = ("static", "8-moving", "32-moving", "128-moving", "area-hidden")
 HIDDEN_EMITTER_SCENE = "cornell-box-area"  # "area-hidden": this built-in scene with hide_emitters (its camera rays pass through the light)
 PACKAGES = ("baseline", "current")
 CSV_FIELDS = ["scene", "bodies", "package", "first_s", "compile_s", "kernel_ops", "warm_s", "identical"]
-FRESH_CACHE_ENV = "DOPPLERTOF_BENCH_FRESH_KERNEL_CACHE"  # set in the process main() starts with an empty kernel cache
 
 
 def parse_args(argv):
@@ -78,8 +76,7 @@ def compiled(drjit):
     """(compile time in s, operations of the largest kernel) of the kernels launched since the
     last call (Dr.Jit's kernel history, which the call clears)."""
     history = drjit.kernel_history()
-    seconds = sum(k.get("backend_time", 0.0) + k.get("codegen_time", 0.0) for k in history) / 1e3
-    return seconds, max((k.get("operation_count", 0) for k in history), default=0)
+    return _common.compile_seconds(history), max((k.get("operation_count", 0) for k in history), default=0)
 
 
 def timed(drjit, render):
@@ -141,9 +138,9 @@ def scene_jobs(args, packages):
 
 def main(argv=None):
     args = parse_args(argv)
-    if not os.environ.get(FRESH_CACHE_ENV):
-        script_args = sys.argv[1:] if argv is None else argv
-        return _common.run_with_empty_kernel_cache(__file__, script_args, env={FRESH_CACHE_ENV: "1"}).returncode
+    status = _common.rerun_with_empty_kernel_cache(__file__, argv)
+    if status is not None:
+        return status
     settings = (f"settings: {args.resolution}x{args.resolution}, {args.spp} spp, {args.samples} street samples ({args.street_bodies}-{args.street_bodies + 4} "
                 f"moving bodies; full + direct renders), throughput scenes {' '.join(args.scenes) or '-'} (D-ToF 4 cameras, antithetic + replay), "
                 f"baseline {args.baseline}, empty kernel cache")  # fmt: skip
