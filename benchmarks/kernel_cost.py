@@ -117,7 +117,7 @@ def street_jobs(args, packages):
         runs = {}
         for which, package in packages.items():
             render_record = importlib.import_module(f"{package.__name__}.dataset.sample").render_record
-            runs[which] = (lambda r=render_record: r(record), None)
+            runs[which] = (lambda r=render_record, rec=record: r(rec), None)
         yield f"street-{i}", len(record["scene"]["bodies"]), runs
 
 
