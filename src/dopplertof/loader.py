@@ -483,7 +483,8 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
                 body_scene = _load_guest_string(body_xml, host)
             except Exception as exc:  # noqa: BLE001
                 raise _mitsuba_error(f"{path}: moving shape(s) {name}", exc, lambda text: sources.locate(text, body_xml, body_root)) from None
-            bodies.append(_make_body(name, body_scene, motion, f"{path}: moving shape(s) {name}"))
+            bodies.append(_make_body(name, body_scene, motion, f"{path}: moving shape(s) {name}",
+                                     load_copy=lambda xml=body_xml: _in_folder(scene_dir, lambda: _load_guest_string(xml, host))))
 
         def light_scene(element, where):
             light_root = ET.Element("scene", {"version": root.attrib.get("version", "3.0.0")})
@@ -694,7 +695,23 @@ def _load_guest_string(xml: str, host):
     return mi.parser.instantiate(config, state)
 
 
-def _make_body(name: str, scene, motion: Motion, where: str) -> Body:
+def _in_folder(folder: str, load):
+    """``load()`` with ``folder`` first on Mitsuba's search path (a scene's relative mesh
+    and texture paths), the search path restored after."""
+    import mitsuba as mi
+
+    resolver = mi.file_resolver()
+    saved_paths = [str(resolver[i]) for i in range(len(resolver))]
+    resolver.prepend(folder)
+    try:
+        return load()
+    finally:
+        resolver.clear()
+        for entry in saved_paths:
+            resolver.append(entry)
+
+
+def _make_body(name: str, scene, motion: Motion, where: str, load_copy=None) -> Body:
     """A moving body; SceneError where a point of it would move at or above the speed of
     light (rotation included), a warning above :data:`dopplertof.motion.SUSPICIOUS_SPEED_M_S`."""
     bbox = scene.bbox()
@@ -706,7 +723,7 @@ def _make_body(name: str, scene, motion: Motion, where: str) -> Body:
             check_speed(speed, "the fastest corner of its bounding box, rotation included", where)
         except ValueError as exc:
             raise SceneError(str(exc)) from None
-    return Body(name=name, scene=scene, motion=motion, bounds_local=(lo, hi))
+    return Body(name=name, scene=scene, motion=motion, bounds_local=(lo, hi), load_copy=load_copy)
 
 
 # ----------------------------------------------------------------------------------------
@@ -900,11 +917,12 @@ def _load_dict(scene_dict: dict) -> DynamicScene:
         motion, shapes = _shared_placement_as_base(motion, members)
         keys = [key for key, _ in shapes]
         where = f"<dict>: entr{'y' if len(keys) == 1 else 'ies'} {', '.join(repr(k) for k in keys)}"
+        body_dict = {"type": "scene", **guest, **referenced(dict(shapes)), **dict(shapes)}
         try:
-            body_scene = mi.load_dict({"type": "scene", **guest, **referenced(dict(shapes)), **dict(shapes)})
+            body_scene = mi.load_dict(body_dict)
         except Exception as exc:  # noqa: BLE001
             raise _mitsuba_error(where, exc) from None
-        bodies.append(_make_body(", ".join(keys), body_scene, motion, where))
+        bodies.append(_make_body(", ".join(keys), body_scene, motion, where, load_copy=lambda d=body_dict: mi.load_dict(d)))
     try:
         static = mi.load_dict({**static_dict, **guest})
     except Exception as exc:  # noqa: BLE001

@@ -9,6 +9,7 @@ Float64 increments, which :meth:`Accumulator.apply` adds, pass by pass in order,
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -488,6 +489,12 @@ class PassTracer:
 
         scene.set_time_window(settings.exposure_start, settings.exposure_start + settings.exposure_s)
         self.scene, self.settings, self.grid = scene, settings, grid
+        self.slices = None
+        if scene.bodies and scene.traversal_in_use() == "slices":
+            if settings.paired:
+                raise ValueError(f"traversal='slices' does not trace the paired estimators yet (correlation={settings.correlation!r}, "
+                                 f"time_sampling={settings.time_sampling!r}); use traversal='auto'")
+            self.slices = scene.slice_scenes(settings.group_size)
         self.tables = MaterialTables.of(scene)
         self.reducer = Reducer(*Reducer.layout(settings))
 
@@ -503,4 +510,24 @@ class PassTracer:
             exposure_start_s=float(s.exposure_start), exposure_s=float(s.exposure_s), seed=s.seed, grid=self.grid,
         )  # fmt: skip
         with interrupts_unwrapped():  # the path loop and the reduction loop are traced here
-            return self.reducer.reduce(p, trace_pass(self.scene, s, setup, self.tables))
+            out = trace_pass(self.scene, s, setup, self.tables) if self.slices is None else self._sliced(setup)
+            return self.reducer.reduce(p, out)
+
+    def _sliced(self, setup):
+        """A pass's per-lane outputs with ``traversal="slices"``: one kernel per group of the
+        pass, every pixel's member m at one instant, its scene placed there first
+        (:mod:`dopplertof.slices`)."""
+        import drjit as dr
+
+        from .tracing import trace_pass
+        from .tracing.lanes import slice_times, slices_in_pass_order
+
+        s, n = self.settings, self.settings.group_size
+        parts = []
+        for j, u in enumerate(slice_times(setup, s)):
+            self.slices.place(float(s.exposure_start) + u * float(s.exposure_s))
+            one = dataclasses.replace(setup, first_sample=setup.first_sample + j * n, samples=n, slice_u=tuple(float(x) for x in u))
+            out = trace_pass(self.scene, s, one, self.tables)
+            dr.eval(out)  # before the next group moves the scenes
+            parts.append(out)
+        return slices_in_pass_order(parts, setup.n_pixels, n)

@@ -69,7 +69,7 @@ PER_BODY_MAX_BODIES = 8
 # The list is code per body too: at 16 bodies it cost the tree's first render 1.0 s more.
 LISTED_POSES_MAX_BODIES = 8
 
-TRAVERSALS = ("auto", "per-body", "tree", "atlas")
+TRAVERSALS = ("auto", "per-body", "tree", "atlas", "slices")
 # Emitter parameters that hold emitted power: their textures' values, an envmap's pixels and scale.
 EMITTED_PARAMETERS = ("radiance", "intensity", "irradiance", "data", "scale")
 
@@ -132,6 +132,7 @@ class Body:
     swept_times: tuple = None  # the times (t0, t1) s it covers, clamped into the key range
     local_min: object = None  # bounds_local padded a little, mi.Point3f (opaque)
     local_max: object = None
+    load_copy: object = None  # () -> mi.Scene: the body's shapes loaded afresh, in its frame (traversal "slices")
 
 
 @dataclass
@@ -443,6 +444,7 @@ class DynamicScene:
         self._targets = {}  # dr.switch targets per query, traced once per body list
         self._atlas = None  # (body scenes' ids, BodyAtlas) of the body list it was built for
         self._emitters = None
+        self._slices = None  # SliceScenes of traversal "slices", built on first use
         groups = [(self.source, self.static)] + [(f"{self.source}: moving body {b.name!r}", b.scene) for b in self.bodies]
         for where, mi_scene in groups + [(light.name, light.scene) for light in self.lights]:
             check_emitters(mi_scene, where)
@@ -544,6 +546,10 @@ class DynamicScene:
         if not self.bodies or self.traversal == "per-body":
             return "per-body"
         cuda = mi.variant().startswith("cuda")
+        if self.traversal == "slices":
+            if cuda:
+                raise ValueError(f"traversal='slices' traces one scene per member in a kernel, which OptiX does not allow yet on {mi.variant()}; use 'atlas' or 'auto'")
+            return "slices"
         if self.traversal == "tree" and cuda:
             raise ValueError(f"traversal='tree' traces inside dr.switch (OptiX direct callables) and is not supported on {mi.variant()}; use 'atlas', 'per-body' or 'auto'")
         if self.traversal == "atlas" or (self.traversal == "auto" and cuda):
@@ -563,7 +569,36 @@ class DynamicScene:
         -------
         bool
         """
-        return self.traversal_in_use() != "per-body"
+        return self.traversal_in_use() in ("tree", "atlas")
+
+    def mitsuba_scenes(self) -> list:
+        """Every ``mi.Scene`` whose shapes a ray may hit: the static scene, the bodies' and,
+        once built, the member scenes of ``traversal="slices"`` (their copies of the
+        bodies' shapes have BSDFs of their own).
+
+        Returns
+        -------
+        list of mi.Scene
+        """
+        return [self.static, *(b.scene for b in self.bodies), *(self._slices.scenes if self._slices is not None else [])]
+
+    def slice_scenes(self, members: int):
+        """The member scenes of ``traversal="slices"`` (:class:`dopplertof.slices.SliceScenes`),
+        built on first use for ``members`` correlated times per group.
+
+        Parameters
+        ----------
+        members : int
+
+        Returns
+        -------
+        SliceScenes
+        """
+        from .slices import SliceScenes
+
+        if self._slices is None or self._slices.members != members:
+            self._slices = SliceScenes(self, members)
+        return self._slices
 
     def _body_atlas(self):
         """The :class:`~dopplertof.atlas.BodyAtlas` of the current body list (built once per
@@ -664,7 +699,7 @@ class DynamicScene:
         """
         import mitsuba as mi
 
-        if len(self.bodies) > LISTED_POSES_MAX_BODIES:
+        if len(self.bodies) > LISTED_POSES_MAX_BODIES or (self.bodies and self.traversal == "slices"):
             return LanePoses(mi.Float64(time_s), precise)
         return [body.motion.pose(time_s, precise) for body in self.bodies]
 
@@ -711,6 +746,12 @@ class DynamicScene:
         import mitsuba as mi
 
         active = mi.Bool(active)
+        slices = self._slices if self.bodies and self.traversal_in_use() == "slices" else None
+        if slices is not None:  # one scene per member, each at its instant: hits in the world
+            pi, body_index, pose = slices.intersect(ray, mi.Float64(time_s), active, coherent, self.select_pose, LanePoses(mi.Float64(time_s), False))
+            si = pi.compute_surface_interaction(ray, mi.RayFlags.All, active)
+            p_local, n_local, plane_local = slices.local_frame(si, body_index, pose, active)
+            return Hit(si=si, body=body_index, p_local=p_local, n_local=n_local, plane_local=plane_local, pose=pose)
         pi = self.static.ray_intersect_preliminary(ray, coherent=coherent, active=active)
         ray_hit = mi.Ray3f(ray)
         body_index = mi.UInt32(0)
@@ -765,6 +806,8 @@ class DynamicScene:
         import mitsuba as mi
 
         active = mi.Bool(active)
+        if self.bodies and self.traversal_in_use() == "slices":
+            return self._slices.occluded(ray, mi.Float64(time_s), active)
         blocked = self.static.ray_test(ray, active)
         if not self.bodies:
             return blocked
@@ -942,6 +985,8 @@ class DynamicScene:
 
         from .motion import Pose
 
+        if isinstance(poses, LanePoses) and self._slices is not None and self.traversal_in_use() == "slices":
+            return self._slices.pose(mi.UInt32(body_index), poses.time_s, poses.precise)
         if isinstance(poses, LanePoses):
             body_index = mi.UInt32(body_index)
             moving = body_index > 0

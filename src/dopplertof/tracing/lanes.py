@@ -32,6 +32,8 @@ from dataclasses import dataclass
 STREAM_SHARED = 0x5EED0001
 STREAM_OWN = 0x5EED0002
 STREAM_ROTATION = 0x5EED0003
+STREAM_SLICE = 0x5EED0004  # a slice's group number (traversal "slices": shared by all pixels)
+STREAM_SLICE_OWN = 0x5EED0005  # a slice's member's own number
 
 
 @dataclass(frozen=True)
@@ -61,6 +63,10 @@ class LaneSetup:
     grid : PhasorGrid or None
         A response record's frequencies (:class:`dopplertof.tracing.sink.PhasorGrid`) the pass
         accumulates; default None.
+    slice_u : tuple of float or None
+        With ``traversal="slices"`` (:mod:`dopplertof.slices`): the pass holds one group
+        of each pixel, lanes member-major, and member ``m`` of every pixel takes the
+        normalised time ``slice_u[m]`` (:func:`slice_times`); default None.
     """
 
     width: int
@@ -75,6 +81,7 @@ class LaneSetup:
     exposure_s: float
     seed: int
     grid: object = None  # a response record's PhasorGrid (tracing.sink) the pass accumulates, or None
+    slice_u: tuple = None  # traversal "slices": each member's normalised time, shared by every pixel (slice_times)
 
     @property
     def n_groups(self) -> int:
@@ -262,8 +269,52 @@ def pixel_and_index(setup: LaneSetup, per_pixel: int):
     import mitsuba as mi
 
     lane = dr.arange(mi.UInt32, setup.n_pixels * per_pixel)
+    if setup.slice_u is not None:  # member-major: a SIMD packet's lanes trace one member's scene
+        n_pixels = opaque_u32(setup.n_pixels)
+        return lane % n_pixels + opaque_u32(setup.pixel_start), lane // n_pixels
     per = opaque_u32(per_pixel)  # data, not code: any spp or tile reuses the kernel
     return lane // per + opaque_u32(setup.pixel_start), lane % per
+
+
+def slices_in_pass_order(parts, n_pixels: int, n_times: int):
+    """The per-lane outputs of a pass's groups, traced one slice pass per group
+    (``traversal="slices"``: member-major lanes, :func:`pixel_and_index`), in the lane order
+    of a pass that traced them together (pixel-major, then group, then member), which the
+    reduction expects.
+
+    Parameters
+    ----------
+    parts : list of dict
+        Per group of the pass, in order: its outputs (PyTrees of evaluated per-lane arrays).
+    n_pixels : int
+        Pixels of the pass's tile.
+    n_times : int
+        Members per group N.
+
+    Returns
+    -------
+    dict
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    lanes = n_pixels * n_times
+    lane = dr.arange(mi.UInt32, lanes)
+    member, pixel = lane // opaque_u32(n_pixels), lane % opaque_u32(n_pixels)
+    per_pixel = opaque_u32(len(parts) * n_times)
+
+    def placed(values):
+        x = values[0]
+        if isinstance(x, dict):
+            return {k: placed([v[k] for v in values]) for k in x}
+        if isinstance(x, (list, tuple)):
+            return type(x)(placed([v[i] for v in values]) for i in range(len(x)))
+        out = dr.zeros(type(x), lanes * len(values))
+        for j, v in enumerate(values):
+            dr.scatter(out, v, pixel * per_pixel + opaque_u32(j * n_times) + member)
+        return out
+
+    return placed(parts)
 
 
 class StrataLayout:
@@ -392,6 +443,12 @@ def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared
 
     from ..timesampling import sample_times
 
+    if setup.slice_u is not None:
+        import drjit as dr
+
+        times = mi.Float64(list(setup.slice_u))
+        dr.make_opaque(times)
+        return dr.gather(mi.Float64, times, mi.UInt32(member))
     # stratified decorrelates its members' strata; the antithetic members share r
     key = mi.UInt32(member) if settings.time_sampling == "stratified" else mi.UInt32(0)
     rotation = seeded_pcg(seed, STREAM_ROTATION, pixel, key).next_float32()
@@ -400,6 +457,42 @@ def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared
         settings.time_sampling, r_shared, r_own, place, count, setup.n_groups, mi.UInt32(member), setup.n_times,
         settings.shift, settings.stratify_intervals,
     )  # fmt: skip
+
+
+def slice_times(setup: LaneSetup, settings):
+    """Normalised times u of the members of every group of a pass with
+    ``traversal="slices"`` (:mod:`dopplertof.slices`), shared by all pixels: drawn as
+    :func:`sample_time` draws a pixel's, from streams keyed by the group (and member)
+    alone, the strata rotated once for all pixels. Each pixel's times keep their
+    distribution.
+
+    Parameters
+    ----------
+    setup : LaneSetup
+        The pass.
+    settings : RenderSettings
+
+    Returns
+    -------
+    numpy.ndarray
+        u, shape (groups of the pass, members), float64, in [0, 1).
+    """
+    import dataclasses
+
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+
+    n = setup.n_times
+    count = setup.samples  # the pass's groups x members
+    sample = dr.arange(mi.UInt32, count) + opaque_u32(setup.first_sample)
+    group, member = sample // opaque_u32(n), sample % opaque_u32(n)
+    seed = opaque_u32(setup.seed)
+    everywhere = dr.zeros(mi.UInt32, count)  # the pixel's place in the streams: one for all pixels
+    r_shared = seeded_pcg(seed, STREAM_SLICE, everywhere, group).next_float32()
+    r_own = seeded_pcg(seed, STREAM_SLICE_OWN, member, group).next_float32()
+    u = sample_time(dataclasses.replace(setup, slice_u=None), settings, seed, everywhere, group, member, r_shared, r_own)
+    return np.asarray(u, dtype=np.float64).reshape(-1, n)
 
 
 def lane_times(setup: LaneSetup, u):

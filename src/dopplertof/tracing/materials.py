@@ -67,7 +67,7 @@ class MaterialTables:
         import mitsuba as mi
 
         rough, ior = {}, {}
-        for mi_scene in [scene.static] + [body.scene for body in scene.bodies]:
+        for mi_scene in scene.mitsuba_scenes():
             for shape in mi_scene.shapes():
                 bsdf = shape.bsdf()
                 if bsdf is None:

@@ -1,0 +1,336 @@
+"""One Mitsuba scene per instant: ``traversal="slices"`` (DESIGN §6, issue 17).
+
+Every lane of a pass sees the scene at one instant per correlated member: the pass holds
+one group of every pixel of its tile, member ``m`` of every group takes the same time
+``t_m`` (:func:`dopplertof.tracing.lanes.slice_times`), and before the pass each member's
+scene is placed at its time. A member's scene is one ``mi.Scene`` holding the static
+shapes (the very objects of the static scene) and a copy of every body's shapes, placed
+in the world at ``t_m``: a mesh's ``vertex_positions`` (and normals) are rewritten from its
+rest positions, an analytic shape's or an instance's ``to_world`` is set, and Embree
+rebuilds its tree (about a millisecond for a few dozen bodies). A ray is then one query of
+one scene, as for a static scene, whatever the number of bodies.
+
+A hit keeps what the per-lane traversals give (:class:`~dopplertof.scene.Hit`): its body
+(looked up from the hit shape), the body's pose at the lane's time, and, for a mesh, the
+hit triangle's plane in the body's frame from the rest positions of the body's own scene,
+so that Float64 distances of correlated paths at different instants differ by the motion
+alone (DESIGN §3.5). For an analytic shape the plane's point is the world hit taken back
+into the body's frame (float32 at the world's scale, not the body's).
+
+Emitter sampling and everything that is not a ray query stay as they are: bodies' area
+emitters are sampled in their body's scene at the lane's time
+(:mod:`dopplertof.lights`), moving lights and the camera at the lane's time.
+
+Each pixel's estimator keeps its distribution (same mean, same per-pixel variance,
+``benchmarks/slice_variance.py``); the errors of pixels in one pass become correlated.
+
+=================  ======================================================================
+what               where
+=================  ======================================================================
+member scenes      :class:`SliceScenes` (built on a render's first pass, kept with the
+                   :class:`~dopplertof.scene.DynamicScene`)
+placing            :meth:`SliceScenes.place`
+ray queries        :meth:`SliceScenes.intersect`, :meth:`SliceScenes.occluded`
+slice times        :func:`dopplertof.tracing.lanes.slice_times`
+=================  ======================================================================
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+BODY_KEY = "__dopplertof_slice_body_{}_{}"  # a body copy's shape in a member scene
+
+
+def _fields_of(pose) -> list:
+    """A :class:`~dopplertof.motion.Pose`'s arrays, flat: q (4), scale, translation,
+    omega, translation_rate, scale_rate."""
+    return [*pose.q, pose.scale, pose.translation, pose.omega, pose.translation_rate, pose.scale_rate]
+
+
+def _matrices(pose) -> np.ndarray:
+    """(n, 4, 4) float64 matrices of a Float64 :class:`~dopplertof.motion.Pose` of n lanes:
+    x_world = translation + R(q) (scale * x_local)."""
+    w, x, y, z = (np.asarray(c, np.float64) for c in pose.q)
+    r = np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)  # fmt: skip
+    m = np.zeros((len(w), 4, 4))
+    m[:, :3, :3] = r * np.stack([np.asarray(c, np.float64) for c in pose.scale], -1)[:, None, :]
+    m[:, :3, 3] = np.stack([np.asarray(c, np.float64) for c in pose.translation], -1)
+    m[:, 3, 3] = 1.0
+    return m
+
+
+class _MemberPlacement:
+    """Places the body shapes of one member scene: their parameters and rest state, the
+    meshes' vertices and normals concatenated so that one product places them all."""
+
+    def __init__(self, mi_scene, body_shapes):
+        import mitsuba as mi
+
+        self.params = mi.traverse(mi_scene)
+        keys = set(self.params.keys())
+        spans, normal_spans, to_world = [], [], []
+        vertices, vertex_body, normals, normal_body = [], [], [], []
+        used = used_n = 0
+        for key, body in body_shapes:
+            if f"{key}.vertex_positions" in keys:
+                v = np.array(self.params[f"{key}.vertex_positions"], np.float64).reshape(-1, 3)
+                spans.append((key, used, used + len(v)))
+                vertices.append(v)
+                vertex_body.append(np.full(len(v), body))
+                used += len(v)
+                n = np.array(self.params[f"{key}.vertex_normals"], np.float64).reshape(-1, 3) if f"{key}.vertex_normals" in keys else np.zeros((0, 3))
+                if len(n):
+                    normal_spans.append((key, used_n, used_n + len(n)))
+                    normals.append(n)
+                    normal_body.append(np.full(len(n), body))
+                    used_n += len(n)
+            elif f"{key}.to_world" in keys:
+                to_world.append((key, body, np.array(self.params[f"{key}.to_world"].matrix, np.float64).reshape(4, 4)))
+            else:
+                raise ValueError(f"a moving shape ({key}) has neither vertex positions nor a to_world to place it by")
+        self.spans, self.normal_spans, self.to_world = spans, normal_spans, to_world
+        self.rest = np.concatenate(vertices) if vertices else np.zeros((0, 3))
+        self.vertex_body = np.concatenate(vertex_body) if vertex_body else np.zeros(0, np.int64)
+        self.rest_normals = np.concatenate(normals) if normals else np.zeros((0, 3))
+        self.normal_body = np.concatenate(normal_body) if normal_body else np.zeros(0, np.int64)
+
+    def place(self, matrices):
+        """Place every body shape by its body's matrix (``matrices``: (bodies, 4, 4))."""
+        import mitsuba as mi
+
+        linear, offset = matrices[:, :3, :3], matrices[:, :3, 3]
+        v = (np.einsum("vij,vj->vi", linear[self.vertex_body], self.rest) + offset[self.vertex_body]).astype(np.float32)
+        for key, a, b in self.spans:
+            self.params[f"{key}.vertex_positions"] = mi.Float(v[a:b].ravel())
+        if self.normal_spans:  # normals by the inverse transpose
+            n = np.einsum("vji,vj->vi", np.linalg.inv(linear)[self.normal_body], self.rest_normals)
+            n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+            n = n.astype(np.float32)
+            for key, a, b in self.normal_spans:
+                self.params[f"{key}.vertex_normals"] = mi.Float(n[a:b].ravel())
+        for key, body, rest in self.to_world:
+            self.params[f"{key}.to_world"] = mi.Transform4f(matrices[body] @ rest)
+        self.params.update()  # the shapes, then the scene: Embree rebuilds its tree
+
+
+class SliceScenes:
+    """The member scenes of a dynamic scene (module docstring).
+
+    Parameters
+    ----------
+    scene : DynamicScene
+        Its bodies carry ``load_copy`` (:class:`~dopplertof.scene.Body`).
+    members : int
+        Correlated times per group N: one scene per member.
+    """
+
+    def __init__(self, scene, members: int):
+        import drjit as dr
+        import mitsuba as mi
+
+        self.members = members
+        self.scenes, self.placements, self._copies = [], [], []
+        body_of = {}  # shape registry id -> body index (1-based)
+        rest_of = {}  # shape registry id -> the body's own (rest) shape
+        static = {shape.id() or f"__dopplertof_static_{i}": shape for i, shape in enumerate(scene.static.shapes())}
+        for m in range(members):
+            entries, body_shapes = dict(static), []
+            for b, body in enumerate(scene.bodies):
+                if body.load_copy is None:
+                    raise ValueError(f"moving body {body.name!r} cannot be copied for traversal='slices' (it was not built by dopplertof.load_scene)")
+                copy = body.load_copy()
+                self._copies.append(copy)  # keeps the copies' objects alive
+                rest_shapes = body.scene.shapes()
+                for k, shape in enumerate(copy.shapes()):
+                    entries[BODY_KEY.format(b, k)] = shape
+                    body_shapes.append((BODY_KEY.format(b, k), b))
+                    shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+                    body_of[shape_id] = b + 1
+                    rest_of[shape_id] = rest_shapes[k]
+            self.scenes.append(mi.load_dict({"type": "scene", **entries}))
+            self.placements.append(_MemberPlacement(self.scenes[-1], body_shapes))
+        size = max([*body_of, 0]) + 1
+        table = np.zeros(size, np.uint32)
+        for shape_id, b in body_of.items():
+            table[shape_id] = b
+        self.body_table = mi.UInt32(table)
+        self._rest_meshes = self._rest_triangles(rest_of, size)
+        self.pose_table = scene._pose_table()
+        self.n_bodies = len(scene.bodies)
+        self.times_s = [None] * members
+        self._opaque_times = [dr.opaque(mi.Float64, 0.0) for _ in range(members)]
+        self._poses = {}  # precise -> the bodies' poses at the members' times (member-major), opaque
+
+    @staticmethod
+    def _rest_triangles(rest_of, size):
+        """Per shape registry id: the offset of its body's rest triangles in three Float32
+        tables of their vertices (-1: not a mesh), and the tables."""
+        import drjit as dr
+        import mitsuba as mi
+
+        offsets = np.full(size, -1, np.int64)
+        chunks, used = [], 0
+        for shape_id, rest in rest_of.items():
+            if not rest.is_mesh():
+                continue
+            params = mi.traverse(rest)
+            v = np.array(params["vertex_positions"], np.float32).reshape(-1, 3)
+            f = np.array(params["faces"], np.int64).reshape(-1, 3)
+            chunks.append(v[f])
+            offsets[shape_id] = used
+            used += len(f)
+        triangles = np.concatenate(chunks) if chunks else np.zeros((1, 3, 3), np.float32)
+        corners = [mi.Point3f(*(mi.Float(triangles[:, k, i].copy()) for i in range(3))) for k in range(3)]
+        offsets_dr = mi.Int32(offsets.astype(np.int32))
+        dr.make_opaque(offsets_dr, *corners)
+        return offsets_dr, corners
+
+    def place(self, times_s):
+        """Place member ``m``'s scene at ``times_s[m]`` (s) where it is elsewhere.
+
+        Parameters
+        ----------
+        times_s : sequence of float, s
+            One time per member.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        times_s = [float(t) for t in times_s]
+        if times_s == self.times_s:
+            return
+        # Every lane of a member shares its bodies' poses: evaluated here once (the pose
+        # table's arithmetic), gathered per lane (:meth:`pose`); the shapes are placed by them.
+        body = dr.tile(dr.arange(mi.UInt32, self.n_bodies), self.members)
+        time = mi.Float64(np.repeat(np.array(times_s), self.n_bodies))
+        for precise in (True, False):
+            fields = _fields_of(self.pose_table.pose(body, time, precise))
+            dr.eval(fields)
+            dr.make_opaque(fields)
+            self._poses[precise] = fields
+        from .motion import Pose
+
+        p64 = self._poses[True]
+        matrices = _matrices(Pose(q=tuple(p64[:4]), scale=p64[4], translation=p64[5], omega=p64[6], translation_rate=p64[7], scale_rate=p64[8]))
+        for m, t in enumerate(times_s):
+            if self.times_s[m] != t:
+                self.placements[m].place(matrices[m * self.n_bodies : (m + 1) * self.n_bodies])
+                self.times_s[m] = t
+                self._opaque_times[m] = dr.opaque(mi.Float64, t)
+
+    def member_of(self, time_s):
+        """Each lane's member (mi.UInt32): the member whose placed time is its time's nearest."""
+        import drjit as dr
+        import mitsuba as mi
+
+        member = mi.UInt32(0)
+        best = dr.abs(time_s - self._opaque_times[0])
+        for m in range(1, self.members):
+            gap = dr.abs(time_s - self._opaque_times[m])
+            closer = gap < best
+            member, best = dr.select(closer, m, member), dr.select(closer, gap, best)
+        return member
+
+    def pose(self, body, time_s, precise: bool):
+        """Pose of ``body`` (mi.UInt32 per lane, 0: static: the identity) at each lane's
+        member's time, gathered from the poses :meth:`place` evaluated.
+
+        Parameters
+        ----------
+        body : mi.UInt32
+        time_s : mi.Float64
+            The lanes' times (the placed times of their members).
+        precise : bool
+            Float64 components.
+
+        Returns
+        -------
+        Pose
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        from .motion import Pose
+        from .scene import _identity_pose
+
+        moving = body > 0
+        index = self.member_of(time_s) * self.n_bodies + dr.select(moving, body - 1, 0)
+        identity = _fields_of(_identity_pose(precise))
+        values = [dr.select(moving, dr.gather(type(f), f, index, moving), i) for f, i in zip(self._poses[precise], identity)]
+        return Pose(q=tuple(values[:4]), scale=values[4], translation=values[5], omega=values[6], translation_rate=values[7], scale_rate=values[8])
+
+    def _member_masks(self, time_s, active):
+        """Per member, the lanes whose time is that member's (the nearest of the placed times)."""
+        import drjit as dr
+
+        times = self._opaque_times
+        masks, taken = [], None
+        for m in range(self.members):
+            if m == self.members - 1:
+                mine = active if taken is None else active & ~taken
+            else:
+                gap = dr.abs(time_s - times[m])
+                mine = active
+                for k in range(m + 1, self.members):
+                    mine = mine & (gap <= dr.abs(time_s - times[k]))
+                mine = mine if taken is None else mine & ~taken
+            masks.append(mine)
+            taken = mine if taken is None else taken | mine
+        return masks
+
+    def intersect(self, ray, time_s, active, coherent, select_pose, poses):
+        """(preliminary intersection, body index, pose) of world-space ``ray`` in each lane's
+        member scene; the pose (``select_pose(poses, body)``) is the body's at the lane's time."""
+        import drjit as dr
+        import mitsuba as mi
+
+        pi = None
+        for scene_m, mask in zip(self.scenes, self._member_masks(time_s, active)):
+            pi_m = scene_m.ray_intersect_preliminary(ray, coherent=coherent, active=mask)
+            pi = pi_m if pi is None else dr.select(mask, pi_m, pi)
+        hit = active & pi.is_valid()
+        shape_id = dr.reinterpret_array(mi.UInt32, pi.shape)
+        body = dr.gather(mi.UInt32, self.body_table, shape_id, hit & (shape_id < dr.width(self.body_table)))
+        return pi, body, select_pose(poses, body)
+
+    def occluded(self, ray, time_s, active):
+        """True where ``ray`` is blocked in its lane's member scene."""
+        import mitsuba as mi
+
+        blocked = mi.Bool(False)
+        for scene_m, mask in zip(self.scenes, self._member_masks(time_s, active)):
+            blocked |= scene_m.ray_test(ray, mask)
+        return blocked
+
+    def local_frame(self, si, body, pose, active):
+        """(p_local, n_local, plane_local) of world hits ``si`` (:class:`~dopplertof.scene.Hit`):
+        for static geometry (``body`` 0) the world's, a mesh's plane through its
+        triangle's first vertex; on a body in the body's frame at ``pose`` (module
+        docstring)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        from .motion import _conj, _rotate
+
+        valid = active & si.is_valid()
+        is_mesh = valid & si.shape.is_mesh()
+        mesh = mi.MeshPtr(si.shape)
+        first_vertex = mi.Point3f(mesh.vertex_position(mesh.face_indices(si.prim_index, is_mesh).x, is_mesh))
+        moving = valid & (body > 0)
+        p_local = dr.select(moving, pose.point_to_local(si.p), si.p)
+        n_body = dr.normalize(pose.scale * _rotate(_conj(pose.q), si.n))  # a normal's inverse transpose
+        offsets, corners = self._rest_meshes
+        shape_id = dr.reinterpret_array(mi.UInt32, si.shape)
+        offset = dr.gather(mi.Int32, offsets, shape_id, moving & (shape_id < dr.width(offsets)))
+        rest = moving & (offset >= 0)
+        triangle = mi.UInt32(offset) + si.prim_index
+        p0, p1, p2 = (dr.gather(mi.Point3f, c, triangle, rest) for c in corners)
+        n_rest = dr.normalize(dr.cross(p1 - p0, p2 - p0))  # as Mitsuba computes a triangle's normal
+        n_local = dr.select(rest, n_rest, dr.select(moving, n_body, si.n))
+        plane_local = dr.select(rest, p0, dr.select(moving | ~is_mesh, p_local, first_vertex))
+        return p_local, n_local, plane_local
