@@ -1,0 +1,163 @@
+#!/usr/bin/env python
+"""One scene per instant, built: ``traversal="slices"`` against the per-lane tracer
+(``"auto"``) and stock ``path``, side by side in one process (issue 17, DESIGN §6).
+
+    python benchmarks/slices_built.py              # 8 and 128 cubes at 256² x 32 spp, a street sample at 64² x 64 (~3 min)
+    python benchmarks/slices_built.py --quick      # smoke test
+
+D-ToF with 4 cameras (antithetic + replay). Per scene, after one warm-up render of each
+configuration (kernels compiled), ``--reps`` interleaved renders of each: the median wall
+time, its ratio to stock ``path`` on the same geometry (the throughput scenes only), and for
+``slices`` the time its path-tracing kernels ran (Dr.Jit's kernel history) and the time
+Python spent tracing them (``tracing.single.trace``, once per group). ``agree``: the
+spread of z = (slices − auto) / sqrt(σ²_slices + σ²_auto) over the measurements whose
+errors are not zero, and the same spread between two renders of ``auto`` (seeds 1 and 2):
+equal where both estimate the same thing.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+
+import numpy as np
+
+import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets the libLLVM path)
+
+import _common
+import throughput
+
+CONFIGS = ("stock", "auto", "slices")
+
+
+def parse_args(argv):
+    p = _common.argument_parser(__doc__)
+    p.add_argument("--reps", type=int, default=None, help="timed renders per configuration (default 3; quick 1)")
+    p.add_argument("--resolution", type=int, default=None, help="film side of the throughput scenes (default 256; quick 32)")
+    p.add_argument("--spp", type=int, default=None, help="paths per pixel of the throughput scenes (default 32; quick 8)")
+    p.add_argument("--scenes", nargs="*", choices=["8-moving", "32-moving", "128-moving", "street"], default=None, help="default 8-moving 128-moving street")
+    _common.add_output_options(p, "slices_built", quick_help="smoke test: 32x32, 8 spp, one rep", plot=False)
+    args = p.parse_args(argv)
+    _common.fill_defaults(args, {"reps": 1, "resolution": 32, "spp": 8} if args.quick else {"reps": 3, "resolution": 256, "spp": 32})
+    _common.default_output_paths(args, "slices_built")
+    return args
+
+
+def street_scene():
+    """(scene, render options) of street sample 3 of the dataset benchmark's configuration."""
+    from dopplertof.dataset import config, randomize, sample
+
+    cfg = config.load_config(None, {"scene": {"kinds": {"street": 1.0}}, "bodies": {"count": [20, 24], "moving_probability": 1.0}})
+    record = sample.make_record(cfg, 2027, 3, _common.DEFAULT_VARIANT)
+    r = record["render"]
+    scene = randomize.build_scene(record["scene"], r["resolution"])
+    options = dict(spp=r["spp"], max_depth=r["max_depth"], cameras=[dopplertof.Camera(**c) for c in record["cameras"]],
+                   time_sampling=r["time_sampling"], correlation=r["correlation"])  # fmt: skip
+    return scene, options
+
+
+def timed(render):
+    """(wall s, path-kernel s, tracing s, result) of ``render()``."""
+    import drjit as dr
+
+    from dopplertof.tracing import single
+
+    shipped, spent = single.trace, [0.0]
+
+    def trace(*a, **k):
+        t0 = time.perf_counter()
+        try:
+            return shipped(*a, **k)
+        finally:
+            spent[0] += time.perf_counter() - t0
+
+    single.trace = trace
+    dr.kernel_history()
+    try:
+        t0 = time.perf_counter()
+        result = render()
+        wall = time.perf_counter() - t0
+    finally:
+        single.trace = shipped
+    kernels = sum(k.get("execution_time", 0.0) for k in dr.kernel_history() if (k.get("operation_count") or 0) > 1000) / 1e3
+    return wall, kernels, spent[0], result
+
+
+def z_spread(a, b):
+    m1, m2 = np.asarray(a.measurements, np.float64), np.asarray(b.measurements, np.float64)
+    e1, e2 = np.asarray(a.measurement_stderr, np.float64), np.asarray(b.measurement_stderr, np.float64)
+    keep = (e1 > 0) & (e2 > 0)
+    z = (m1 - m2)[keep] / np.sqrt(e1**2 + e2**2)[keep]
+    return float(np.std(z)), float(np.mean(np.abs(z) > 3))
+
+
+def bench(name, args, log):
+    import drjit as dr
+    import mitsuba as mi
+
+    if name == "street":
+        scene, options = street_scene()
+        stock = None
+    else:
+        ours, stock_dict = throughput.scene_dicts(name, args.resolution, 5)
+        scene, stock = dopplertof.load_scene(ours), mi.load_dict(stock_dict)
+        options = dict(spp=args.spp, max_depth=5, cameras=[dopplertof.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)])
+
+    def run(config, seed):
+        if config == "stock":
+            return timed(lambda: np.asarray(mi.render(stock, spp=options["spp"], seed=seed)))
+        scene.traversal = config
+        seed += 1000 if config == "slices" else 0  # other paths than auto's: their errors independent
+        return timed(lambda: dopplertof.render(scene, seed=seed, **options))
+
+    configs = [c for c in CONFIGS if stock is not None or c != "stock"]
+    for _ in range(2):  # warm-up, twice: the member scenes, once built, enter the other kernels' calls
+        for c in configs:
+            run(c, 0)
+    times = {c: [] for c in configs}
+    last = {}
+    for rep in range(args.reps):
+        for c in configs:
+            times[c].append(run(c, 1 + rep))
+            last[c] = times[c][-1][3]
+        log(f"[{name}] rep {rep + 1}/{args.reps}: " + "  ".join(f"{c} {times[c][-1][0]:.2f}s" for c in configs))
+    row = {"scene": name, "bodies": len(scene.bodies), "resolution": scene.resolution[0], "spp": options["spp"]}
+    for c in configs:
+        row[f"{c}_s"] = statistics.median(t[0] for t in times[c])
+    row["slices_kernels_s"] = statistics.median(t[1] for t in times["slices"])
+    row["slices_tracing_s"] = statistics.median(t[2] for t in times["slices"])
+    row["auto_kernels_s"] = statistics.median(t[1] for t in times["auto"])
+    if stock is not None:
+        row["auto_vs_stock"] = row["auto_s"] / row["stock_s"]
+        row["slices_vs_stock"] = row["slices_s"] / row["stock_s"]
+    row["slices_vs_auto"] = row["slices_s"] / row["auto_s"]
+    row["agree_z_spread"], row["agree_beyond_3"] = z_spread(last["slices"], last["auto"])
+    if args.reps > 1:  # the same between two renders of the per-lane tracer
+        row["auto_z_spread"], row["auto_beyond_3"] = z_spread(times["auto"][0][3], times["auto"][1][3])
+    del scene
+    dr.sync_thread()
+    return row
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    settings = f"{args.resolution}x{args.resolution}, spp {args.spp} (street: the dataset's 64x64, 64 spp), D-ToF 4 cameras, {args.reps} interleaved reps after a warm-up"
+    run = _common.Run("slices_built", args, argv, settings)
+    import drjit as dr
+
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    names = ["8-moving"] if args.quick else args.scenes or ["8-moving", "128-moving", "street"]
+    rows = [bench(n, args, run.log) for n in names]
+    fields = ["scene", "bodies", "resolution", "spp", "stock_s", "auto_s", "slices_s", "auto_kernels_s", "slices_kernels_s", "slices_tracing_s",
+              "auto_vs_stock", "slices_vs_stock", "slices_vs_auto", "agree_z_spread", "agree_beyond_3", "auto_z_spread", "auto_beyond_3"]  # fmt: skip
+    print("| scene | bodies | auto ÷ stock | slices ÷ stock | slices ÷ auto | slices: kernels / tracing s | z spread (beyond 3), slices vs auto | auto vs auto |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        f = lambda k: f"{r[k]:.2f}" if k in r else "-"  # noqa: E731
+        print(f"| {r['scene']} | {r['bodies']} | {f('auto_vs_stock')} | {f('slices_vs_stock')} | {f('slices_vs_auto')} | {f('slices_kernels_s')} / {f('slices_tracing_s')} | {f('agree_z_spread')} ({100 * r['agree_beyond_3']:.1f} %) | {f('auto_z_spread')} ({100 * r.get('auto_beyond_3', float('nan')):.1f} %) |")
+    run.finish(rows, fields, restval="")
+
+
+if __name__ == "__main__":
+    main()

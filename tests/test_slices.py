@@ -1,0 +1,111 @@
+"""``traversal="slices"`` (:mod:`dopplertof.slices`): one Mitsuba scene per correlated member,
+placed at its instant. Its hits are the per-lane traversals' at that instant, its renders
+estimate the same images, and what it cannot trace yet it refuses."""
+
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+import pytest
+
+import dopplertof as dt
+from test_many_bodies import EXPOSURE, _extra_bodies, _rays, _scene_dict
+
+T = mi.ScalarTransform4f
+
+
+@pytest.fixture(scope="module")
+def scene():
+    s = dt.load_scene(_extra_bodies(_scene_dict()))
+    s.set_time_window(0.0, EXPOSURE)
+    return s
+
+
+def _hits(scene, traversal, ray, time_s):
+    scene.traversal = traversal
+    try:
+        hit = scene.intersect(ray, time_s)
+        blocked = scene.occluded(mi.Ray3f(ray.o, ray.d, 2.5), time_s)
+        values = [hit.body, hit.si.t, hit.n_local, hit.plane_local, blocked]
+        dr.eval(values)
+        return [np.array(v) for v in values]
+    finally:
+        scene.traversal = "auto"
+
+
+def test_member_scenes_hit_what_the_bodies_hit_at_their_instants(scene):
+    """Rays at the two members' times meet in the member scenes the bodies, distances,
+    rest-frame normals and planes the per-body loop finds at those times (to float32
+    rounding: the member scenes hold the bodies placed in the world)."""
+    ray, _ = _rays(3000, seed=5)
+    times = (0.3e-3, 1.1e-3)
+    slices = scene.slice_scenes(2)
+    slices.place(times)
+    time_s = mi.Float64(np.where(np.arange(dr.width(ray.o)) % 2, *times[::-1]))
+    a, b = _hits(scene, "per-body", ray, time_s), _hits(scene, "slices", ray, time_s)
+    same = a[0] == b[0]
+    assert same.mean() > 0.99 and (a[0] > 0).mean() > 0.2
+    hit = same & np.isfinite(a[1])
+    sphere = a[0] == [x.name for x in scene.bodies].index("ball") + 1  # Mitsuba's float32 sphere test: see test_many_bodies
+    np.testing.assert_allclose(a[1][hit & ~sphere], b[1][hit & ~sphere], rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(a[1][hit & sphere], b[1][hit & sphere], rtol=2e-3)
+    moving_mesh = hit & (a[0] > 0) & ~sphere
+    np.testing.assert_allclose(a[2][:, moving_mesh], b[2][:, moving_mesh], atol=1e-6)  # the rest triangle's normal
+    np.testing.assert_array_equal(a[3][:, moving_mesh], b[3][:, moving_mesh])  # and its first vertex
+    assert (a[4] == b[4]).mean() > 0.99
+
+
+def _cameras():
+    return [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
+
+
+def test_slices_render_what_the_per_lane_tracer_renders():
+    """The moving Cornell box: the slices' measurements and intensity estimate the
+    per-lane tracer's (independent seeds; z of their differences has unit spread), and so
+    does the ground-truth depth."""
+    results = {}
+    for traversal, seed in (("auto", 1), ("slices", 2)):
+        scene = dt.scenes.build("cornell-box", resolution=24)
+        scene.traversal = traversal
+        results[traversal] = dt.render(scene, spp=64, seed=seed, cameras=_cameras())
+    a, b = results["auto"], results["slices"]
+    e = np.sqrt(np.asarray(a.measurement_stderr, np.float64) ** 2 + np.asarray(b.measurement_stderr, np.float64) ** 2)
+    keep = e > 0
+    z = (np.asarray(a.measurements, np.float64) - np.asarray(b.measurements, np.float64))[keep] / e[keep]
+    assert keep.sum() > 1000 and abs(z.mean()) < 0.15 and 0.7 < z.std() < 1.6
+    ia, ib = np.asarray(a.intensity, np.float64), np.asarray(b.intensity, np.float64)
+    assert abs(ia.mean() / ib.mean() - 1) < 0.02
+    np.testing.assert_allclose(np.nanmean(np.asarray(a.depth)), np.nanmean(np.asarray(b.depth)), rtol=5e-3)
+
+
+def test_a_moving_glass_body_is_traced_through():
+    """A moving dielectric sphere in front of a wall: its copies in the member scenes have
+    BSDFs of their own, which the material tables hold (finite optical lengths), and the
+    image matches the per-lane tracer's."""
+    d = {
+        "type": "scene",
+        "sensor": {"type": "perspective", "fov": 40, "to_world": T().look_at(origin=[0, 0, 0], target=[0, 0, -1], up=[0, 1, 0]),
+                   "film": {"type": "hdrfilm", "width": 16, "height": 16}},
+        "wall": {"type": "rectangle", "to_world": T().translate([0, 0, -4]).scale(3), "bsdf": {"type": "diffuse"}},
+        "light": {"type": "point", "position": [0.0, 0.5, 0.0], "intensity": {"type": "rgb", "value": [10.0] * 3}},
+        "ball": {"type": "sphere", "to_world": T().translate([0, 0, -2]).scale(0.5), "bsdf": {"type": "dielectric"},
+                 "motion": {"type": "parametric", "linear_velocity": [0, 0, 10.0]}},
+    }  # fmt: skip
+    scene = dt.load_scene(d)
+    scene.traversal = "slices"
+    result = dt.render(scene, spp=32, seed=3, cameras=_cameras())
+    assert np.isfinite(np.asarray(result.measurements)).all() and np.isfinite(np.asarray(result.intensity)).all()
+    scene.traversal = "auto"
+    reference = dt.render(scene, spp=32, seed=4, cameras=_cameras())
+    assert abs(np.asarray(result.intensity).mean() / np.asarray(reference.intensity).mean() - 1) < 0.05
+
+
+@pytest.mark.parametrize("options", [dict(correlation="reconnection"), dict(time_sampling="analytic")])
+def test_paired_estimators_are_refused(options):
+    scene = dt.scenes.build("cornell-box", resolution=8)
+    scene.traversal = "slices"
+    with pytest.raises(ValueError, match="traversal='slices' does not trace the paired"):
+        dt.render(scene, spp=4, cameras=_cameras()[:1], **options)
