@@ -522,12 +522,55 @@ class PassTracer:
         from .tracing import trace_pass
         from .tracing.lanes import slice_times, slices_in_pass_order
 
+        import mitsuba as mi
+        import os
+
         s, n = self.settings, self.settings.group_size
+        slices, scene, tables = self.slices, self.scene, self.tables
+        template = dataclasses.replace(setup, samples=n, first_sample=0)
+
+        def group(first_sample, slice_u, scenes, poses32, poses64, times):
+            slices._poses = {False: poses32, True: poses64}
+            slices._opaque_times = list(times)
+            one = dataclasses.replace(template, first_sample=first_sample, slice_u=slice_u)
+            return trace_pass(scene, s, one, tables)
+
+        def reachable(*roots):
+            import dataclasses as dc
+
+            found, seen, stack = [], set(), list(roots)
+            while stack:
+                x = stack.pop()
+                if id(x) in seen or x is None or isinstance(x, (int, float, str, bool, bytes, type)) or callable(x) and not hasattr(x, "__dict__"):
+                    continue
+                seen.add(id(x))
+                if isinstance(x, dr.ArrayBase) or isinstance(x, mi.Object):
+                    found.append(x)
+                    continue
+                if isinstance(x, dict):
+                    stack.extend(x.values())
+                elif isinstance(x, (list, tuple, set)):
+                    stack.extend(x)
+                elif hasattr(x, "__dict__"):
+                    stack.extend(vars(x).values())
+                elif hasattr(x, "__slots__"):
+                    stack.extend(getattr(x, k, None) for k in x.__slots__)
+            return found
+
+        if os.environ.get("DT_FREEZE"):
+            if getattr(self, "_frozen", None) is None:
+                self._frozen = dr.freeze(group, auto_opaque=False, state_fn=lambda *a: reachable(scene, tables, s))
+            run = self._frozen
+        else:
+            run = group
         parts = []
         for j, u in enumerate(slice_times(setup, s)):
             self.slices.place(float(s.exposure_start) + u * float(s.exposure_s))
-            one = dataclasses.replace(setup, first_sample=setup.first_sample + j * n, samples=n, slice_u=tuple(float(x) for x in u))
-            out = trace_pass(self.scene, s, one, self.tables)
+            first = mi.UInt32(setup.first_sample + j * n)
+            dr.make_opaque(first)
+            su = mi.Float64([float(x) for x in u])
+            dr.make_opaque(su)
+            out = run(first, su, slices.scenes, slices._poses[False], slices._poses[True], slices._opaque_times)
             dr.eval(out)  # before the next group moves the scenes
             parts.append(out)
         return slices_in_pass_order(parts, setup.n_pixels, n)

@@ -162,7 +162,7 @@ class SliceScenes:
         self._rest_meshes = self._rest_triangles(rest_of, size)
         self.pose_table = scene._pose_table()
         self.n_bodies = len(scene.bodies)
-        self.times_s = [None] * members
+        self.times_s = np.full(members, np.nan)  # mutated in place: a frozen pass sees one object
         self._opaque_times = [dr.opaque(mi.Float64, 0.0) for _ in range(members)]
         self._poses = {}  # precise -> the bodies' poses at the members' times (member-major), opaque
 
@@ -202,7 +202,7 @@ class SliceScenes:
         import mitsuba as mi
 
         times_s = [float(t) for t in times_s]
-        if times_s == self.times_s:
+        if times_s == list(self.times_s):
             return
         # Every lane of a member shares its bodies' poses: evaluated here once (the pose
         # table's arithmetic), gathered per lane (:meth:`pose`); the shapes are placed by them.

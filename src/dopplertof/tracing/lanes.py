@@ -162,6 +162,8 @@ def opaque_u32(value):
     import drjit as dr
     import mitsuba as mi
 
+    if isinstance(value, mi.UInt32):  # already data (a frozen slice pass's argument)
+        return value
     a = mi.UInt32(int(value) & 0xFFFFFFFF)
     dr.make_opaque(a)
     return a
@@ -446,7 +448,7 @@ def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared
     if setup.slice_u is not None:
         import drjit as dr
 
-        times = mi.Float64(list(setup.slice_u))
+        times = setup.slice_u if isinstance(setup.slice_u, mi.Float64) else mi.Float64(list(setup.slice_u))
         dr.make_opaque(times)
         return dr.gather(mi.Float64, times, mi.UInt32(member))
     # stratified decorrelates its members' strata; the antithetic members share r
