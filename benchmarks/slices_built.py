@@ -135,7 +135,6 @@ def bench(name, args, log):
     row["agree_z_spread"], row["agree_beyond_3"] = z_spread(last["slices"], last["auto"])
     if args.reps > 1:  # the same between two renders of the per-lane tracer
         row["auto_z_spread"], row["auto_beyond_3"] = z_spread(times["auto"][0][3], times["auto"][1][3])
-    del scene
     dr.sync_thread()
     return row
 

@@ -109,3 +109,16 @@ def test_paired_estimators_are_refused(options):
     scene.traversal = "slices"
     with pytest.raises(ValueError, match="traversal='slices' does not trace the paired"):
         dt.render(scene, spp=4, cameras=_cameras()[:1], **options)
+
+
+@pytest.mark.parametrize("options", [dict(time_sampling="uniform"), dict(time_sampling="stratified"), dict(time_sampling="antithetic", n_times=4), dict(correlation="none")])
+def test_every_unpaired_time_sampling_renders(options):
+    """Each member of a kernel at its own instant, whatever the group's size and the
+    correlation: the intensity is the per-lane tracer's within noise."""
+    scene = dt.scenes.build("cornell-box", resolution=12)
+    out = {}
+    for traversal in ("auto", "slices"):
+        scene.traversal = traversal
+        out[traversal] = dt.render(scene, spp=32, seed=5, cameras=_cameras()[:2], **options)
+    assert np.isfinite(np.asarray(out["slices"].measurements)).all()
+    assert abs(np.asarray(out["slices"].intensity).mean() / np.asarray(out["auto"].intensity).mean() - 1) < 0.05

@@ -10,6 +10,7 @@ Float64 increments, which :meth:`Accumulator.apply` adds, pass by pass in order,
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -489,7 +490,7 @@ class PassTracer:
 
         scene.set_time_window(settings.exposure_start, settings.exposure_start + settings.exposure_s)
         self.scene, self.settings, self.grid = scene, settings, grid
-        self.slices = None
+        self.slices = self._frozen_group = None
         if scene.bodies and scene.traversal_in_use() == "slices":
             if settings.paired:
                 raise ValueError(f"traversal='slices' does not trace the paired estimators yet (correlation={settings.correlation!r}, "
@@ -516,61 +517,42 @@ class PassTracer:
     def _sliced(self, setup):
         """A pass's per-lane outputs with ``traversal="slices"``: one kernel per group of the
         pass, every pixel's member m at one instant, its scene placed there first
-        (:mod:`dopplertof.slices`)."""
+        (:mod:`dopplertof.slices`). The group's pass is traced once and replayed
+        (``dr.freeze``) for the others: what changes from group to group (the first sample,
+        the members' times, the bodies' poses and vertices) is its arguments' data."""
         import drjit as dr
+        import mitsuba as mi
 
+        from .slices import kernel_inputs
         from .tracing import trace_pass
         from .tracing.lanes import slice_times, slices_in_pass_order
-
-        import mitsuba as mi
-        import os
 
         s, n = self.settings, self.settings.group_size
         slices, scene, tables = self.slices, self.scene, self.tables
         template = dataclasses.replace(setup, samples=n, first_sample=0)
 
-        def group(first_sample, slice_u, scenes, poses32, poses64, times):
-            slices._poses = {False: poses32, True: poses64}
-            slices._opaque_times = list(times)
-            one = dataclasses.replace(template, first_sample=first_sample, slice_u=slice_u)
-            return trace_pass(scene, s, one, tables)
+        def group(first_sample, slice_u, state):
+            slices.set_state(state)
+            return trace_pass(scene, s, dataclasses.replace(template, first_sample=first_sample, slice_u=slice_u), tables)
 
-        def reachable(*roots):
-            import dataclasses as dc
-
-            found, seen, stack = [], set(), list(roots)
-            while stack:
-                x = stack.pop()
-                if id(x) in seen or x is None or isinstance(x, (int, float, str, bool, bytes, type)) or callable(x) and not hasattr(x, "__dict__"):
-                    continue
-                seen.add(id(x))
-                if isinstance(x, dr.ArrayBase) or isinstance(x, mi.Object):
-                    found.append(x)
-                    continue
-                if isinstance(x, dict):
-                    stack.extend(x.values())
-                elif isinstance(x, (list, tuple, set)):
-                    stack.extend(x)
-                elif hasattr(x, "__dict__"):
-                    stack.extend(vars(x).values())
-                elif hasattr(x, "__slots__"):
-                    stack.extend(getattr(x, k, None) for k in x.__slots__)
-            return found
-
-        if os.environ.get("DT_FREEZE"):
-            if getattr(self, "_frozen", None) is None:
-                self._frozen = dr.freeze(group, auto_opaque=False, state_fn=lambda *a: reachable(scene, tables, s))
-            run = self._frozen
-        else:
-            run = group
+        if self._frozen_group is None:
+            inputs = kernel_inputs(scene, tables)  # what the kernel reads that no argument holds
+            self._frozen_group = dr.freeze(group, state_fn=lambda *_: inputs)
         parts = []
         for j, u in enumerate(slice_times(setup, s)):
-            self.slices.place(float(s.exposure_start) + u * float(s.exposure_s))
-            first = mi.UInt32(setup.first_sample + j * n)
-            dr.make_opaque(first)
-            su = mi.Float64([float(x) for x in u])
-            dr.make_opaque(su)
-            out = run(first, su, slices.scenes, slices._poses[False], slices._poses[True], slices._opaque_times)
+            slices.place(float(s.exposure_start) + u * float(s.exposure_s))
+            first = dr.opaque(mi.UInt32, setup.first_sample + j * n)
+            times = mi.Float64([float(x) for x in u])
+            dr.make_opaque(times)
+            try:
+                out = self._frozen_group(first, times, slices.state())
+            except RuntimeError as exc:  # a kernel input the walk missed: trace every group instead
+                if "frozen function" not in str(exc):
+                    raise
+                cause = str(exc.__cause__ or exc).splitlines()[0]
+                warnings.warn(f"traversal='slices' traces every group of this render anew (slower): dr.freeze could not record its pass ({cause})", stacklevel=2)
+                self._frozen_group = group
+                out = group(first, times, slices.state())
             dr.eval(out)  # before the next group moves the scenes
             parts.append(out)
         return slices_in_pass_order(parts, setup.n_pixels, n)

@@ -36,7 +36,11 @@ rounding):
 :data:`PER_BODY_MAX_BODIES` bodies, else ``per-body``; on CUDA ``atlas`` where it can hold
 every body's shapes, else ``per-body``). Each takes the bodies' poses from
 :meth:`DynamicScene.poses`: all evaluated up front up to :data:`LISTED_POSES_MAX_BODIES`
-bodies, else per lane for the one body asked for.
+bodies, else per lane for the one body asked for. ``"slices"`` is the fourth way, chosen by name only: every
+lane of a pass sees the bodies at one instant per correlated member, placed in one Mitsuba
+scene per member with the static shapes (:mod:`dopplertof.slices`; DESIGN §6). It samples
+times differently (shared by all pixels of a pass), so its images are another estimate of
+the same expectation, not the same bits.
 
 What a moving body costs on the CPU is its Embree calls: each SIMD packet with a lane near
 a body pays a call of about a static query's price, even where it traces one lane
@@ -392,8 +396,10 @@ class DynamicScene:
     seed_hint          int       the file's sampler ``seed`` (None: none given)
     source             str       where it was loaded from (a path; ``"<dict>"`` by default)
     traversal          str       how a ray finds the bodies it hits (module docstring):
-                                 ``"auto"`` (default), ``"per-body"``, ``"tree"`` or
-                                 ``"atlas"``
+                                 ``"auto"`` (default), ``"per-body"``, ``"tree"``,
+                                 ``"atlas"`` or ``"slices"`` (one scene per instant,
+                                 :mod:`dopplertof.slices`; CPU, not the paired
+                                 estimators; chosen by name only)
     camera_motion      Motion    the sensor's motion (None: static), applied on top of its
                                  ``to_world``
     lights             list      :class:`~dopplertof.lights.MovingLight` per moving point or

@@ -1,14 +1,21 @@
 """One Mitsuba scene per instant: ``traversal="slices"`` (DESIGN §6, issue 17).
 
-Every lane of a pass sees the scene at one instant per correlated member: the pass holds
-one group of every pixel of its tile, member ``m`` of every group takes the same time
-``t_m`` (:func:`dopplertof.tracing.lanes.slice_times`), and before the pass each member's
-scene is placed at its time. A member's scene is one ``mi.Scene`` holding the static
-shapes (the very objects of the static scene) and a copy of every body's shapes, placed
-in the world at ``t_m``: a mesh's ``vertex_positions`` (and normals) are rewritten from its
-rest positions, an analytic shape's or an instance's ``to_world`` is set, and Embree
-rebuilds its tree (about a millisecond for a few dozen bodies). A ray is then one query of
-one scene, as for a static scene, whatever the number of bodies.
+Every lane of a kernel sees the scene at one instant per correlated member: a kernel holds
+one group of every pixel of its pass's tile, member ``m`` of every group takes the same
+time ``t_m`` (:func:`dopplertof.tracing.lanes.slice_times`), and before the kernel each
+member's scene is placed at its time. A member's scene is one ``mi.Scene`` holding the
+static shapes (the very objects of the static scene) and a copy of every body's shapes,
+placed in the world at ``t_m``: a mesh's ``vertex_positions`` (and normals) are rewritten
+from its rest positions, an analytic shape's or an instance's ``to_world`` is set, and
+Embree rebuilds its tree (about 13 ms per member for a street scene's 56 moving shapes).
+A ray is then one query of one scene, as for a static scene, whatever the number of bodies.
+
+A pass of several groups traces one kernel per group
+(:meth:`dopplertof.passes.PassTracer`): the first group's is traced in Python and recorded
+(``dr.freeze``), the others replay it with their first sample, their times and the placed
+bodies as data. The vertex buffers are overwritten in place, so the recorded kernel reads
+them (a new array would make Dr.Jit record again); where recording fails, the render warns
+and traces every group.
 
 A hit keeps what the per-lane traversals give (:class:`~dopplertof.scene.Hit`): its body
 (looked up from the hit shape), the body's pose at the lane's time, and, for a mesh, the
@@ -22,13 +29,16 @@ emitters are sampled in their body's scene at the lane's time
 (:mod:`dopplertof.lights`), moving lights and the camera at the lane's time.
 
 Each pixel's estimator keeps its distribution (same mean, same per-pixel variance,
-``benchmarks/slice_variance.py``); the errors of pixels in one pass become correlated.
+``benchmarks/slice_variance.py``); the errors of pixels in one kernel become correlated.
+On the CPU only, and not for the paired estimators yet (two instants per lane); its cost
+against the per-lane traversals: ``benchmarks/slices_built.py``.
 
 =================  ======================================================================
 what               where
 =================  ======================================================================
 member scenes      :class:`SliceScenes` (built on a render's first pass, kept with the
-                   :class:`~dopplertof.scene.DynamicScene`)
+                   :class:`~dopplertof.scene.DynamicScene`:
+                   :meth:`~dopplertof.scene.DynamicScene.slice_scenes`)
 placing            :meth:`SliceScenes.place`
 ray queries        :meth:`SliceScenes.intersect`, :meth:`SliceScenes.occluded`
 slice times        :func:`dopplertof.tracing.lanes.slice_times`
@@ -62,6 +72,37 @@ def _matrices(pose) -> np.ndarray:
     m[:, :3, 3] = np.stack([np.asarray(c, np.float64) for c in pose.translation], -1)
     m[:, 3, 3] = 1.0
     return m
+
+
+def kernel_inputs(*roots) -> list:
+    """Every Dr.Jit array and Mitsuba object reachable from ``roots`` through attributes,
+    containers and dataclass fields (private ones and those built on first use included,
+    which a frozen function's own walk of its closure misses): the extra state of a frozen
+    slice pass. Builds the scene's emitter tables first, which a pass would otherwise build
+    while it is recorded."""
+    import drjit as dr
+    import mitsuba as mi
+
+    for root in roots:
+        if hasattr(root, "emitters") and hasattr(root, "bodies"):
+            root.emitters.far_reference()
+    found, seen, stack = [], set(), list(roots)
+    while stack:
+        x = stack.pop()
+        if x is None or id(x) in seen or isinstance(x, (bool, int, float, complex, str, bytes, type, np.ndarray)):
+            continue
+        seen.add(id(x))
+        if isinstance(x, (dr.ArrayBase, mi.Object)):
+            found.append(x)
+        elif isinstance(x, dict):
+            stack.extend(x.values())
+        elif isinstance(x, (list, tuple, set, frozenset)):
+            stack.extend(x)
+        elif hasattr(x, "__dict__") and not callable(x):
+            stack.extend(vars(x).values())
+        elif hasattr(x, "__slots__") and not callable(x):
+            stack.extend(getattr(x, k, None) for k in x.__slots__)
+    return found
 
 
 class _MemberPlacement:
@@ -99,6 +140,27 @@ class _MemberPlacement:
         self.rest_normals = np.concatenate(normals) if normals else np.zeros((0, 3))
         self.normal_body = np.concatenate(normal_body) if normal_body else np.zeros(0, np.int64)
 
+    def _write(self, key, values):
+        """Overwrite the parameter's buffer with ``values`` (float32) in place and mark it
+        changed: its Dr.Jit variable stays the same, so a frozen pass replayed after the
+        placement reads the new values (a new variable would make ``dr.freeze`` record the
+        pass again). Embree shares the buffer; the update rebuilds its tree."""
+        import ctypes
+
+        import drjit as dr
+        import mitsuba as mi
+
+        buffer = self.params[key]
+        flat = np.ascontiguousarray(values, np.float32).ravel()
+        if dr.width(buffer) != flat.size:  # (a mesh does not change its size; kept general)
+            self.params[key] = mi.Float(flat)
+            return
+        dr.eval(buffer)
+        dr.sync_thread()  # no kernel reads it while it is written
+        address = np.from_dlpack(buffer).ctypes.data  # the view is read-only: write through its address
+        np.ctypeslib.as_array((ctypes.c_float * flat.size).from_address(address))[:] = flat
+        self.params.set_dirty(key)
+
     def place(self, matrices):
         """Place every body shape by its body's matrix (``matrices``: (bodies, 4, 4))."""
         import mitsuba as mi
@@ -106,13 +168,13 @@ class _MemberPlacement:
         linear, offset = matrices[:, :3, :3], matrices[:, :3, 3]
         v = (np.einsum("vij,vj->vi", linear[self.vertex_body], self.rest) + offset[self.vertex_body]).astype(np.float32)
         for key, a, b in self.spans:
-            self.params[f"{key}.vertex_positions"] = mi.Float(v[a:b].ravel())
+            self._write(f"{key}.vertex_positions", v[a:b])
         if self.normal_spans:  # normals by the inverse transpose
             n = np.einsum("vji,vj->vi", np.linalg.inv(linear)[self.normal_body], self.rest_normals)
             n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
             n = n.astype(np.float32)
             for key, a, b in self.normal_spans:
-                self.params[f"{key}.vertex_normals"] = mi.Float(n[a:b].ravel())
+                self._write(f"{key}.vertex_normals", n[a:b])
         for key, body, rest in self.to_world:
             self.params[f"{key}.to_world"] = mi.Transform4f(matrices[body] @ rest)
         self.params.update()  # the shapes, then the scene: Embree rebuilds its tree
@@ -137,7 +199,9 @@ class SliceScenes:
         self.scenes, self.placements, self._copies = [], [], []
         body_of = {}  # shape registry id -> body index (1-based)
         rest_of = {}  # shape registry id -> the body's own (rest) shape
-        static = {shape.id() or f"__dopplertof_static_{i}": shape for i, shape in enumerate(scene.static.shapes())}
+        static = {}  # the static shapes under their own ids (a key other than its id renames a shape)
+        for i, shape in enumerate(scene.static.shapes()):
+            static[shape.id() if shape.id() and shape.id() not in static else f"__dopplertof_static_{i}"] = shape
         for m in range(members):
             entries, body_shapes = dict(static), []
             for b, body in enumerate(scene.bodies):
@@ -223,6 +287,17 @@ class SliceScenes:
                 self.times_s[m] = t
                 self._opaque_times[m] = dr.opaque(mi.Float64, t)
 
+    def state(self) -> tuple:
+        """Everything of the member scenes a pass's kernel reads (the scenes, the hit
+        tables, the placed times and poses): the arguments of a frozen pass
+        (:meth:`dopplertof.passes.PassTracer._sliced`), which :meth:`set_state` puts back."""
+        return (self.scenes, self.body_table, self._rest_meshes, self._opaque_times, self._poses[False], self._poses[True])
+
+    def set_state(self, state: tuple):
+        """Use ``state`` (:meth:`state`'s layout) in what is traced next."""
+        self.scenes, self.body_table, self._rest_meshes, times, poses32, poses64 = state
+        self._opaque_times, self._poses = list(times), {False: poses32, True: poses64}
+
     def member_of(self, time_s):
         """Each lane's member (mi.UInt32): the member whose placed time is its time's nearest."""
         import drjit as dr
@@ -253,7 +328,6 @@ class SliceScenes:
         Pose
         """
         import drjit as dr
-        import mitsuba as mi
 
         from .motion import Pose
         from .scene import _identity_pose
@@ -265,23 +339,9 @@ class SliceScenes:
         return Pose(q=tuple(values[:4]), scale=values[4], translation=values[5], omega=values[6], translation_rate=values[7], scale_rate=values[8])
 
     def _member_masks(self, time_s, active):
-        """Per member, the lanes whose time is that member's (the nearest of the placed times)."""
-        import drjit as dr
-
-        times = self._opaque_times
-        masks, taken = [], None
-        for m in range(self.members):
-            if m == self.members - 1:
-                mine = active if taken is None else active & ~taken
-            else:
-                gap = dr.abs(time_s - times[m])
-                mine = active
-                for k in range(m + 1, self.members):
-                    mine = mine & (gap <= dr.abs(time_s - times[k]))
-                mine = mine if taken is None else mine & ~taken
-            masks.append(mine)
-            taken = mine if taken is None else taken | mine
-        return masks
+        """Per member, the active lanes whose time is that member's."""
+        member = self.member_of(time_s)
+        return [active & (member == m) for m in range(self.members)]
 
     def intersect(self, ray, time_s, active, coherent, select_pose, poses):
         """(preliminary intersection, body index, pose) of world-space ``ray`` in each lane's
