@@ -452,14 +452,13 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
             for anim in parent.findall("animation"):
                 raise SceneError(f"{path}: an <animation> inside <{parent.tag} type=\"{parent.attrib.get('type', '?')}\"> "
                                  f"({sources.where(anim) or 'in the scene'}): {WHAT_MOVES}")
-    resolver = mi.file_resolver()
-    saved_paths = [str(resolver[i]) for i in range(len(resolver))]
-    resolver.prepend(scene_dir)
     host = None
     if moving:
         elements = [root] + [el for _, (_, el) in moving]
         host = pipeline_host({shape.attrib.get("type") for el in elements for shape in el.iter("shape")}, path)
-    try:
+
+    def load_all():
+        """The static scene, the bodies and the moving lights (relative paths resolved in the scene's folder)."""
         try:
             xml = ET.tostring(root, encoding="unicode")
             static = mi.load_string(xml) if host is None else _load_guest_string(xml, host)
@@ -499,10 +498,9 @@ def _load_xml(path: str, params: dict, film_size=None) -> DynamicScene:
         for el, where in attached:
             _check_movable_emitter(el.attrib.get("type"), where, attached=True)
             lights.append(MovingLight(where, light_scene(el, where), _camera_light_motion(static, camera_motion, path), with_camera=True))
-    finally:
-        resolver.clear()  # restore Mitsuba's own search path (it finds plugins there)
-        for entry in saved_paths:
-            resolver.append(entry)
+        return static, bodies, lights
+
+    static, bodies, lights = _in_folder(scene_dir, load_all)
     if strict_normals:
         mitsuba06.check_flat_shading([static, *(b.scene for b in bodies)], path)
     scene = DynamicScene(
