@@ -63,10 +63,11 @@ class LaneSetup:
     grid : PhasorGrid or None
         A response record's frequencies (:class:`dopplertof.tracing.sink.PhasorGrid`) the pass
         accumulates; default None.
-    slice_u : tuple of float or None
+    slice_u : mi.Float64 or None
         With ``traversal="slices"`` (:mod:`dopplertof.slices`): the pass holds one group
         of each pixel, lanes member-major, and member ``m`` of every pixel takes the
-        normalised time ``slice_u[m]`` (:func:`slice_times`); default None.
+        normalised time ``slice_u[m]`` (:func:`slice_times`); default None. Its
+        ``first_sample`` may then be an ``mi.UInt32`` (a frozen pass's argument).
     """
 
     width: int
@@ -81,7 +82,7 @@ class LaneSetup:
     exposure_s: float
     seed: int
     grid: object = None  # a response record's PhasorGrid (tracing.sink) the pass accumulates, or None
-    slice_u: tuple = None  # traversal "slices": each member's normalised time, shared by every pixel (slice_times)
+    slice_u: object = None  # traversal "slices": each member's normalised time (mi.Float64), shared by every pixel (slice_times)
 
     @property
     def n_groups(self) -> int:
@@ -153,7 +154,8 @@ def opaque_u32(value):
 
     Parameters
     ----------
-    value : int
+    value : int or mi.UInt32
+        An ``mi.UInt32`` is data already (a frozen slice pass's argument): returned as is.
 
     Returns
     -------
@@ -448,9 +450,7 @@ def sample_time(setup: LaneSetup, settings, seed, pixel, group, member, r_shared
     if setup.slice_u is not None:
         import drjit as dr
 
-        times = setup.slice_u if isinstance(setup.slice_u, mi.Float64) else mi.Float64(list(setup.slice_u))
-        dr.make_opaque(times)
-        return dr.gather(mi.Float64, times, mi.UInt32(member))
+        return dr.gather(mi.Float64, setup.slice_u, mi.UInt32(member))
     # stratified decorrelates its members' strata; the antithetic members share r
     key = mi.UInt32(member) if settings.time_sampling == "stratified" else mi.UInt32(0)
     rotation = seeded_pcg(seed, STREAM_ROTATION, pixel, key).next_float32()
