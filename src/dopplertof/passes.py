@@ -524,7 +524,7 @@ class PassTracer:
         import mitsuba as mi
 
         from .slices import kernel_inputs
-        from .tracing import trace_pass
+        from .tracing import _interrupt_in, trace_pass
         from .tracing.lanes import slice_times, slices_in_pass_order
 
         s, n = self.settings, self.settings.group_size
@@ -546,8 +546,8 @@ class PassTracer:
             dr.make_opaque(times)
             try:
                 out = self._frozen_group(first, times, slices.state())
-            except RuntimeError as exc:  # a kernel input the walk missed: trace every group instead
-                if "frozen function" not in str(exc):
+            except RuntimeError as exc:  # the recording or its replay failed: trace every group instead
+                if _interrupt_in(exc) is not None:
                     raise
                 cause = str(exc.__cause__ or exc).splitlines()[0]
                 warnings.warn(f"traversal='slices' traces every group of this render anew (slower): dr.freeze could not record its pass ({cause})", stacklevel=2)

@@ -75,7 +75,8 @@ def _matrices(pose) -> np.ndarray:
 
 
 def kernel_inputs(*roots) -> list:
-    """Every Dr.Jit array and Mitsuba object reachable from ``roots`` through attributes,
+    """Every Dr.Jit array and Mitsuba object (or other object Dr.Jit can traverse, such as
+    the film filter's ``mi.ContinuousDistribution``) reachable from ``roots`` through attributes,
     containers and dataclass fields (private ones and those built on first use included,
     which a frozen function's own walk of its closure misses): the extra state of a frozen
     slice pass. Builds the scene's emitter tables first, which a pass would otherwise build
@@ -92,7 +93,7 @@ def kernel_inputs(*roots) -> list:
         if x is None or id(x) in seen or isinstance(x, (bool, int, float, complex, str, bytes, type, np.ndarray)):
             continue
         seen.add(id(x))
-        if isinstance(x, (dr.ArrayBase, mi.Object)):
+        if isinstance(x, (dr.ArrayBase, mi.Object)) or hasattr(x, "_traverse_1_cb_ro"):  # (Mitsuba's distributions are not Objects)
             found.append(x)
         elif isinstance(x, dict):
             stack.extend(x.values())
