@@ -574,9 +574,9 @@ def render(
         # The ratio is checked after each pass: a pass of a large share of the render (on a
         # small film, one pass may hold all of it) would check too late to save anything.
         # (No smaller than the setting allows: a tiny film checks after a few spp.)
-        noise_lanes = max(math.prod(scene.resolution) * max(settings.group_size, settings.spp // settings.replicates),
+        pass_lanes = max(math.prod(scene.resolution) * max(settings.group_size, settings.spp // settings.replicates),
                          FIELDS["lanes_per_pass"].metadata["minimum"])
-        settings = dataclasses.replace(settings, lanes_per_pass=min(settings.lanes_per_pass, noise_lanes))
+        settings = dataclasses.replace(settings, lanes_per_pass=min(settings.lanes_per_pass, pass_lanes))
     if resumed_lanes is not None:
         if resumed_lanes != asked_lanes:  # (the result depends on the passes; until_noise's own smaller passes are not asked for)
             warnings.warn(f"resuming {os.fspath(checkpoint)!r} in its own passes of {resumed_lanes} lanes, not {asked_lanes}", stacklevel=2)

@@ -588,6 +588,12 @@ class DynamicScene:
         """
         return [self.static, *(b.scene for b in self.bodies), *(self._slices.scenes if self._slices is not None else [])]
 
+    def _slices_in_use(self):
+        """The member scenes where ``traversal="slices"`` is in use and they are built (a
+        render builds them: :meth:`slice_scenes`), else None: the ray queries then take the
+        per-body loop at the lanes' own times."""
+        return self._slices if self.traversal_in_use() == "slices" else None
+
     def slice_scenes(self, members: int):
         """The member scenes of ``traversal="slices"`` (:class:`dopplertof.slices.SliceScenes`),
         built on first use for ``members`` correlated times per group.
@@ -752,7 +758,7 @@ class DynamicScene:
         import mitsuba as mi
 
         active = mi.Bool(active)
-        slices = self._slices if self.bodies and self.traversal_in_use() == "slices" else None
+        slices = self._slices_in_use()
         if slices is not None:  # one scene per member, each at its instant: hits in the world
             pi, body_index, pose = slices.intersect(ray, mi.Float64(time_s), active, coherent, self.select_pose, LanePoses(mi.Float64(time_s), False))
             si = pi.compute_surface_interaction(ray, mi.RayFlags.All, active)
@@ -812,8 +818,9 @@ class DynamicScene:
         import mitsuba as mi
 
         active = mi.Bool(active)
-        if self.bodies and self.traversal_in_use() == "slices":
-            return self._slices.occluded(ray, mi.Float64(time_s), active)
+        slices = self._slices_in_use()
+        if slices is not None:
+            return slices.occluded(ray, mi.Float64(time_s), active)
         blocked = self.static.ray_test(ray, active)
         if not self.bodies:
             return blocked
@@ -991,8 +998,9 @@ class DynamicScene:
 
         from .motion import Pose
 
-        if isinstance(poses, LanePoses) and self._slices is not None and self.traversal_in_use() == "slices":
-            return self._slices.pose(mi.UInt32(body_index), poses.time_s, poses.precise)
+        slices = self._slices_in_use()
+        if isinstance(poses, LanePoses) and slices is not None:
+            return slices.pose(mi.UInt32(body_index), poses.time_s, poses.precise)
         if isinstance(poses, LanePoses):
             body_index = mi.UInt32(body_index)
             moving = body_index > 0

@@ -52,12 +52,6 @@ import numpy as np
 BODY_KEY = "__dopplertof_slice_body_{}_{}"  # a body copy's shape in a member scene
 
 
-def _fields_of(pose) -> list:
-    """A :class:`~dopplertof.motion.Pose`'s arrays, flat: q (4), scale, translation,
-    omega, translation_rate, scale_rate."""
-    return [*pose.q, pose.scale, pose.translation, pose.omega, pose.translation_rate, pose.scale_rate]
-
-
 def _matrices(pose) -> np.ndarray:
     """(n, 4, 4) float64 matrices of a Float64 :class:`~dopplertof.motion.Pose` of n lanes:
     x_world = translation + R(q) (scale * x_local)."""
@@ -274,14 +268,10 @@ class SliceScenes:
         body = dr.tile(dr.arange(mi.UInt32, self.n_bodies), self.members)
         time = mi.Float64(np.repeat(np.array(times_s), self.n_bodies))
         for precise in (True, False):
-            fields = _fields_of(self.pose_table.pose(body, time, precise))
-            dr.eval(fields)
-            dr.make_opaque(fields)
-            self._poses[precise] = fields
-        from .motion import Pose
-
-        p64 = self._poses[True]
-        matrices = _matrices(Pose(q=tuple(p64[:4]), scale=p64[4], translation=p64[5], omega=p64[6], translation_rate=p64[7], scale_rate=p64[8]))
+            pose = self.pose_table.pose(body, time, precise)
+            dr.make_opaque(pose)
+            self._poses[precise] = pose
+        matrices = _matrices(self._poses[True])
         for m, t in enumerate(times_s):
             if self.times_s[m] != t:
                 self.placements[m].place(matrices[m * self.n_bodies : (m + 1) * self.n_bodies])
@@ -330,14 +320,11 @@ class SliceScenes:
         """
         import drjit as dr
 
-        from .motion import Pose
         from .scene import _identity_pose
 
         moving = body > 0
         index = self.member_of(time_s) * self.n_bodies + dr.select(moving, body - 1, 0)
-        identity = _fields_of(_identity_pose(precise))
-        values = [dr.select(moving, dr.gather(type(f), f, index, moving), i) for f, i in zip(self._poses[precise], identity)]
-        return Pose(q=tuple(values[:4]), scale=values[4], translation=values[5], omega=values[6], translation_rate=values[7], scale_rate=values[8])
+        return dr.select(moving, dr.gather(type(self._poses[precise]), self._poses[precise], index, moving), _identity_pose(precise))
 
     def _member_masks(self, time_s, active):
         """Per member, the active lanes whose time is that member's."""
