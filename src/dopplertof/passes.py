@@ -536,6 +536,7 @@ class PassTracer:
             return trace_pass(scene, s, dataclasses.replace(template, first_sample=first_sample, slice_u=slice_u), tables)
 
         if self._frozen_group is None:
+            scene.emitters.far_reference()  # built now, not while the pass is recorded
             inputs = kernel_inputs(scene, tables)  # what the kernel reads that no argument holds
             self._frozen_group = dr.freeze(group, state_fn=lambda *_: inputs)
         parts = []

@@ -53,34 +53,24 @@ BODY_KEY = "__dopplertof_slice_body_{}_{}"  # a body copy's shape in a member sc
 
 
 def _matrices(pose) -> np.ndarray:
-    """(n, 4, 4) float64 matrices of a Float64 :class:`~dopplertof.motion.Pose` of n lanes:
-    x_world = translation + R(q) (scale * x_local)."""
-    w, x, y, z = (np.asarray(c, np.float64) for c in pose.q)
-    r = np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)  # fmt: skip
-    m = np.zeros((len(w), 4, 4))
-    m[:, :3, :3] = r * np.stack([np.asarray(c, np.float64) for c in pose.scale], -1)[:, None, :]
-    m[:, :3, 3] = np.stack([np.asarray(c, np.float64) for c in pose.translation], -1)
-    m[:, 3, 3] = 1.0
-    return m
+    """(n, 4, 4) float64 matrices of a Float64 :class:`~dopplertof.motion.Pose` of n lanes
+    (:func:`dopplertof.motion.compose`)."""
+    from .motion import compose
+
+    def stacked(components):
+        return np.stack([np.asarray(c, np.float64) for c in components], -1)
+
+    return compose(stacked(pose.translation), stacked(pose.q), stacked(pose.scale))
 
 
 def kernel_inputs(*roots) -> list:
     """Every Dr.Jit array and Mitsuba object (or other object Dr.Jit can traverse, such as
     the film filter's ``mi.ContinuousDistribution``) reachable from ``roots`` through attributes,
-    containers and dataclass fields (private ones and those built on first use included,
-    which a frozen function's own walk of its closure misses): the extra state of a frozen
-    slice pass. Builds the scene's emitter tables first, which a pass would otherwise build
-    while it is recorded."""
+    containers and dataclass fields (private ones included, which a frozen function's own
+    walk of its closure misses): the extra state of a frozen slice pass."""
     import drjit as dr
     import mitsuba as mi
 
-    for root in roots:
-        if hasattr(root, "emitters") and hasattr(root, "bodies"):
-            root.emitters.far_reference()
     found, seen, stack = [], set(), list(roots)
     while stack:
         x = stack.pop()
@@ -143,13 +133,9 @@ class _MemberPlacement:
         import ctypes
 
         import drjit as dr
-        import mitsuba as mi
 
         buffer = self.params[key]
-        flat = np.ascontiguousarray(values, np.float32).ravel()
-        if dr.width(buffer) != flat.size:  # (a mesh does not change its size; kept general)
-            self.params[key] = mi.Float(flat)
-            return
+        flat = np.ascontiguousarray(values, np.float32).ravel()  # as many values as it holds: a mesh keeps its size
         dr.eval(buffer)
         dr.sync_thread()  # no kernel reads it while it is written
         address = np.from_dlpack(buffer).ctypes.data  # the view is read-only: write through its address
