@@ -1000,7 +1000,8 @@ class DynamicScene:
 
         slices = self._slices_in_use()
         if isinstance(poses, LanePoses) and slices is not None:
-            return slices.pose(mi.UInt32(body_index), poses.time_s, poses.precise)
+            body_index = mi.UInt32(body_index)
+            return dr.select(body_index > 0, slices.pose(body_index, poses.time_s, poses.precise), _identity_pose(poses.precise))
         if isinstance(poses, LanePoses):
             body_index = mi.UInt32(body_index)
             moving = body_index > 0

@@ -289,8 +289,10 @@ class SliceScenes:
         return member
 
     def pose(self, body, time_s, precise: bool):
-        """Pose of ``body`` (mi.UInt32 per lane, 0: static: the identity) at each lane's
-        member's time, gathered from the poses :meth:`place` evaluated.
+        """Pose of moving ``body`` (mi.UInt32 per lane, 1-based; lanes with 0 get no pose:
+        :meth:`~dopplertof.scene.DynamicScene.select_pose` gives static geometry the
+        identity) at each lane's member's time, gathered from the poses :meth:`place`
+        evaluated.
 
         Parameters
         ----------
@@ -306,11 +308,9 @@ class SliceScenes:
         """
         import drjit as dr
 
-        from .scene import _identity_pose
-
         moving = body > 0
         index = self.member_of(time_s) * self.n_bodies + dr.select(moving, body - 1, 0)
-        return dr.select(moving, dr.gather(type(self._poses[precise]), self._poses[precise], index, moving), _identity_pose(precise))
+        return dr.gather(type(self._poses[precise]), self._poses[precise], index, moving)
 
     def _member_masks(self, time_s, active):
         """Per member, the active lanes whose time is that member's."""
