@@ -9,7 +9,9 @@ D-ToF with 4 cameras (antithetic + replay). Per scene, after one warm-up render 
 configuration (kernels compiled), ``--reps`` interleaved renders of each: the median wall
 time, its ratio to stock ``path`` on the same geometry (the throughput scenes only), and for
 ``slices`` the time its path-tracing kernels ran (Dr.Jit's kernel history) and the time
-Python spent tracing them (``tracing.single.trace``, once per group). ``agree``: the
+Python spent tracing them (``tracing.single.trace``: a recorded pass's replays skip it),
+and the milliseconds one group's placement of the bodies takes (``SliceScenes.place``,
+timed from when the kernels in flight are done). ``agree``: the
 spread of z = (slices − auto) / sqrt(σ²_slices + σ²_auto) over the measurements whose
 errors are not zero, and the same spread between two renders of ``auto`` (seeds 1 and 2):
 equal where both estimate the same thing.
@@ -57,31 +59,50 @@ def street_scene():
     return scene, options
 
 
+class Timer:
+    """Seconds spent in (and calls of) ``owner.name`` while active; with ``synced`` the
+    clock starts once the kernels in flight are done (a placement waits for them anyway)."""
+
+    def __init__(self, owner, name, synced=False):
+        self.owner, self.name, self.synced = owner, name, synced
+        self.seconds, self.calls = 0.0, 0
+
+    def __enter__(self):
+        import drjit as dr
+
+        self.shipped = shipped = getattr(self.owner, self.name)
+
+        def wrapped(*a, **k):
+            if self.synced:
+                dr.sync_thread()
+            t0 = time.perf_counter()
+            try:
+                return shipped(*a, **k)
+            finally:
+                self.seconds += time.perf_counter() - t0
+                self.calls += 1
+
+        setattr(self.owner, self.name, wrapped)
+        return self
+
+    def __exit__(self, *exc):
+        setattr(self.owner, self.name, self.shipped)
+
+
 def timed(render):
-    """(wall s, path-kernel s, tracing s, result) of ``render()``."""
+    """(wall s, path-kernel s, tracing s, placement ms per group, result) of ``render()``."""
     import drjit as dr
 
+    from dopplertof.slices import SliceScenes
     from dopplertof.tracing import single
 
-    shipped, spent = single.trace, [0.0]
-
-    def trace(*a, **k):
-        t0 = time.perf_counter()
-        try:
-            return shipped(*a, **k)
-        finally:
-            spent[0] += time.perf_counter() - t0
-
-    single.trace = trace
     dr.kernel_history()
-    try:
+    with Timer(single, "trace") as tracing, Timer(SliceScenes, "place", synced=True) as placing:
         t0 = time.perf_counter()
         result = render()
         wall = time.perf_counter() - t0
-    finally:
-        single.trace = shipped
     kernels = sum(k.get("execution_time", 0.0) for k in dr.kernel_history() if (k.get("operation_count") or 0) > 1000) / 1e3
-    return wall, kernels, spent[0], result
+    return wall, kernels, tracing.seconds, 1e3 * placing.seconds / max(placing.calls, 1), result
 
 
 def z_spread(a, b):
@@ -120,13 +141,16 @@ def bench(name, args, log):
     for rep in range(args.reps):
         for c in configs:
             times[c].append(run(c, 1 + rep))
-            last[c] = times[c][-1][3]
+            last[c] = times[c][-1][4]
         log(f"[{name}] rep {rep + 1}/{args.reps}: " + "  ".join(f"{c} {times[c][-1][0]:.2f}s" for c in configs))
     row = {"scene": name, "bodies": len(scene.bodies), "resolution": scene.resolution[0], "spp": options["spp"]}
     for c in configs:
         row[f"{c}_s"] = statistics.median(t[0] for t in times[c])
     row["slices_kernels_s"] = statistics.median(t[1] for t in times["slices"])
     row["slices_tracing_s"] = statistics.median(t[2] for t in times["slices"])
+    row["slices_placing_ms_per_group"] = statistics.median(t[3] for t in times["slices"])
+    placement = scene.slice_scenes(2).placements[0]  # the renders' member scenes (antithetic pairs)
+    row["moving_meshes"], row["moving_other_shapes"] = len(placement.spans), len(placement.to_world)  # per member scene
     row["auto_kernels_s"] = statistics.median(t[1] for t in times["auto"])
     if stock is not None:
         row["auto_vs_stock"] = row["auto_s"] / row["stock_s"]
@@ -134,7 +158,7 @@ def bench(name, args, log):
     row["slices_vs_auto"] = row["slices_s"] / row["auto_s"]
     row["agree_z_spread"], row["agree_beyond_3"] = z_spread(last["slices"], last["auto"])
     if args.reps > 1:  # the same between two renders of the per-lane tracer
-        row["auto_z_spread"], row["auto_beyond_3"] = z_spread(times["auto"][0][3], times["auto"][1][3])
+        row["auto_z_spread"], row["auto_beyond_3"] = z_spread(times["auto"][0][4], times["auto"][1][4])
     dr.sync_thread()
     return row
 
@@ -148,13 +172,13 @@ def main(argv=None):
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     names = ["8-moving"] if args.quick else args.scenes or ["8-moving", "128-moving", "street"]
     rows = [bench(n, args, run.log) for n in names]
-    fields = ["scene", "bodies", "resolution", "spp", "stock_s", "auto_s", "slices_s", "auto_kernels_s", "slices_kernels_s", "slices_tracing_s",
+    fields = ["scene", "bodies", "resolution", "spp", "stock_s", "auto_s", "slices_s", "auto_kernels_s", "slices_kernels_s", "slices_tracing_s", "slices_placing_ms_per_group", "moving_meshes", "moving_other_shapes",
               "auto_vs_stock", "slices_vs_stock", "slices_vs_auto", "agree_z_spread", "agree_beyond_3", "auto_z_spread", "auto_beyond_3"]  # fmt: skip
-    print("| scene | bodies | auto ÷ stock | slices ÷ stock | slices ÷ auto | slices: kernels / tracing s | z spread (beyond 3), slices vs auto | auto vs auto |")
+    print("| scene | bodies | auto ÷ stock | slices ÷ stock | slices ÷ auto | slices: kernels / tracing s, placing ms a group | z spread (beyond 3), slices vs auto | auto vs auto |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         f = lambda k: f"{r[k]:.2f}" if k in r else "-"  # noqa: E731
-        print(f"| {r['scene']} | {r['bodies']} | {f('auto_vs_stock')} | {f('slices_vs_stock')} | {f('slices_vs_auto')} | {f('slices_kernels_s')} / {f('slices_tracing_s')} | {f('agree_z_spread')} ({100 * r['agree_beyond_3']:.1f} %) | {f('auto_z_spread')} ({100 * r.get('auto_beyond_3', float('nan')):.1f} %) |")
+        print(f"| {r['scene']} | {r['bodies']} | {f('auto_vs_stock')} | {f('slices_vs_stock')} | {f('slices_vs_auto')} | {f('slices_kernels_s')} / {f('slices_tracing_s')}, {f('slices_placing_ms_per_group')} | {f('agree_z_spread')} ({100 * r['agree_beyond_3']:.1f} %) | {f('auto_z_spread')} ({100 * r.get('auto_beyond_3', float('nan')):.1f} %) |")
     run.finish(rows, fields, restval="")
 
 
