@@ -122,3 +122,42 @@ def test_every_unpaired_time_sampling_renders(options):
         out[traversal] = dt.render(scene, spp=32, seed=5, cameras=_cameras()[:2], **options)
     assert np.isfinite(np.asarray(out["slices"].measurements)).all()
     assert abs(np.asarray(out["slices"].intensity).mean() / np.asarray(out["auto"].intensity).mean() - 1) < 0.05
+
+
+def test_garbage_collected_while_a_pass_is_recorded_breaks_nothing():
+    """Python's collector does not free Mitsuba objects while ``dr.freeze`` records a
+    pass: Dr.Jit 1.5 then fails the recording (every group traced anew, with a warning) or
+    aborts the process. Here the collector is asked to run inside the recording, with the
+    garbage of an earlier scene waiting (in a child process: an abort would end pytest)."""
+    import subprocess
+    import sys
+    import textwrap
+
+    code = textwrap.dedent(
+        """
+        import gc, warnings
+        import dopplertof as dt
+        import mitsuba as mi
+        from dopplertof.slices import SliceScenes
+
+        gc.disable()  # the garbage below stays until a collection is asked for
+        mi.set_variant("llvm_ad_rgb")
+        garbage = [mi.load_dict(mi.cornell_box())]
+        garbage.append(garbage)  # a reference cycle: freed by the collector alone
+        del garbage
+        set_state = SliceScenes.set_state
+
+        def collect_and_set_state(self, state):  # runs while the pass is recorded
+            gc.collect()
+            return set_state(self, state)
+
+        SliceScenes.set_state = collect_and_set_state
+        scene = dt.scenes.build("cornell-box", resolution=8)
+        scene.traversal = "slices"
+        warnings.simplefilter("error")
+        dt.render(scene, spp=8, cameras=[dt.Camera()])
+        print("rendered")
+        """
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and "rendered" in run.stdout, run.stderr[-2000:]

@@ -9,7 +9,9 @@ Float64 increments, which :meth:`Accumulator.apply` adds, pass by pass in order,
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import gc
 import warnings
 from dataclasses import dataclass
 
@@ -472,6 +474,21 @@ def _components(value, channels):
     return [value] if channels == 1 else [value[i] for i in range(channels)]
 
 
+@contextlib.contextmanager
+def _collector_paused():
+    """Python's garbage collector does not run until the block ends: objects of Dr.Jit's
+    registry (Mitsuba's shapes, BSDFs, emitters) freed while ``dr.freeze`` records make the
+    recording fail ("the number of registry entries did not match") or abort the process
+    (Dr.Jit 1.5)."""
+    paused = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if paused:
+            gc.enable()
+
+
 class PassTracer:
     """Traces the passes of one render where its scene is (this process, or a Ray worker:
     :mod:`dopplertof.render_ray`); ``tracer(p)`` is pass ``p``'s increments
@@ -536,6 +553,7 @@ class PassTracer:
             return trace_pass(scene, s, dataclasses.replace(template, first_sample=first_sample, slice_u=slice_u), tables)
 
         if self._frozen_group is None:
+            gc.collect()  # garbage of earlier renders goes now, not while the pass is recorded (_collector_paused)
             scene.emitters.far_reference()  # built now, not while the pass is recorded
             inputs = kernel_inputs(scene, tables)  # what the kernel reads that no argument holds
             self._frozen_group = dr.freeze(group, state_fn=lambda *_: inputs)
@@ -546,7 +564,8 @@ class PassTracer:
             times = mi.Float64([float(x) for x in u])
             dr.make_opaque(times)
             try:
-                out = self._frozen_group(first, times, slices.state())
+                with _collector_paused():
+                    out = self._frozen_group(first, times, slices.state())
             except RuntimeError as exc:  # the recording or its replay failed: trace every group instead
                 if _interrupt_in(exc) is not None:
                     raise

@@ -200,12 +200,13 @@ class SliceScenes:
                     rest_of[shape_id] = rest_shapes[k]
             self.scenes.append(mi.load_dict({"type": "scene", **entries}))
             self.placements.append(_MemberPlacement(self.scenes[-1], body_shapes))
-        size = max([*body_of, 0]) + 1
+        static_of = {int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0]): shape for shape in static.values()}
+        size = max([*body_of, *static_of, 0]) + 1
         table = np.zeros(size, np.uint32)
         for shape_id, b in body_of.items():
             table[shape_id] = b
         self.body_table = mi.UInt32(table)
-        self._rest_meshes = self._rest_triangles(rest_of, size)
+        self._triangles = self._triangle_tables(rest_of, static_of, size)
         self.pose_table = scene._pose_table()
         self.n_bodies = len(scene.bodies)
         self.times_s = np.full(members, np.nan)  # mutated in place: a frozen pass sees one object
@@ -213,25 +214,40 @@ class SliceScenes:
         self._poses = {}  # precise -> the bodies' poses at the members' times (member-major), opaque
 
     @staticmethod
-    def _rest_triangles(rest_of, size):
-        """Per shape registry id: the offset of its body's rest triangles in three Float32
-        tables of their vertices (-1: not a mesh), and the tables."""
+    def _triangle_tables(rest_of, static_of, size):
+        """What a hit on a mesh needs of its triangle, gathered by the shape's registry id
+        (a table lookup, not two calls through every mesh of the registry): per id the
+        offset of its triangles (-1: not a mesh) and Float32 tables of their corners, the
+        first for every mesh (a moving copy's: its body's rest triangle; a static mesh's:
+        its own), the other two for the moving copies alone (listed first), whose rest
+        normals they give.
+
+        Parameters
+        ----------
+        rest_of : dict
+            Registry id of a body copy's shape -> the body's own (rest) shape.
+        static_of : dict
+            Registry id of a static shape -> the shape.
+        size : int
+            One more than the largest registry id.
+        """
         import drjit as dr
         import mitsuba as mi
 
         offsets = np.full(size, -1, np.int64)
-        chunks, used = [], 0
-        for shape_id, rest in rest_of.items():
-            if not rest.is_mesh():
+        chunks, used, moving = [np.zeros((0, 3, 3), np.float32)], 0, 0
+        for shape_id, shape in [*rest_of.items(), *static_of.items()]:
+            if not shape.is_mesh():
                 continue
-            params = mi.traverse(rest)
-            v = np.array(params["vertex_positions"], np.float32).reshape(-1, 3)
-            f = np.array(params["faces"], np.int64).reshape(-1, 3)
+            v = np.array(shape.vertex_positions_buffer(), np.float32).reshape(-1, 3)
+            f = np.array(shape.faces_buffer(), np.int64).reshape(-1, 3)
             chunks.append(v[f])
             offsets[shape_id] = used
             used += len(f)
-        triangles = np.concatenate(chunks) if chunks else np.zeros((1, 3, 3), np.float32)
-        corners = [mi.Point3f(*(mi.Float(triangles[:, k, i].copy()) for i in range(3))) for k in range(3)]
+            moving = used if shape_id in rest_of else moving
+        triangles = np.concatenate([*chunks, np.zeros((1, 3, 3), np.float32)])  # never empty
+        lengths = (len(triangles), max(moving, 1), max(moving, 1))
+        corners = [mi.Point3f(*(mi.Float(triangles[: lengths[k], k, i].copy()) for i in range(3))) for k in range(3)]
         offsets_dr = mi.Int32(offsets.astype(np.int32))
         dr.make_opaque(offsets_dr, *corners)
         return offsets_dr, corners
@@ -269,11 +285,11 @@ class SliceScenes:
         """Everything of the member scenes a pass's kernel reads (the scenes, the hit
         tables, the placed times and poses): the arguments of a frozen pass
         (:meth:`dopplertof.passes.PassTracer._sliced`), which :meth:`set_state` puts back."""
-        return (self.scenes, self.body_table, self._rest_meshes, self._opaque_times, self._poses[False], self._poses[True])
+        return (self.scenes, self.body_table, self._triangles, self._opaque_times, self._poses[False], self._poses[True])
 
     def set_state(self, state: tuple):
         """Use ``state`` (:meth:`state`'s layout) in what is traced next."""
-        self.scenes, self.body_table, self._rest_meshes, times, poses32, poses64 = state
+        self.scenes, self.body_table, self._triangles, times, poses32, poses64 = state
         self._opaque_times, self._poses = list(times), {False: poses32, True: poses64}
 
     def member_of(self, time_s):
@@ -353,19 +369,18 @@ class SliceScenes:
         from .motion import _conj, _rotate
 
         valid = active & si.is_valid()
-        is_mesh = valid & si.shape.is_mesh()
-        mesh = mi.MeshPtr(si.shape)
-        first_vertex = mi.Point3f(mesh.vertex_position(mesh.face_indices(si.prim_index, is_mesh).x, is_mesh))
         moving = valid & (body > 0)
         p_local = dr.select(moving, pose.point_to_local(si.p), si.p)
         n_body = dr.normalize(pose.scale * _rotate(_conj(pose.q), si.n))  # a normal's inverse transpose
-        offsets, corners = self._rest_meshes
+        offsets, corners = self._triangles
         shape_id = dr.reinterpret_array(mi.UInt32, si.shape)
-        offset = dr.gather(mi.Int32, offsets, shape_id, moving & (shape_id < dr.width(offsets)))
-        rest = moving & (offset >= 0)
+        offset = dr.gather(mi.Int32, offsets, shape_id, valid & (shape_id < dr.width(offsets)))
+        on_mesh = valid & (offset >= 0)
+        rest = moving & on_mesh
         triangle = mi.UInt32(offset) + si.prim_index
-        p0, p1, p2 = (dr.gather(mi.Point3f, c, triangle, rest) for c in corners)
+        p0 = dr.gather(mi.Point3f, corners[0], triangle, on_mesh)
+        p1, p2 = (dr.gather(mi.Point3f, c, triangle, rest) for c in corners[1:])
         n_rest = dr.normalize(dr.cross(p1 - p0, p2 - p0))  # as Mitsuba computes a triangle's normal
         n_local = dr.select(rest, n_rest, dr.select(moving, n_body, si.n))
-        plane_local = dr.select(rest, p0, dr.select(moving | ~is_mesh, p_local, first_vertex))
+        plane_local = dr.select(on_mesh, p0, p_local)
         return p_local, n_local, plane_local
