@@ -4,6 +4,7 @@
 
     python benchmarks/slices_built.py              # 8 and 128 cubes at 256² x 32 spp, a street sample at 64² x 64 (~3 min)
     python benchmarks/slices_built.py --quick      # smoke test
+    python benchmarks/slices_built.py --baseline fb813e3   # also slices as at that commit
 
 D-ToF with 4 cameras (antithetic + replay). Per scene, after one warm-up render of each
 configuration (kernels compiled), ``--reps`` interleaved renders of each: the median wall
@@ -14,13 +15,17 @@ and the milliseconds one group's placement of the bodies takes (``SliceScenes.pl
 timed from when the kernels in flight are done). ``agree``: the
 spread of z = (slices − auto) / sqrt(σ²_slices + σ²_auto) over the measurements whose
 errors are not zero, and the same spread between two renders of ``auto`` (seeds 1 and 2):
-equal where both estimate the same thing.
+equal where both estimate the same thing. With ``--baseline REV`` a fourth configuration
+renders ``slices`` with the package at git ``REV`` (imported as ``dopplertof_baseline``,
+its own scene objects): its wall and kernel times and the current ``slices`` ÷ it.
 """
 
 from __future__ import annotations
 
+import gc
 import math
 import statistics
+import tempfile
 import time
 
 import numpy as np
@@ -38,6 +43,7 @@ def parse_args(argv):
     p.add_argument("--reps", type=int, default=None, help="timed renders per configuration (default 3; quick 1)")
     p.add_argument("--resolution", type=int, default=None, help="film side of the throughput scenes (default 256; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel of the throughput scenes (default 32; quick 8)")
+    p.add_argument("--baseline", default=None, help="git revision whose slices to time beside the current (default: none)")
     p.add_argument("--scenes", nargs="*", choices=["8-moving", "32-moving", "128-moving", "street"], default=None, help="default 8-moving 128-moving street")
     _common.add_output_options(p, "slices_built", quick_help="smoke test: 32x32, 8 spp, one rep", plot=False)
     args = p.parse_args(argv)
@@ -46,15 +52,17 @@ def parse_args(argv):
     return args
 
 
-def street_scene():
-    """(scene, render options) of street sample 3 of the dataset benchmark's configuration."""
-    from dopplertof.dataset import config, randomize, sample
+def street_scene(package=dopplertof):
+    """(scene, render options) of street sample 3 of the dataset benchmark's configuration,
+    built by ``package`` (the current one or the baseline)."""
+    import importlib
 
+    config, randomize, sample = (importlib.import_module(f"{package.__name__}.dataset.{m}") for m in ("config", "randomize", "sample"))
     cfg = config.load_config(None, {"scene": {"kinds": {"street": 1.0}}, "bodies": {"count": [20, 24], "moving_probability": 1.0}})
     record = sample.make_record(cfg, 2027, 3, _common.DEFAULT_VARIANT)
     r = record["render"]
     scene = randomize.build_scene(record["scene"], r["resolution"])
-    options = dict(spp=r["spp"], max_depth=r["max_depth"], cameras=[dopplertof.Camera(**c) for c in record["cameras"]],
+    options = dict(spp=r["spp"], max_depth=r["max_depth"], cameras=[package.Camera(**c) for c in record["cameras"]],
                    time_sampling=r["time_sampling"], correlation=r["correlation"])  # fmt: skip
     return scene, options
 
@@ -113,26 +121,38 @@ def z_spread(a, b):
     return float(np.std(z)), float(np.mean(np.abs(z) > 3))
 
 
-def bench(name, args, log):
+def bench(name, args, log, baseline=None):
     import drjit as dr
     import mitsuba as mi
 
-    if name == "street":
-        scene, options = street_scene()
-        stock = None
-    else:
+    def load(package):
+        """(scene, render options, stock scene or None) of ``name`` built by ``package``."""
+        if name == "street":
+            return (*street_scene(package), None)
         ours, stock_dict = throughput.scene_dicts(name, args.resolution, 5)
-        scene, stock = dopplertof.load_scene(ours), mi.load_dict(stock_dict)
-        options = dict(spp=args.spp, max_depth=5, cameras=[dopplertof.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)])
+        cameras = [package.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
+        return package.load_scene(ours), dict(spp=args.spp, max_depth=5, cameras=cameras), mi.load_dict(stock_dict)
+
+    scene, options, stock = load(dopplertof)
+    if baseline is not None:
+        base_scene, base_options, _ = load(baseline)
+        base_scene.traversal = "slices"
 
     def run(config, seed):
         if config == "stock":
             return timed(lambda: np.asarray(mi.render(stock, spp=options["spp"], seed=seed)))
+        if config == "baseline":  # the same seeds as slices: the same images where the change keeps them
+            gc.collect()  # before bd4736b Python's collector could free objects while a pass was recorded: an abort
+            gc.disable()
+            try:
+                return timed(lambda: baseline.render(base_scene, seed=seed + 1000, **base_options))
+            finally:
+                gc.enable()
         scene.traversal = config
         seed += 1000 if config == "slices" else 0  # other paths than auto's: their errors independent
         return timed(lambda: dopplertof.render(scene, seed=seed, **options))
 
-    configs = [c for c in CONFIGS if stock is not None or c != "stock"]
+    configs = [c for c in (*CONFIGS, "baseline") if (stock is not None or c != "stock") and (baseline is not None or c != "baseline")]
     for _ in range(2):  # warm-up, twice: the member scenes, once built, enter the other kernels' calls
         for c in configs:
             run(c, 0)
@@ -156,6 +176,11 @@ def bench(name, args, log):
         row["auto_vs_stock"] = row["auto_s"] / row["stock_s"]
         row["slices_vs_stock"] = row["slices_s"] / row["stock_s"]
     row["slices_vs_auto"] = row["slices_s"] / row["auto_s"]
+    if baseline is not None:
+        row["baseline_kernels_s"] = statistics.median(t[1] for t in times["baseline"])
+        row["slices_vs_baseline"] = row["slices_s"] / row["baseline_s"]
+        row["slices_kernels_vs_baseline"] = row["slices_kernels_s"] / row["baseline_kernels_s"]
+        row["same_as_baseline"] = bool(np.array_equal(np.asarray(last["slices"].measurements), np.asarray(last["baseline"].measurements)))
     row["agree_z_spread"], row["agree_beyond_3"] = z_spread(last["slices"], last["auto"])
     if args.reps > 1:  # the same between two renders of the per-lane tracer
         row["auto_z_spread"], row["auto_beyond_3"] = z_spread(times["auto"][0][4], times["auto"][1][4])
@@ -171,14 +196,21 @@ def main(argv=None):
 
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     names = ["8-moving"] if args.quick else args.scenes or ["8-moving", "128-moving", "street"]
-    rows = [bench(n, args, run.log) for n in names]
+    with tempfile.TemporaryDirectory(prefix="dopplertof-baseline-") as folder:
+        baseline = _common.import_baseline(args.baseline, folder) if args.baseline else None
+        rows = [bench(n, args, run.log, baseline) for n in names]
     fields = ["scene", "bodies", "resolution", "spp", "stock_s", "auto_s", "slices_s", "auto_kernels_s", "slices_kernels_s", "slices_tracing_s", "slices_placing_ms_per_group", "moving_meshes", "moving_other_shapes",
-              "auto_vs_stock", "slices_vs_stock", "slices_vs_auto", "agree_z_spread", "agree_beyond_3", "auto_z_spread", "auto_beyond_3"]  # fmt: skip
+              "auto_vs_stock", "slices_vs_stock", "slices_vs_auto", "agree_z_spread", "agree_beyond_3", "auto_z_spread", "auto_beyond_3",
+              *(["baseline_s", "baseline_kernels_s", "slices_vs_baseline", "slices_kernels_vs_baseline", "same_as_baseline"] if args.baseline else [])]  # fmt: skip
     print("| scene | bodies | auto ÷ stock | slices ÷ stock | slices ÷ auto | slices: kernels / tracing s, placing ms a group | z spread (beyond 3), slices vs auto | auto vs auto |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         f = lambda k: f"{r[k]:.2f}" if k in r else "-"  # noqa: E731
         print(f"| {r['scene']} | {r['bodies']} | {f('auto_vs_stock')} | {f('slices_vs_stock')} | {f('slices_vs_auto')} | {f('slices_kernels_s')} / {f('slices_tracing_s')}, {f('slices_placing_ms_per_group')} | {f('agree_z_spread')} ({100 * r['agree_beyond_3']:.1f} %) | {f('auto_z_spread')} ({100 * r.get('auto_beyond_3', float('nan')):.1f} %) |")
+    if args.baseline:
+        print(f"\n| scene | slices ÷ slices at {args.baseline} | its kernels ÷ | same measurements |\n|---|---:|---:|---|")
+        for r in rows:
+            print(f"| {r['scene']} | {r['slices_vs_baseline']:.2f} | {r['slices_kernels_vs_baseline']:.2f} | {r['same_as_baseline']} |")
     run.finish(rows, fields, restval="")
 
 

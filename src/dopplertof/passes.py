@@ -509,9 +509,6 @@ class PassTracer:
         self.scene, self.settings, self.grid = scene, settings, grid
         self.slices = self._frozen_group = None
         if scene.bodies and scene.traversal_in_use() == "slices":
-            if settings.paired:
-                raise ValueError(f"traversal='slices' does not trace the paired estimators yet (correlation={settings.correlation!r}, "
-                                 f"time_sampling={settings.time_sampling!r}); use traversal='auto'")
             self.slices = scene.slice_scenes(settings.group_size)
         self.tables = MaterialTables.of(scene)
         self.reducer = Reducer(*Reducer.layout(settings))
@@ -575,4 +572,4 @@ class PassTracer:
                 out = group(first, times, slices.state())
             dr.eval(out)  # before the next group moves the scenes
             parts.append(out)
-        return slices_in_pass_order(parts, setup.n_pixels, n)
+        return slices_in_pass_order(parts, setup.n_pixels, 1 if s.paired else n)

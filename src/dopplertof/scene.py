@@ -398,8 +398,8 @@ class DynamicScene:
     traversal          str       how a ray finds the bodies it hits (module docstring):
                                  ``"auto"`` (default), ``"per-body"``, ``"tree"``,
                                  ``"atlas"`` or ``"slices"`` (one scene per instant,
-                                 :mod:`dopplertof.slices`; CPU, not the paired
-                                 estimators; chosen by name only)
+                                 :mod:`dopplertof.slices`; CPU; chosen by name
+                                 only)
     camera_motion      Motion    the sensor's motion (None: static), applied on top of its
                                  ``to_world``
     lights             list      :class:`~dopplertof.lights.MovingLight` per moving point or

@@ -20,19 +20,24 @@ and traces every group.
 
 A hit keeps what the per-lane traversals give (:class:`~dopplertof.scene.Hit`): its body
 (looked up from the hit shape), the body's pose at the lane's time, and, for a mesh, the
-hit triangle's plane in the body's frame from the rest positions of the body's own scene,
-so that Float64 distances of correlated paths at different instants differ by the motion
-alone (DESIGN §3.5). For an analytic shape the plane's point is the world hit taken back
-into the body's frame (float32 at the world's scale, not the body's).
+hit triangle's plane in the body's frame from the rest positions of the body's own scene
+(read from a table by the shape's registry id, not through the meshes' methods), so that
+Float64 distances of correlated paths at different instants differ by the motion alone
+(DESIGN §3.5). For an analytic shape the plane's point is the world hit taken back into
+the body's frame (float32 at the world's scale, not the body's).
 
 Emitter sampling and everything that is not a ray query stay as they are: bodies' area
 emitters are sampled in their body's scene at the lane's time
 (:mod:`dopplertof.lights`), moving lights and the camera at the lane's time.
 
+The paired estimators (reconnection, adaptive, analytic) trace a group in one lane: its
+primal in one member's scene and its partner in the other's, both scenes in the kernel
+(analytic's members sit at the exposure's ends). A lane's member is the one whose placed
+time is nearest its own, so every time a lane traces must be a member's.
+
 Each pixel's estimator keeps its distribution (same mean, same per-pixel variance,
 ``benchmarks/slice_variance.py``); the errors of pixels in one kernel become correlated.
-On the CPU only, and not for the paired estimators yet (two instants per lane); its cost
-against the per-lane traversals: ``benchmarks/slices_built.py``.
+On the CPU only; its cost against the per-lane traversals: ``benchmarks/slices_built.py``.
 
 =================  ======================================================================
 what               where

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
 ANALYTIC = "analytic"  # not a sampling method: the biased closed-form mode
+ANALYTIC_TIMES = (0.0, 1.0)  # its members' normalised times u: the exposure's ends
 TIME_QUANTUM = 2.0**-23
 
 

@@ -293,7 +293,8 @@ def slices_in_pass_order(parts, n_pixels: int, n_times: int):
     n_pixels : int
         Pixels of the pass's tile.
     n_times : int
-        Members per group N.
+        A pixel's lanes in a group's kernel: its members N (1 for the paired estimators,
+        whose lane traces the whole group).
 
     Returns
     -------
@@ -485,7 +486,11 @@ def slice_times(setup: LaneSetup, settings):
     import mitsuba as mi
     import numpy as np
 
+    from ..timesampling import ANALYTIC, ANALYTIC_TIMES
+
     n = setup.n_times
+    if settings.time_sampling == ANALYTIC:  # every group at the exposure's ends
+        return np.tile(np.array(ANALYTIC_TIMES), (setup.samples // n, 1))
     count = setup.samples  # the pass's groups x members
     sample = dr.arange(mi.UInt32, count) + opaque_u32(setup.first_sample)
     group, member = sample // opaque_u32(n), sample % opaque_u32(n)

@@ -50,7 +50,7 @@ import drjit as dr
 import mitsuba as mi
 
 from .. import modulation
-from ..timesampling import ANALYTIC
+from ..timesampling import ANALYTIC, ANALYTIC_TIMES
 from . import lanes
 from .path import (
     camera_ray, emitter_hit, emitter_hit_length, extend, ground_truth, next_hit, place_camera_ray, sample_emitter, segment_index, vertex_interaction,
@@ -109,7 +109,7 @@ def trace_pair(scene, settings, setup, tables):
     # ---------------------------------------------------------------- exposure times
     analytic = settings.time_sampling == ANALYTIC
     if dr.hint(analytic, mode="scalar"):  # the exposure's ends, P1 first
-        u1, u2 = mi.Float64(0.0), mi.Float64(1.0)
+        u1, u2 = (mi.Float64(u) for u in ANALYTIC_TIMES)
     else:
         u1, u2 = _pair_times(setup, settings, seed, pixel, group, rng)
     time1, time2 = lanes.lane_times(setup, u1), lanes.lane_times(setup, u2)
