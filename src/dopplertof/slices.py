@@ -162,8 +162,8 @@ class _MemberPlacement:
             n = n.astype(np.float32)
             for key, a, b in self.normal_spans:
                 self._write(f"{key}.vertex_normals", n[a:b])
-        for key, body, rest in self.to_world:
-            self.params[f"{key}.to_world"] = mi.Transform4f(matrices[body] @ rest)
+        for key, body, rest in self.to_world:  # from Python floats: Dr.Jit literals, which Mitsuba's update reads without a copy each
+            self.params[f"{key}.to_world"] = mi.Transform4f((matrices[body] @ rest).tolist())
         self.params.update()  # the shapes, then the scene: Embree rebuilds its tree
 
 
