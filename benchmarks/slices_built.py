@@ -5,12 +5,13 @@
     python benchmarks/slices_built.py              # 8 and 128 cubes at 256² x 32 spp, a street sample at 64² x 64 (~3 min)
     python benchmarks/slices_built.py --quick      # smoke test
     python benchmarks/slices_built.py --baseline fb813e3   # also slices as at that commit
+    python benchmarks/slices_built.py --correlation reconnection --scenes 8-moving 128-moving   # the paired tracer
 
-D-ToF with 4 cameras (antithetic + replay). Per scene, after one warm-up render of each
+D-ToF with 4 cameras (antithetic + replay; ``--correlation`` another for the throughput scenes). Per scene, after one warm-up render of each
 configuration (kernels compiled), ``--reps`` interleaved renders of each: the median wall
 time, its ratio to stock ``path`` on the same geometry (the throughput scenes only), and for
 ``slices`` the time its path-tracing kernels ran (Dr.Jit's kernel history) and the time
-Python spent tracing them (``tracing.single.trace``: a recorded pass's replays skip it),
+Python spent tracing them (``tracing.trace_pass``: a recorded pass's replays skip it),
 and the milliseconds one group's placement of the bodies takes (``SliceScenes.place``,
 timed from when the kernels in flight are done). ``agree``: the
 spread of z = (slices − auto) / sqrt(σ²_slices + σ²_auto) over the measurements whose
@@ -43,6 +44,7 @@ def parse_args(argv):
     p.add_argument("--reps", type=int, default=None, help="timed renders per configuration (default 3; quick 1)")
     p.add_argument("--resolution", type=int, default=None, help="film side of the throughput scenes (default 256; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel of the throughput scenes (default 32; quick 8)")
+    p.add_argument("--correlation", default=None, help="the throughput scenes' correlation (default replay; reconnection, adaptive: the paired tracer)")
     p.add_argument("--baseline", default=None, help="git revision whose slices to time beside the current (default: none)")
     p.add_argument("--scenes", nargs="*", choices=["8-moving", "32-moving", "128-moving", "street"], default=None, help="default 8-moving 128-moving street")
     _common.add_output_options(p, "slices_built", quick_help="smoke test: 32x32, 8 spp, one rep", plot=False)
@@ -102,15 +104,15 @@ def timed(render):
     import drjit as dr
 
     from dopplertof.slices import SliceScenes
-    from dopplertof.tracing import single
+    from dopplertof import tracing
 
     dr.kernel_history()
-    with Timer(single, "trace") as tracing, Timer(SliceScenes, "place", synced=True) as placing:
+    with Timer(tracing, "trace_pass") as traced, Timer(SliceScenes, "place", synced=True) as placing:
         t0 = time.perf_counter()
         result = render()
         wall = time.perf_counter() - t0
     kernels = sum(k.get("execution_time", 0.0) for k in dr.kernel_history() if (k.get("operation_count") or 0) > 1000) / 1e3
-    return wall, kernels, tracing.seconds, 1e3 * placing.seconds / max(placing.calls, 1), result
+    return wall, kernels, traced.seconds, 1e3 * placing.seconds / max(placing.calls, 1), result
 
 
 def z_spread(a, b):
@@ -131,7 +133,8 @@ def bench(name, args, log, baseline=None):
             return (*street_scene(package), None)
         ours, stock_dict = throughput.scene_dicts(name, args.resolution, 5)
         cameras = [package.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
-        return package.load_scene(ours), dict(spp=args.spp, max_depth=5, cameras=cameras), mi.load_dict(stock_dict)
+        options = dict(spp=args.spp, max_depth=5, cameras=cameras, **({"correlation": args.correlation} if args.correlation else {}))
+        return package.load_scene(ours), options, mi.load_dict(stock_dict)
 
     scene, options, stock = load(dopplertof)
     if baseline is not None:
@@ -190,7 +193,7 @@ def bench(name, args, log, baseline=None):
 
 def main(argv=None):
     args = parse_args(argv)
-    settings = f"{args.resolution}x{args.resolution}, spp {args.spp} (street: the dataset's 64x64, 64 spp), D-ToF 4 cameras, {args.reps} interleaved reps after a warm-up"
+    settings = f"{args.resolution}x{args.resolution}, spp {args.spp} (street: the dataset's 64x64, 64 spp), D-ToF 4 cameras, correlation {args.correlation or 'replay'} (street: its own), {args.reps} interleaved reps after a warm-up"
     run = _common.Run("slices_built", args, argv, settings)
     import drjit as dr
 

@@ -7,7 +7,7 @@ member's scene is placed at its time. A member's scene is one ``mi.Scene`` holdi
 static shapes (the very objects of the static scene) and a copy of every body's shapes,
 placed in the world at ``t_m``: a mesh's ``vertex_positions`` (and normals) are rewritten
 from its rest positions, an analytic shape's or an instance's ``to_world`` is set, and
-Embree rebuilds its tree (a group's members: 5 ms with 8 moving cubes, 35 ms on a street
+Embree rebuilds its tree (a group's members: 5 ms with 8 moving cubes, 18–21 ms on a street
 sample; ``benchmarks/slices_built.py``).
 A ray is then one query of one scene, as for a static scene, whatever the number of bodies.
 
