@@ -141,7 +141,8 @@ class RecordSpec:
         object.__setattr__(self, "step_hz", step)
         if high < SUSPICIOUS_MODULATION_FREQUENCY_HZ:  # the Camera's warning, for the same unit mistake
             warnings.warn(f"record: band_hz={self.band_hz!r} Hz is below {SUSPICIOUS_MODULATION_FREQUENCY_HZ / 1e3:g} kHz; the unit is Hz (10 MHz is 10e6)", stacklevel=3)
-        n = self.frequencies_hz.size
+        first, last = self._multiples()
+        n = max(last - first + 1, 0)  # counted, not made: a unit mistake may ask for 10⁹
         if n == 0:
             raise ValueError(f"record: no multiple of step_hz={step:g} Hz lies in band_hz={band!r}")
         if n > MAX_FREQUENCIES:
@@ -167,10 +168,13 @@ class RecordSpec:
     @property
     def frequencies_hz(self) -> np.ndarray:
         """The recorded frequencies F (Hz): multiples j·step_hz within band_hz."""
-        low, high = self.band_hz
-        first = math.ceil(low / self.step_hz * (1 - GRID_TOLERANCE))
-        last = math.floor(high / self.step_hz * (1 + GRID_TOLERANCE))
+        first, last = self._multiples()
         return np.arange(first, last + 1, dtype=np.float64) * self.step_hz
+
+    def _multiples(self) -> tuple:
+        """(first, last) j of the multiples j·step_hz within band_hz (none: last < first)."""
+        low, high = self.band_hz
+        return math.ceil(low / self.step_hz * (1 - GRID_TOLERANCE)), math.floor(high / self.step_hz * (1 + GRID_TOLERANCE))
 
     def bytes_per_pixel(self, n_windows: int = 1) -> int:
         """Record size per pixel (bytes): complex64 R(F, ν) (and R₁ with ``doppler``, their
