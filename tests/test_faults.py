@@ -172,6 +172,21 @@ def _interrupt(tmp_path, sig, name, extra=()):
     return proc.returncode, stderr, out, [*args, "--quiet"]
 
 
+@pytest.mark.parametrize("after_s", [0.05, 0.15])
+def test_ctrl_c_while_the_command_loads_is_one_line(after_s):
+    """The command's imports take about 0.3 s: Ctrl-C then ends it with one line and exit
+    status 130, as later on, not a traceback (a KeyboardInterrupt raised inside an import)."""
+    command = Path(sys.executable).with_name("dopplertof")
+    run = subprocess.Popen([str(command), "scenes"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    import time
+
+    time.sleep(after_s)
+    run.send_signal(signal.SIGINT)
+    out, err = run.communicate(timeout=60)
+    assert "Traceback" not in err, err
+    assert run.returncode == 0 if not err else (run.returncode == 130 and err.strip().startswith("error:") and len(err.strip().splitlines()) == 1), (run.returncode, err)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP], ids=["SIGTERM", "SIGINT", "SIGHUP"])
 def test_a_signal_keeps_the_work_and_resume_is_bit_identical(tmp_path, sig):

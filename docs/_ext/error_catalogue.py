@@ -32,6 +32,7 @@ TOPICS = [
         ("--until-noise compares the render's error with a sensor's noise: give --sensor", "`--until-noise` stops when the Monte Carlo error falls below a sensor's noise, which needs a sensor", "add `--sensor PRESET`, or drop `--until-noise`"),
         ("--camera and --sensor exclude each other", "a sensor's raw frames define the cameras", "give `--camera` options or `--sensor`, not both"),
         ("aborted", "the command was interrupted at a prompt or before it started work", "run it again"),
+        ("interrupted while starting; nothing done", "Ctrl-C while the command still imports the package (its first third of a second)", "run the command again"),
         ("interrupted before the first pass finished; nothing written", "Ctrl-C (or SIGTERM, SIGHUP) before any pass was done", "run the command again; a later interruption keeps the finished passes"),
         ("interrupted after the record was written…: the same command with … -o ANOTHER_FOLDER… sweeps it without rendering", "`dopplertof design` was stopped in its sweep, after writing the record(s)", "the `--record` options it names, with another output folder"),
         ("interrupted after the records were read", "`dopplertof design --record …` was stopped in its sweep", "run it again"),

@@ -6,7 +6,11 @@ plugins ``dopplertof``/``dopplertofpath`` are registered as soon as Mitsuba is i
 before or after this package (:mod:`dopplertof.plugin`).
 """
 
-from .backend import configure_llvm_path as _configure_llvm_path
+from ._startup import guard_interrupts as _guard_interrupts
+
+_guard_interrupts()  # the command's imports end with one line on Ctrl-C, not a traceback
+
+from .backend import configure_llvm_path as _configure_llvm_path  # noqa: E402
 
 _configure_llvm_path()  # must precede the first `import drjit`
 

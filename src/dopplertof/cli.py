@@ -15,8 +15,11 @@ import sys
 import click
 
 from . import __version__
+from ._startup import release
 from .clitools import StopOnSignal, cameras_layer, fail, given_settings, output_folder, settings_options, show_warning
 from .settings import DEFAULT_CHECKPOINT_INTERVAL_S
+
+release()  # loaded: Ctrl-C is the command's own again (KeyboardInterrupt)
 
 
 def scene_description(scene_arg: str, resolution, defines) -> dict:
