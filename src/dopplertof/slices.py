@@ -240,7 +240,7 @@ class SliceScenes:
         import mitsuba as mi
 
         offsets = np.full(size, -1, np.int64)
-        chunks, used, moving = [np.zeros((0, 3, 3), np.float32)], 0, 0
+        chunks, used, moving = [], 0, 0
         for shape_id, shape in [*rest_of.items(), *static_of.items()]:
             if not shape.is_mesh():
                 continue

@@ -150,7 +150,8 @@ def sample_times(method, r_shared, r_own, first, count, n_groups, member, n_time
     Returns
     -------
     mi.Float64
-        u in [0, 1), a multiple of :data:`TIME_QUANTUM`.
+        u in [0, 1), a multiple of :data:`TIME_QUANTUM`; with ``analytic`` the exposure's
+        ends, :data:`ANALYTIC_TIMES` (not sampled).
 
     Counts and shifts are opaque data, so another spp or shift reuses the kernel.
     """
@@ -165,6 +166,8 @@ def sample_times(method, r_shared, r_own, first, count, n_groups, member, n_time
     def stratum(r):  # r uniform in [0, 1) -> uniform in the group's stratum
         return (F(first) + F(count) * F(r)) / groups
 
+    if method == ANALYTIC:  # the paired tracer's P1 and P2 (and the slices' members) at the ends
+        return dr.select(member == 0, F(ANALYTIC_TIMES[0]), F(ANALYTIC_TIMES[1]))
     if method == "uniform":
         u = F(r_own)
     elif method == "stratified":

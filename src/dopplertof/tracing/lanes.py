@@ -486,11 +486,7 @@ def slice_times(setup: LaneSetup, settings):
     import mitsuba as mi
     import numpy as np
 
-    from ..timesampling import ANALYTIC, ANALYTIC_TIMES
-
     n = setup.n_times
-    if settings.time_sampling == ANALYTIC:  # every group at the exposure's ends
-        return np.tile(np.array(ANALYTIC_TIMES), (setup.samples // n, 1))
     count = setup.samples  # the pass's groups x members
     sample = dr.arange(mi.UInt32, count) + opaque_u32(setup.first_sample)
     group, member = sample // opaque_u32(n), sample % opaque_u32(n)
