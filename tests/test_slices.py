@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import dopplertof as dt
-from test_many_bodies import EXPOSURE, _extra_bodies, _rays, _scene_dict
+from test_many_bodies import EXPOSURE, _extra_bodies, _grey, _rays, _scene_dict
 
 T = mi.ScalarTransform4f
 
@@ -56,6 +56,28 @@ def test_member_scenes_hit_what_the_bodies_hit_at_their_instants(scene):
     np.testing.assert_allclose(a[2][:, moving_mesh], b[2][:, moving_mesh], atol=1e-6)  # the rest triangle's normal
     np.testing.assert_array_equal(a[3][:, moving_mesh], b[3][:, moving_mesh])  # and its first vertex
     assert (a[4] == b[4]).mean() > 0.99
+
+
+def test_moving_meshes_of_one_material_are_one_mesh():
+    """A member scene merges the moving meshes whose BSDFs are of one definition (the 32
+    grey cubes: one update and one Embree geometry, not 32); a BSDF that differs in a value
+    below its printed precision, and an area light, keep meshes of their own (merged, they
+    would render another material or lose the emitter). Hits on the merged mesh find their
+    bodies: see the test above, on the same cubes."""
+    from dopplertof.slices import _same_bsdf
+
+    d, almost = _scene_dict(), float(np.nextafter(np.float32(0.7), np.float32(1)))  # one float32 step above
+    for name, extra, dx in (("almost", {"bsdf": _grey(almost)}, 0.01), ("lamp", {"bsdf": _grey(0.7), "emitter": {"type": "area"}}, 0.02)):
+        m0 = T().translate([0.5, 0.4, -2.0]) @ T().scale(0.05)
+        d[name] = {"type": "cube", **extra, "motion": {"type": "keyframes", "keys": [(0.0, m0), (EXPOSURE, T().translate([dx, 0, 0]) @ m0)]}}
+    scene = dt.load_scene(d)
+    placement = scene.slice_scenes(2).placements[0]
+    names = [b.name for b in scene.bodies]
+    groups = sorted(sorted(names[i] for i in set(placement.vertex_body[a:b].tolist())) for _, a, b in placement.spans)
+    lattice = sorted(n for n in names if n not in ("almost", "lamp"))
+    assert groups == sorted([lattice, ["almost"], ["lamp"]])
+    grey, almost = (mi.load_dict(_grey(v)) for v in (0.7, almost))
+    assert str(grey) == str(almost) and not _same_bsdf(grey, almost) and _same_bsdf(grey, mi.load_dict(_grey(0.7)))
 
 
 def _cameras():
