@@ -56,6 +56,8 @@ slice times        :func:`dopplertof.tracing.lanes.slice_times`
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 BODY_KEY = "__dopplertof_slice_body_{}_{}"  # a body copy's shape in a member scene
@@ -180,7 +182,7 @@ class _MemberPlacement:
     meshes' vertices and normals concatenated so that one product places them all.
 
     ``body_shapes``: (parameter key, body index) per shape, the index per vertex for a
-    mesh that merges several bodies' (:func:`_merged_meshes`)."""
+    mesh that merges several bodies' (:func:`_merge_groups`)."""
 
     def __init__(self, mi_scene, body_shapes):
         import mitsuba as mi
@@ -208,6 +210,8 @@ class _MemberPlacement:
             else:
                 raise ValueError(f"a moving shape ({key}) has neither vertex positions nor a to_world to place it by")
         self.spans, self.normal_spans, self.to_world = spans, normal_spans, to_world
+        placed = [f"{k}.vertex_positions" for k, _, _ in spans] + [f"{k}.vertex_normals" for k, _, _ in normal_spans] + [f"{k}.to_world" for k, _, _ in to_world]
+        self.params.keep([re.escape(k) + "$" for k in placed])  # an update looks at these alone, not at every parameter of the scene
         self.rest = np.concatenate(vertices) if vertices else np.zeros((0, 3))
         self.vertex_body = np.concatenate(vertex_body) if vertex_body else np.zeros(0, np.int64)
         self.rest_normals = np.concatenate(normals) if normals else np.zeros((0, 3))
