@@ -22,12 +22,13 @@ them (a new array would make Dr.Jit record again); where recording fails, the re
 and traces every group.
 
 A hit keeps what the per-lane traversals give (:class:`~dopplertof.scene.Hit`): its body
-(looked up from the hit shape, or on a merged mesh from its triangle), the body's pose at the lane's time, and, for a mesh, the
-hit triangle's plane in the body's frame from the rest positions of the body's own scene
-(read from a table by the shape's registry id, not through the meshes' methods), so that
-Float64 distances of correlated paths at different instants differ by the motion alone
-(DESIGN §3.5). For an analytic shape the plane's point is the world hit taken back into
-the body's frame (float32 at the world's scale, not the body's).
+(looked up from the hit shape, on a merged mesh from its triangle), the body's pose at the
+lane's time, and, for a mesh, the hit triangle's plane in the body's frame from the rest
+positions of the body's own scene (read from a table by the shape's registry id, not
+through the meshes' methods), so that Float64 distances of correlated paths at different
+instants differ by the motion alone (DESIGN §3.5). For an analytic shape the plane's point
+is the world hit taken back into the body's frame (float32 at the world's scale, not the
+body's).
 
 Emitter sampling and everything that is not a ray query stay as they are: bodies' area
 emitters are sampled in their body's scene at the lane's time
@@ -335,8 +336,8 @@ class SliceScenes:
         Parameters
         ----------
         rest_of : dict
-            Registry id of a moving mesh in a member scene -> its parts: (the body's own,
-            rest, mesh, body index from 1) in order.
+            Registry id of a moving mesh in a member scene -> its parts in order: (the
+            body's own mesh at rest, the body's index from 1).
         static_of : dict
             Registry id of a static shape -> the shape.
         size : int
