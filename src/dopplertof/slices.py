@@ -156,16 +156,16 @@ def kernel_inputs(*roots) -> list:
     the film filter's ``mi.ContinuousDistribution``) reachable from ``roots`` through attributes,
     containers and dataclass fields (private ones included, which a frozen function's own
     walk of its closure misses): the extra state of a frozen slice pass. Not the member
-    scenes' :class:`SliceScenes`: what a kernel reads of them is the pass's argument
-    (:meth:`SliceScenes.state`), and their copies and placement parameters would only make
-    each replay's walk of its inputs longer (by a third on a street sample: 4.4 -> 6.0 ms)."""
+    scenes' placements (:class:`_MemberPlacement`): their parameters hold nothing a kernel
+    reads that the scenes do not, and would only make each replay's walk of its inputs
+    longer."""
     import drjit as dr
     import mitsuba as mi
 
     found, seen, stack = [], set(), list(roots)
     while stack:
         x = stack.pop()
-        if x is None or id(x) in seen or isinstance(x, (bool, int, float, complex, str, bytes, type, np.ndarray, SliceScenes)):
+        if x is None or id(x) in seen or isinstance(x, (bool, int, float, complex, str, bytes, type, np.ndarray, _MemberPlacement)):
             continue
         seen.add(id(x))
         if isinstance(x, (dr.ArrayBase, mi.Object)) or hasattr(x, "_traverse_1_cb_ro"):  # (Mitsuba's distributions are not Objects)
@@ -273,7 +273,7 @@ class SliceScenes:
         import mitsuba as mi
 
         self.members = members
-        self.scenes, self.placements, self._copies = [], [], []
+        self.scenes, self.placements = [], []
         body_of = {}  # shape registry id -> body index (1-based), MERGED for a merged mesh
         rest_of = {}  # shape registry id of a mesh -> its parts' (the bodies' own, rest) shapes and bodies (1-based)
         static = {}  # the static shapes under their own ids (a key other than its id renames a shape)
@@ -288,8 +288,7 @@ class SliceScenes:
             for b, body in enumerate(scene.bodies):
                 if body.load_copy is None:
                     raise ValueError(f"moving body {body.name!r} cannot be copied for traversal='slices' (it was not built by dopplertof.load_scene)")
-                copy = body.load_copy()
-                self._copies.append(copy)  # keeps the copies' objects alive
+                copy = body.load_copy()  # (not kept: its shapes live on in the member scene, all but the merged ones)
                 for k, (shape, rest) in enumerate(zip(copy.shapes(), body.scene.shapes())):
                     if shape.is_mesh():
                         meshes.append((shape, (rest, b + 1)))
@@ -301,7 +300,6 @@ class SliceScenes:
             # per member, not one per body (a hit's body is then its triangle's).
             for g, group in enumerate(_merge_groups(meshes)):
                 mesh = _one_mesh([shape for shape, _ in group], MERGED_KEY.format(g))
-                self._copies.append(mesh)
                 parts = [part for _, part in group]
                 bodies = {b for _, b in parts}
                 entries[MERGED_KEY.format(g)] = mesh
