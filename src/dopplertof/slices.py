@@ -10,7 +10,7 @@ from its rest positions, an analytic shape's or an instance's ``to_world`` is se
 Embree rebuilds its tree. The moving meshes whose BSDFs are of one definition are merged
 into one mesh (not an emitter's, a sensor's or a medium boundary's), so that a placement
 updates one Mitsuba shape and one Embree geometry for them, not one per body (a group's
-members: 2.5 ms with 8 moving cubes, 6.4 ms with 128, 14 ms on a street sample;
+members: 2.5 ms with 8 moving cubes, 6.6 ms with 128, 14 ms on a street sample;
 ``benchmarks/slices_built.py``).
 A ray is then one query of one scene, as for a static scene, whatever the number of bodies.
 
