@@ -8,6 +8,7 @@ import re
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -178,8 +179,6 @@ def test_ctrl_c_while_the_command_loads_is_one_line(after_s):
     status 130, as later on, not a traceback (a KeyboardInterrupt raised inside an import)."""
     command = Path(sys.executable).with_name("dopplertof")
     run = subprocess.Popen([str(command), "scenes"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    import time
-
     time.sleep(after_s)
     run.send_signal(signal.SIGINT)
     out, err = run.communicate(timeout=60)
@@ -215,8 +214,6 @@ def _passes_in_checkpoint(path):
 def _start_and_wait_for_a_checkpoint(out):
     """A render into ``out`` saving a checkpoint after every pass; returns the process once
     the first checkpoint is there."""
-    import time
-
     proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *_KILLABLE, "-o", str(out), "--checkpoint-interval", "0"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
     deadline = time.monotonic() + 300
@@ -269,7 +266,6 @@ def small_disk(tmp_path):
 @pytest.mark.slow
 def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_identical(tmp_path, small_disk):
     import errno
-    import time
 
     out = small_disk / "out"
     proc = _start_and_wait_for_a_checkpoint(out)
@@ -560,8 +556,6 @@ def test_animate_refuses_an_fps_its_clip_cannot_hold(tmp_path, fps, match):
 @pytest.mark.parametrize("address, why", [("nonsense:1234", "cannot reach the Ray cluster at 'nonsense:1234' within 5 s"),
                                           ("127.0.0.1:1", "Connection refused")])
 def test_an_unreachable_ray_address_fails_fast(tmp_path, address, why):
-    import time
-
     pytest.importorskip("ray")
     started = time.monotonic()
     run = _cli("render", "cornell-box", "--resolution", "8", "--spp", "2", "-o", str(tmp_path / "o"), "--quiet", "--ray", "--address", address, timeout=120)
@@ -582,8 +576,6 @@ def test_experiment_output_and_cache_are_checked_before_rendering(tmp_path):
 def _sigint_while_dr_jit_loads(args):
     """Run the CLI with ``args``, send SIGINT while Dr.Jit's library is being loaded (the
     command's own code runs, no pass has started); (exit status, stderr)."""
-    import time
-
     # A shell without job control starts background commands with SIGINT ignored, and Python
     # then installs no handler of its own: the child gets SIGINT's default back here.
     proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

@@ -96,17 +96,17 @@ def _same_bsdf(a, b) -> bool:
 
 
 def _merge_groups(meshes) -> list:
-    """``meshes`` ((mesh, body) pairs) in groups that can be one mesh (:func:`_merge_key`,
-    :func:`_same_bsdf`), each in the order given; a mesh that cannot be merged is a group of
-    its own."""
-    groups = []  # [key or None, [(mesh, body), ...]]
-    for mesh, body in meshes:
+    """``meshes`` ((mesh, what the caller keeps with it) pairs) in groups that can be one
+    mesh (:func:`_merge_key`, :func:`_same_bsdf`), each in the order given; a mesh that
+    cannot be merged is a group of its own."""
+    groups = []  # [key or None, [(mesh, part), ...]]
+    for mesh, part in meshes:
         key = _merge_key(mesh)
         group = next((g for g in groups if key is not None and g[0] == key and _same_bsdf(g[1][0][0].bsdf(), mesh.bsdf())), None)
         if group is None:
-            groups.append([key, [(mesh, body)]])
+            groups.append([key, [(mesh, part)]])
         else:
-            group[1].append((mesh, body))
+            group[1].append((mesh, part))
     return [members for _, members in groups]
 
 
