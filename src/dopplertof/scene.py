@@ -782,20 +782,26 @@ class DynamicScene:
         first_vertex = mesh.vertex_position(mesh.face_indices(si.prim_index, is_mesh).x, is_mesh)
         plane_local = dr.select(is_mesh, mi.Point3f(first_vertex), p_local)
         if self.bodies:
-            si.p = pose.point_to_world(si.p)
-            si.n = pose.normal_to_world(si.n)
-            # A body's scale may differ per axis: tangents then stay tangents but not at
-            # right angles, so the world frame is rebuilt from the normal and one tangent.
-            n = pose.normal_to_world(si.sh_frame.n)
-            tangent = pose.vector_to_world(si.sh_frame.s)
-            tangent = dr.normalize(tangent - n * dr.dot(n, tangent))
-            si.sh_frame = mi.Frame3f(tangent, dr.cross(n, tangent), n)
-            # Mitsuba set wi from the ray in the body's frame, whose direction a scale
-            # stretches (not a unit vector, bent where the scale differs per axis): BSDFs
-            # other than diffuse read it (a glass body gave NaN).
-            si.wi = si.to_local(-ray.d)
-            si.dp_du = pose.vector_to_world(si.dp_du)
-            si.dp_dv = pose.vector_to_world(si.dp_dv)
+
+            def to_world(si, ray_d):
+                si.p = pose.point_to_world(si.p)
+                si.n = pose.normal_to_world(si.n)
+                # A body's scale may differ per axis: tangents then stay tangents but not at
+                # right angles, so the world frame is rebuilt from the normal and one tangent.
+                n = pose.normal_to_world(si.sh_frame.n)
+                tangent = pose.vector_to_world(si.sh_frame.s)
+                tangent = dr.normalize(tangent - n * dr.dot(n, tangent))
+                si.sh_frame = mi.Frame3f(tangent, dr.cross(n, tangent), n)
+                # Mitsuba set wi from the ray in the body's frame, whose direction a scale
+                # stretches (not a unit vector, bent where the scale differs per axis): BSDFs
+                # other than diffuse read it (a glass body gave NaN).
+                si.wi = si.to_local(-ray_d)
+                si.dp_du = pose.vector_to_world(si.dp_du)
+                si.dp_dv = pose.vector_to_world(si.dp_dv)
+                return si
+
+            # A branch: a SIMD packet whose lanes all hit static geometry (already in the world) skips it.
+            si = dr.if_stmt((si, ray.d), active & (body_index > 0), to_world, lambda si, ray_d: si, label="dopplertof: body hit to the world")
         return Hit(si=si, body=body_index, p_local=p_local, n_local=n_local, plane_local=plane_local, pose=pose)
 
     def occluded(self, ray, time_s, active=True, poses=None):

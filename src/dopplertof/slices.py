@@ -453,10 +453,14 @@ class SliceScenes:
         import drjit as dr
         import mitsuba as mi
 
-        pi = None
+        pi = dr.zeros(mi.PreliminaryIntersection3f)  # a miss
         for scene_m, mask in zip(self.scenes, self._member_masks(time_s, active)):
-            pi_m = scene_m.ray_intersect_preliminary(ray, coherent=coherent, active=mask)
-            pi = pi_m if pi is None else dr.select(mask, pi_m, pi)
+            # A branch: a SIMD packet with no lane of this member (member-major lanes) skips its query.
+            pi = dr.if_stmt(
+                (ray, mask, pi), mask,
+                lambda ray, mask, pi, scene_m=scene_m: scene_m.ray_intersect_preliminary(ray, coherent=coherent, active=mask),
+                lambda ray, mask, pi: pi, label="dopplertof slices: member query",
+            )  # fmt: skip
         hit = active & pi.is_valid()
         shape_id = dr.reinterpret_array(mi.UInt32, pi.shape)
         body = dr.gather(mi.UInt32, self.body_table, shape_id, hit & (shape_id < dr.width(self.body_table)))
@@ -468,11 +472,16 @@ class SliceScenes:
 
     def occluded(self, ray, time_s, active):
         """True where ``ray`` is blocked in its lane's member scene."""
+        import drjit as dr
         import mitsuba as mi
 
         blocked = mi.Bool(False)
         for scene_m, mask in zip(self.scenes, self._member_masks(time_s, active)):
-            blocked |= scene_m.ray_test(ray, mask)
+            blocked = dr.if_stmt(
+                (ray, mask, blocked), mask,
+                lambda ray, mask, blocked, scene_m=scene_m: blocked | scene_m.ray_test(ray, mask),
+                lambda ray, mask, blocked: blocked, label="dopplertof slices: member test",
+            )  # fmt: skip
         return blocked
 
     def local_frame(self, si, body, pose, active):
@@ -487,17 +496,24 @@ class SliceScenes:
 
         valid = active & si.is_valid()
         moving = valid & (body > 0)
-        p_local = dr.select(moving, pose.point_to_local(si.p), si.p)
-        n_body = dr.normalize(pose.scale * _rotate(_conj(pose.q), si.n))  # a normal's inverse transpose
         offsets, corners, _ = self._triangles
         shape_id = dr.reinterpret_array(mi.UInt32, si.shape)
         offset = dr.gather(mi.Int32, offsets, shape_id, valid & (shape_id < dr.width(offsets)))
         on_mesh = valid & (offset >= 0)
-        rest = moving & on_mesh
         triangle = mi.UInt32(offset) + si.prim_index
         p0 = dr.gather(mi.Point3f, corners[0], triangle, on_mesh)
-        p1, p2 = (dr.gather(mi.Point3f, c, triangle, rest) for c in corners[1:])
-        n_rest = dr.normalize(dr.cross(p1 - p0, p2 - p0))  # as Mitsuba computes a triangle's normal
-        n_local = dr.select(rest, n_rest, dr.select(moving, n_body, si.n))
+
+        def on_body(p, n, p0, triangle, moving, on_mesh):
+            rest = moving & on_mesh
+            p1, p2 = (dr.gather(mi.Point3f, c, triangle, rest) for c in corners[1:])
+            n_rest = dr.normalize(dr.cross(p1 - p0, p2 - p0))  # as Mitsuba computes a triangle's normal
+            n_body = dr.normalize(pose.scale * _rotate(_conj(pose.q), n))  # a normal's inverse transpose
+            return mi.Point3f(dr.select(moving, pose.point_to_local(p), p)), mi.Normal3f(dr.select(rest, n_rest, dr.select(moving, n_body, n)))
+
+        # A branch: a SIMD packet whose lanes all hit static geometry skips the body's frame.
+        p_local, n_local = dr.if_stmt(
+            (mi.Point3f(si.p), mi.Normal3f(si.n), p0, triangle, moving, on_mesh), moving, on_body,
+            lambda p, n, *_: (p, n), label="dopplertof slices: body frame",
+        )  # fmt: skip
         plane_local = dr.select(on_mesh, p0, p_local)
         return p_local, n_local, plane_local

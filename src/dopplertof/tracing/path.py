@@ -180,11 +180,16 @@ def hit_distance64(scene, poses64, hit, x_prev, direction):
     import drjit as dr
     import mitsuba as mi
 
-    pose64 = scene.select_pose(poses64, hit.body)
     d64 = mi.Vector3d(direction)
     d64 = d64 / dr.norm(d64)  # IEEE div and sqrt: dr.normalize of Float64 is approximate on CUDA
-    o_local = pose64.point_to_local(x_prev)
-    d_local = pose64.vector_to_local(d64)
+
+    def to_body(x_prev, d64, body):
+        pose64 = scene.select_pose(poses64, body)
+        return pose64.point_to_local(x_prev), pose64.vector_to_local(d64)
+
+    o_local, d_local = mi.Vector3d(x_prev), d64  # static geometry's frame is the world
+    if scene.bodies:  # a branch: a SIMD packet whose lanes all hit static geometry skips the pose
+        o_local, d_local = dr.if_stmt((o_local, d64, hit.body), hit.body > 0, to_body, lambda x_prev, d64, body: (x_prev, d64), label="dopplertof: hit in the body's frame")
     n_local = mi.Vector3d(hit.n_local)
     t64 = dr.dot(n_local, mi.Vector3d(hit.plane_local) - o_local) / dr.dot(n_local, d_local)
     t64 = dr.select(dr.isfinite(t64) & (t64 > 0), t64, mi.Float64(hit.si.t))
