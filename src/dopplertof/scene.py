@@ -1002,17 +1002,27 @@ class DynamicScene:
         import drjit as dr
         import mitsuba as mi
 
+        body_index = mi.UInt32(body_index)
+        precise = poses.precise if isinstance(poses, LanePoses) else bool(poses) and type(poses[0].scale.x) is mi.Float64
+        identity = _identity_pose(precise)
+        if not self.bodies:
+            return identity
+        # A branch: a SIMD packet whose lanes are all on static geometry skips the poses.
+        return dr.if_stmt((body_index,), body_index > 0, lambda b: self._moving_pose(poses, b, identity), lambda b: identity, label="dopplertof: a body's pose")
+
+    def _moving_pose(self, poses, body_index, identity):
+        """:meth:`select_pose` where some lane's body moves (``identity`` elsewhere)."""
+        import drjit as dr
+
         from .motion import Pose
 
+        moving = body_index > 0
         slices = self._slices_in_use()
         if isinstance(poses, LanePoses) and slices is not None:
-            body_index = mi.UInt32(body_index)
-            return dr.select(body_index > 0, slices.pose(body_index, poses.time_s, poses.precise), _identity_pose(poses.precise))
+            return dr.select(moving, slices.pose(body_index, poses.time_s, poses.precise), identity)
         if isinstance(poses, LanePoses):
-            body_index = mi.UInt32(body_index)
-            moving = body_index > 0
             return self._pose_table().pose(dr.select(moving, body_index - 1, 0), poses.time_s, poses.precise, moving)
-        out = _identity_pose(bool(poses) and type(poses[0].scale.x) is mi.Float64)
+        out = identity
         for b, pose in enumerate(poses):
             m = body_index == (b + 1)
             out = Pose(
