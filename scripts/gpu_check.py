@@ -29,7 +29,9 @@ MIN_BODY_PIXELS = 3  # a body on at least this many CPU pixels must show on the 
 
 def render_half(variant: str, resolution: int, spp: int, seed: int, out: str) -> None:
     """Render every built-in scene × correlation on ``variant``; arrays to ``out`` (npz),
-    written again after each scene, so a half stopped part way keeps what it finished."""
+    written again after each scene, so a half stopped part way keeps what it finished (each
+    write is a new file renamed over ``out``: a half stopped while writing leaves the last
+    whole one)."""
     os.environ["DOPPLERTOF_VARIANT"] = variant
     import numpy as np
 
@@ -52,7 +54,9 @@ def render_half(variant: str, resolution: int, spp: int, seed: int, out: str) ->
             for field in ("intensity", "stderr", "measurements", "measurement_stderr", "instance_id"):
                 arrays[f"{key}/{field}"] = np.asarray(getattr(r, field))
             print(f"{variant}: {key} done in {time.perf_counter() - began:.1f} s ({len(scene.bodies)} moving bodies, traversal {scene.traversal_in_use()})", flush=True)
-        np.savez(out, **arrays)
+        partial = out[: -len(".npz")] + ".partial.npz" if out.endswith(".npz") else out + ".partial.npz"
+        np.savez(partial, **arrays)
+        os.replace(partial, out)
 
 
 def compare(a: dict, b: dict, label_a: str, label_b: str) -> list[str]:
