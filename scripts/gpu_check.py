@@ -54,7 +54,7 @@ def render_half(variant: str, resolution: int, spp: int, seed: int, out: str) ->
             for field in ("intensity", "stderr", "measurements", "measurement_stderr", "instance_id"):
                 arrays[f"{key}/{field}"] = np.asarray(getattr(r, field))
             print(f"{variant}: {key} done in {time.perf_counter() - began:.1f} s ({len(scene.bodies)} moving bodies, traversal {scene.traversal_in_use()})", flush=True)
-        partial = out[: -len(".npz")] + ".partial.npz" if out.endswith(".npz") else out + ".partial.npz"
+        partial = out + ".partial.npz"  # ends in .npz: np.savez writes it under this name
         np.savez(partial, **arrays)
         os.replace(partial, out)
 
