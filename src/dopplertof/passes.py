@@ -463,6 +463,18 @@ def stderr_dof(state: dict) -> int:
     return 0
 
 
+def _settled_inputs(settle, *args):
+    """Record and replay ``settle`` (a frozen function that does nothing, over a slice
+    pass's inputs) once each, before the pass is recorded. Dr.Jit 1.5's first replay of a
+    frozen function writes its inputs back and changes how many distinct variables they
+    hold (390 to 380 on the moving Cornell box), so the pass's third group no longer
+    matched its recording and recorded again: a second trace and a second kernel compile
+    in the first render of every scene. Settled first, the pass records once
+    (``tests/test_slices.py``)."""
+    for _ in range(2):
+        settle(*args)
+
+
 def _add_rows(total, pix, rows):
     """``total[k, pix] += rows[k]`` for every row: per-pixel rows (numpy views of the device's
     sums) are added where they are, not first stacked into a new array."""
@@ -549,11 +561,13 @@ class PassTracer:
             slices.set_state(state)
             return trace_pass(scene, s, dataclasses.replace(template, first_sample=first_sample, slice_u=slice_u), tables)
 
+        settle = None
         if self._frozen_group is None:
             gc.collect()  # garbage of earlier renders goes now, not while the pass is recorded (_collector_paused)
             scene.emitters.far_reference()  # built now, not while the pass is recorded
             inputs = kernel_inputs(scene, tables)  # what the kernel reads that no argument holds
             self._frozen_group = dr.freeze(group, state_fn=lambda *_: inputs)
+            settle = dr.freeze(lambda *_: None, state_fn=lambda *_: inputs)  # _settled_inputs
         parts = []
         for j, u in enumerate(slice_times(setup, s)):
             slices.place(float(s.exposure_start) + u * float(s.exposure_s))
@@ -562,6 +576,9 @@ class PassTracer:
             dr.make_opaque(times)
             try:
                 with _collector_paused():
+                    if settle is not None:
+                        _settled_inputs(settle, first, times, slices.state())
+                        settle = None
                     out = self._frozen_group(first, times, slices.state())
             except RuntimeError as exc:  # the recording or its replay failed: trace every group instead
                 if _interrupt_in(exc) is not None:
