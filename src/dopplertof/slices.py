@@ -240,7 +240,6 @@ class _MemberPlacement:
 
     def place(self, matrices):
         """Place every body shape by its body's matrix (``matrices``: (bodies, 4, 4))."""
-        import drjit as dr
         import mitsuba as mi
 
         linear, offset = matrices[:, :3, :3], matrices[:, :3, 3]
@@ -253,13 +252,8 @@ class _MemberPlacement:
             n = n.astype(np.float32)
             for key, a, b in self.normal_spans:
                 self._write(f"{key}.vertex_normals", n[a:b])
-        for key, body, rest in self.to_world:
-            # Opaque: what Mitsuba derives from a literal transform stays a literal (a disk's
-            # du, dv) whose value changes with every placement, and a frozen pass records
-            # anew where a literal it read changed.
-            to_world = mi.Transform4f((matrices[body] @ rest).tolist())
-            dr.make_opaque(to_world)
-            self.params[f"{key}.to_world"] = to_world
+        for key, body, rest in self.to_world:  # from Python floats: Dr.Jit literals, which Mitsuba's update reads without a copy each
+            self.params[f"{key}.to_world"] = mi.Transform4f((matrices[body] @ rest).tolist())
         self.params.update()  # the shapes, then the scene: Embree rebuilds its tree
 
 
