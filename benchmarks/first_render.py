@@ -6,17 +6,19 @@ the body atlas.
     python benchmarks/first_render.py --quick    # smoke test: 32x32, 8 spp, 2 and 16 cubes (< 1 min)
     python benchmarks/first_render.py --scenes 128-moving 1024-moving --traversals tree atlas
     python benchmarks/first_render.py --variant cuda_ad_rgb --traversals per-body atlas --timeout-s 120
+    python benchmarks/first_render.py --scenes 8-moving 128-moving --traversals tree slices   # one scene per instant
 
 ``throughput.py`` times renders whose kernels are compiled already (its warm-up run is not
 timed); a new scene's first render also compiles its kernel, which with the per-body loop
 grows with the number of bodies (the loop is unrolled: each body's queries are code) and
 with the tree does not (the bodies are reached through one ``dr.switch``, or, with the atlas,
-one trace against a scene of every body: CUDA's traversal). Every new scene
+one trace against a scene of every body: CUDA's traversal; with ``slices``, one query of
+one member scene whatever the number of bodies, its pass recorded by ``dr.freeze``). Every new scene
 pays it: each sample of a dataset, each scene of a design study. This script renders each
 scene of ``throughput.py`` (D-ToF, 4 cameras, antithetic + replay) with each traversal in
 a process of its own whose Dr.Jit kernel cache is empty (a temporary ``$HOME``), and
 reports per render: the first render's wall time, the part of it Dr.Jit spent compiling
-(kernel history), and a second render's wall time (another seed: the kernel cached). Before
+and the number of kernels it compiled (kernel history), and a second render's wall time (another seed: the kernel cached). Before
 them it times loading the scene (``dopplertof.load_scene``: one Mitsuba scene per body,
 each body's swept box over the exposure, the tree) beside stock ``mi.load_dict`` of the
 same geometry baked static, after a warm-up load of one cube.
@@ -34,9 +36,9 @@ import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets th
 import _common
 import throughput
 
-TRAVERSALS = ("per-body", "tree", "atlas")  # atlas: the tree without dr.switch (CUDA's traversal)
+TRAVERSALS = ("per-body", "tree", "atlas", "slices")  # atlas: the tree without dr.switch (CUDA's traversal); slices: one scene per instant
 SCENES = ("2-moving", "8-moving", "16-moving", "32-moving", "64-moving")
-CSV_FIELDS = ["scene", "bodies", "traversal", "resolution", "spp", "load_s", "stock_load_s", "load_vs_stock", "first_s", "compile_s", "warm_s", "first_vs_per_body", "warm_vs_per_body"]
+CSV_FIELDS = ["scene", "bodies", "traversal", "resolution", "spp", "load_s", "stock_load_s", "load_vs_stock", "first_s", "compile_s", "kernels_compiled", "warm_s", "first_vs_per_body", "warm_vs_per_body"]
 
 
 def parse_args(argv):
@@ -44,8 +46,8 @@ def parse_args(argv):
     p.add_argument("--resolution", type=int, default=None, help="film size (default 256; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel (default 32; quick 8)")
     p.add_argument("--scenes", nargs="+", choices=throughput.ALL_SCENES, default=None, help=f"default {' '.join(SCENES)}")
-    p.add_argument("--traversals", nargs="+", choices=TRAVERSALS, default=list(TRAVERSALS),
-                   help="default all three (the per-body loop compiles for minutes above ~64 bodies; on CUDA above ~10)")
+    p.add_argument("--traversals", nargs="+", choices=TRAVERSALS, default=list(TRAVERSALS[:3]),
+                   help="default per-body, tree, atlas (the per-body loop compiles for minutes above ~64 bodies; on CUDA above ~10)")
     p.add_argument("--timeout-s", type=float, default=600.0, help="seconds a scene's process may take; more is reported as '> N s' (default 600)")
     p.add_argument("--one", nargs=2, metavar=("SCENE", "TRAVERSAL"), help=argparse.SUPPRESS)  # the child of in_fresh_process
     _common.add_output_options(p, "first_render", quick_help="smoke test: 32x32, 8 spp, 2 and 16 cubes", plot=False)
@@ -59,7 +61,7 @@ def parse_args(argv):
 
 def measure_one(scene_name, traversal, args):
     """In this process (its kernel cache empty): the first and a second render's wall times
-    and the first's compilation time, as a dict."""
+    and the first's compilation time and compiled kernels, as a dict."""
     import drjit as dr
     import mitsuba as mi
 
@@ -78,12 +80,14 @@ def measure_one(scene_name, traversal, args):
     t = time.perf_counter()
     render(1)
     first = time.perf_counter() - t
-    compile_s = _common.compile_seconds(dr.kernel_history())
+    history = dr.kernel_history()
+    compile_s = _common.compile_seconds(history)
+    compiled = sum(1 for k in history if k.get("cache_hit") == 0 and k.get("backend_time", 0.0) > 0)
     t = time.perf_counter()
     render(2)
     warm = time.perf_counter() - t
     return {"bodies": len(scene.bodies), "load_s": load, "stock_load_s": stock_load, "load_vs_stock": load / stock_load,
-            "first_s": first, "compile_s": compile_s, "warm_s": warm}
+            "first_s": first, "compile_s": compile_s, "kernels_compiled": compiled, "warm_s": warm}
 
 
 def in_fresh_process(scene_name, traversal, args, argv):
@@ -121,7 +125,7 @@ def main(argv=None):
                    "warm_vs_per_body": r["warm_s"] / per_body["warm_s"] if per_body else None}
             rows.append(row)
             run.log(f"[{name}] {traversal:<8} load {r['load_s']:6.2f} s ({r['load_vs_stock']:.1f}x stock)  "
-                    f"first {r['first_s']:7.2f} s (compiling {r['compile_s']:6.2f} s)  second {r['warm_s']:6.2f} s")
+                    f"first {r['first_s']:7.2f} s (compiling {r['compile_s']:6.2f} s, {r['kernels_compiled']} kernels)  second {r['warm_s']:6.2f} s")
     print()
     print("| scene | " + " | ".join(f"{t}: first render (compiling), second" for t in args.traversals) + " |")
     print("|---|" + "---:|" * len(args.traversals))
