@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .jitdata import jit_array
 ATLAS_ANALYTIC_SHAPES = ("Sphere", "Disk", "Cylinder")  # Mitsuba class names placed by to_world alone
 CELL_SCALE = 1.25  # cell side over the largest body's bounding-box side
 CELL_MARGIN_M = 1e-2  # added to the cell side, m
@@ -52,10 +53,10 @@ class BodyAtlas:
 
         self.scene = scene
         self.offsets_m = offsets_m
-        self._offsets = mi.Float(offsets_m.astype(np.float32).ravel())
-        self._cell_min = mi.Float(cell_min.astype(np.float32).ravel())
-        self._cell_max = mi.Float(cell_max.astype(np.float32).ravel())
-        self._original_ids = mi.UInt32(original_ids)  # a copy's registry id -> its original's
+        self._offsets = jit_array(mi.Float, offsets_m, np.float32)
+        self._cell_min = jit_array(mi.Float, cell_min, np.float32)
+        self._cell_max = jit_array(mi.Float, cell_max, np.float32)
+        self._original_ids = jit_array(mi.UInt32, original_ids, np.uint32)  # a copy's registry id -> its original's
         dr.make_opaque(self._offsets, self._cell_min, self._cell_max, self._original_ids)
 
     @staticmethod
@@ -156,8 +157,8 @@ def _shifted_copy(shape, offset_m):
         copy = mi.Mesh(f"{shape.id()}-atlas", shape.vertex_count(), shape.face_count())
         target = mi.traverse(copy)  # (a rectangle or disk mesh lists only its to_world)
         positions = np.array(shape.vertex_positions_buffer(), dtype=np.float64).reshape(-1, 3) + offset_m
-        target["vertex_positions"] = mi.Float(positions.astype(np.float32).ravel())
-        target["faces"] = mi.UInt32(shape.faces_buffer())
+        target["vertex_positions"] = jit_array(mi.Float, positions, np.float32)
+        target["faces"] = jit_array(mi.UInt32, shape.faces_buffer(), np.uint32)
         target.update()
         return copy
     shift = mi.ScalarTransform4f().translate(mi.ScalarVector3f(*np.asarray(offset_m, dtype=np.float32)))

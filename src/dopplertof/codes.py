@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .jitdata import jit_array
 TWO_PI = 2.0 * math.pi
 MIN_SAMPLES = 8
 # Largest common grid two sampled codes are resampled to (the lcm of their lengths): its
@@ -477,7 +478,7 @@ class PeriodicFunction:
 
         if self.harmonics is None:
             t = self.table
-            return mi.Float64(np.append(t, t[0]) if self.linear else t)
+            return jit_array(mi.Float64, np.append(t, t[0]) if self.linear else t, np.float64)
 
         def opaque(v):
             a = mi.Float64(float(v))

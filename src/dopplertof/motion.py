@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .jitdata import jit_array
 from .modulation import SPEED_OF_LIGHT_M_S
 
 # Positions (translations, pivots) beyond this are refused: scenes are metres to kilometres
@@ -327,7 +328,7 @@ def _opaque_f64(values):
     import drjit as dr
     import mitsuba as mi
 
-    arr = mi.Float64(np.asarray(values, dtype=np.float64))
+    arr = jit_array(mi.Float64, values, np.float64)
     dr.make_opaque(arr)
     return arr
 

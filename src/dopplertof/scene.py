@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .jitdata import jit_array
 from .motion import Motion
 
 # Above this many bodies ``traversal="auto"`` walks the tree of swept boxes. The per-body
@@ -234,8 +235,7 @@ class BoxTree:
             first = len(body)
             add(np.arange(len(box_min)), octant)
             skip[first:] = [k - first for k in skip[first:]]
-        flat = lambda rows: mi.Float(np.asarray(rows, dtype=np.float32).ravel())  # noqa: E731
-        return cls(lo=flat(lo), hi=flat(hi), body=mi.UInt32(np.asarray(body, np.uint32)), skip=mi.UInt32(np.asarray(skip, np.uint32)), size=size)
+        return cls(lo=jit_array(mi.Float, lo, np.float32), hi=jit_array(mi.Float, hi, np.float32), body=jit_array(mi.UInt32, body, np.uint32), skip=jit_array(mi.UInt32, skip, np.uint32), size=size)
 
     def walk_to_leaf(self, ray, octant, node, t_max_m, box_hit):
         """From ``node`` on (in the order of ``octant``), the first leaf whose box ``ray``
@@ -287,16 +287,16 @@ class PoseTable:
         row = np.zeros(len(models), np.uint32)
         for members in rows.values():
             row[members] = np.arange(len(members))
-        self.model = _opaque(mi.UInt32(model_code))
-        self.row = _opaque(mi.UInt32(row))
+        self.model = _opaque(jit_array(mi.UInt32, model_code))
+        self.row = _opaque(jit_array(mi.UInt32, row))
 
         def cat(bodies, name, length):
-            return _opaque(mi.Float64(np.concatenate([np.asarray(self.motions[b]._data[name])[: length(b)] for b in bodies])))
+            return _opaque(jit_array(mi.Float64, np.concatenate([np.asarray(self.motions[b]._data[name])[: length(b)] for b in bodies]), np.float64))
 
         if self.keyframed:
             counts = np.array([len(self.motions[b].times) for b in self.keyframed], np.uint32)
-            self.key_offset = _opaque(mi.UInt32(np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.uint32)))
-            self.key_count = _opaque(mi.UInt32(counts))
+            self.key_offset = _opaque(jit_array(mi.UInt32, np.concatenate([[0], np.cumsum(counts)[:-1]]), np.uint32))
+            self.key_count = _opaque(jit_array(mi.UInt32, counts))
             # Search steps of Keyframed.pose for the longest key list; more steps leave a
             # converged search where it is.
             self.search_steps = int(np.floor(np.log2(counts.max() - 2))) + 1 if counts.max() > 2 else 0

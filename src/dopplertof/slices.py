@@ -61,6 +61,7 @@ import re
 
 import numpy as np
 
+from .jitdata import jit_array
 BODY_KEY = "__dopplertof_slice_body_{}_{}"  # a body copy's shape in a member scene
 MERGED_KEY = "__dopplertof_slice_meshes_{}"  # moving meshes merged into one in a member scene
 MERGED = 0xFFFFFFFF  # a merged mesh's entry in the body table: its triangles give the body
@@ -130,12 +131,12 @@ def _one_mesh(meshes, name: str):
     def joined(buffer):
         return np.concatenate([np.array(getattr(m, buffer)()) for m in meshes])
 
-    params["vertex_positions"] = mi.Float(joined("vertex_positions_buffer"))
-    params["faces"] = mi.UInt32(np.concatenate([np.array(m.faces_buffer(), np.uint32) + np.uint32(c) for m, c in zip(meshes, counts)]))
+    params["vertex_positions"] = jit_array(mi.Float, joined("vertex_positions_buffer"), np.float32)
+    params["faces"] = jit_array(mi.UInt32, np.concatenate([np.array(m.faces_buffer(), np.uint32) + np.uint32(c) for m, c in zip(meshes, counts)]))
     if first.has_vertex_normals():
-        params["vertex_normals"] = mi.Float(joined("vertex_normals_buffer"))
+        params["vertex_normals"] = jit_array(mi.Float, joined("vertex_normals_buffer"), np.float32)
     if first.has_vertex_texcoords():
-        params["vertex_texcoords"] = mi.Float(joined("vertex_texcoords_buffer"))
+        params["vertex_texcoords"] = jit_array(mi.Float, joined("vertex_texcoords_buffer"), np.float32)
     params.update()
     return mesh
 
@@ -313,7 +314,7 @@ class SliceScenes:
         table = np.zeros(size, np.uint32)
         for shape_id, b in body_of.items():
             table[shape_id] = b
-        self.body_table = mi.UInt32(table)
+        self.body_table = jit_array(mi.UInt32, table)
         self._triangles = self._triangle_tables(rest_of, static_of, size)
         self.pose_table = scene._pose_table()
         self.n_bodies = len(scene.bodies)
@@ -359,9 +360,9 @@ class SliceScenes:
             moving = used if shape_id in rest_of else moving
         triangles = np.concatenate([*chunks, np.zeros((1, 3, 3), np.float32)])  # never empty
         lengths = (len(triangles), max(moving, 1), max(moving, 1))
-        corners = [mi.Point3f(*(mi.Float(triangles[: lengths[k], k, i].copy()) for i in range(3))) for k in range(3)]
-        offsets_dr = mi.Int32(offsets.astype(np.int32))
-        triangle_body = mi.UInt32(np.concatenate([*bodies, np.zeros(1, np.uint32)])[: max(moving, 1)])
+        corners = [mi.Point3f(*(jit_array(mi.Float, triangles[: lengths[k], k, i]) for i in range(3))) for k in range(3)]
+        offsets_dr = jit_array(mi.Int32, offsets, np.int32)
+        triangle_body = jit_array(mi.UInt32, np.concatenate([*bodies, np.zeros(1, np.uint32)])[: max(moving, 1)])
         dr.make_opaque(offsets_dr, triangle_body, *corners)
         return offsets_dr, corners, triangle_body
 
@@ -382,7 +383,7 @@ class SliceScenes:
         # Every lane of a member shares its bodies' poses: evaluated here once (the pose
         # table's arithmetic), gathered per lane (:meth:`pose`); the shapes are placed by them.
         body = dr.tile(dr.arange(mi.UInt32, self.n_bodies), self.members)
-        time = mi.Float64(np.repeat(np.array(times_s), self.n_bodies))
+        time = jit_array(mi.Float64, np.repeat(np.array(times_s), self.n_bodies))
         for precise in (True, False):
             pose = self.pose_table.pose(body, time, precise)
             dr.make_opaque(pose)

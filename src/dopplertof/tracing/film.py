@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..jitdata import jit_array
 _TABLE_SIZE = 2049
 
 
@@ -49,13 +50,13 @@ class FilterSampler:
             return
         radius = float(rfilter.radius())
         x = np.linspace(-radius, radius, _TABLE_SIZE)
-        values = np.asarray(rfilter.eval(mi.Float(x.astype(np.float32))), dtype=np.float64)
+        values = np.asarray(rfilter.eval(jit_array(mi.Float, x, np.float32)), dtype=np.float64)
         if (values < 0).any():
             raise ValueError(
                 f"the film's reconstruction filter {self.name} has negative lobes, which dopplertof does not support; "
                 "use box, tent or gaussian (<rfilter type=\"gaussian\"/>)"
             )
-        self.distribution = mi.ContinuousDistribution(mi.ScalarVector2f(-radius, radius), mi.Float(values.astype(np.float32)))
+        self.distribution = mi.ContinuousDistribution(mi.ScalarVector2f(-radius, radius), jit_array(mi.Float, values, np.float32))
         width, height = (int(v) for v in film.crop_size())
         self._axes = [self._axis(n, radius, bool(film.sample_border())) for n in (width, height)]
 
@@ -69,8 +70,8 @@ class FilterSampler:
         reach = np.inf if border else 0.0  # how far past the film's edges a sample may land
         lo = np.clip(-centres - reach, -radius, radius)
         hi = np.clip(n_pixels - centres + reach, -radius, radius)
-        cdf = np.asarray(self.distribution.eval_cdf_normalized(mi.Float(np.concatenate([lo, hi]).astype(np.float32))), dtype=np.float64)
-        arrays = [mi.Float(cdf[:n_pixels].astype(np.float32)), mi.Float(cdf[n_pixels:].astype(np.float32))]
+        cdf = np.asarray(self.distribution.eval_cdf_normalized(jit_array(mi.Float, np.concatenate([lo, hi]), np.float32)), dtype=np.float64)
+        arrays = [jit_array(mi.Float, cdf[:n_pixels], np.float32), jit_array(mi.Float, cdf[n_pixels:], np.float32)]
         for a in arrays:
             dr.make_opaque(a)
         return arrays

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..jitdata import jit_array
 _REFRACTING = ("SmoothDielectric", "RoughDielectric")
 
 
@@ -81,7 +82,7 @@ class MaterialTables:
             table = np.full(size, fill)
             for index, value in values.items():
                 table[index] = value
-            array = mi.Float(np.minimum(table, 1e30).astype(np.float32))
+            array = jit_array(mi.Float, np.minimum(table, 1e30), np.float32)
             dr.make_opaque(array)
             arrays.append(array)
         from .film import FilterSampler
