@@ -101,8 +101,9 @@ def loadavg():
         return "?"
 
 
-def run_with_empty_kernel_cache(script, args, **run_options):
-    """Run ``python script *args`` in a process whose Dr.Jit kernel cache is empty.
+def run_with_empty_kernel_cache(script, args, runs=1, **run_options):
+    """Run ``python script *args`` in a process whose Dr.Jit kernel cache is empty, and
+    ``runs - 1`` times more, each in a new process with the cache the runs before left.
 
     Dr.Jit keeps every compiled kernel in ``$HOME/.drjit`` across processes, so a run that
     times new scenes (compilation included) would find an earlier run's kernels: the child's
@@ -114,16 +115,19 @@ def run_with_empty_kernel_cache(script, args, **run_options):
         The script's path.
     args : list of str
         Its arguments.
+    runs : int, default 1
+        Processes run one after the other, sharing the temporary ``$HOME``.
     **run_options
         Passed to ``subprocess.run`` (its ``env`` is this process's with ``HOME`` replaced).
 
     Returns
     -------
-    subprocess.CompletedProcess
+    subprocess.CompletedProcess, or a list of ``runs`` of them where ``runs`` > 1
     """
     with tempfile.TemporaryDirectory(prefix="dopplertof-bench-home-") as home:
         env = {**os.environ, **run_options.pop("env", {}), "HOME": home}
-        return subprocess.run([sys.executable, os.path.abspath(script), *args], env=env, **run_options)
+        done = [subprocess.run([sys.executable, os.path.abspath(script), *args], env=env, **run_options) for _ in range(runs)]
+    return done[0] if runs == 1 else done
 
 
 FRESH_KERNEL_CACHE_ENV = "DOPPLERTOF_BENCH_FRESH_KERNEL_CACHE"  # set in a script's rerun with an empty kernel cache

@@ -12,16 +12,19 @@ the body atlas.
 timed); a new scene's first render also compiles its kernel, which with the per-body loop
 grows with the number of bodies (the loop is unrolled: each body's queries are code) and
 with the tree does not (the bodies are reached through one ``dr.switch``, or, with the atlas,
-one trace against a scene of every body: CUDA's traversal; with ``slices``, one query of
-one member scene whatever the number of bodies, its pass recorded by ``dr.freeze``). Every new scene
-pays it: each sample of a dataset, each scene of a design study. This script renders each
-scene of ``throughput.py`` (D-ToF, 4 cameras, antithetic + replay) with each traversal in
-a process of its own whose Dr.Jit kernel cache is empty (a temporary ``$HOME``), and
-reports per render: the first render's wall time, the part of it Dr.Jit spent compiling
-and the number of kernels it compiled (kernel history), and a second render's wall time (another seed: the kernel cached). Before
-them it times loading the scene (``dopplertof.load_scene``: one Mitsuba scene per body,
-each body's swept box over the exposure, the tree) beside stock ``mi.load_dict`` of the
-same geometry baked static, after a warm-up load of one cube.
+one trace against a scene of every body: CUDA's traversal; with ``slices``, one query
+of one member scene whatever the number of bodies, its pass recorded by ``dr.freeze``).
+Every new scene pays it: each sample of a dataset, each scene of a design study. This
+script renders each scene of ``throughput.py`` (D-ToF, 4 cameras, antithetic + replay) with
+each traversal in a process of its own whose Dr.Jit kernel cache is empty (a temporary
+``$HOME``), and reports per render: the first render's wall time, the part of it Dr.Jit
+spent compiling and the number of kernels it compiled (kernel history), a second render's
+wall time (another seed: the kernel cached), and the first render again in a new process
+that finds the first process's kernels in Dr.Jit's cache on disk (what a render of the same
+scene from the command line pays). Before them it times loading the scene
+(``dopplertof.load_scene``: one Mitsuba scene per body, each body's swept box over the
+exposure, the tree) beside stock ``mi.load_dict`` of the same geometry baked static, after
+a warm-up load of one cube.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ import throughput
 
 TRAVERSALS = ("per-body", "tree", "atlas", "slices")  # atlas: the tree without dr.switch (CUDA's traversal); slices: one scene per instant
 SCENES = ("2-moving", "8-moving", "16-moving", "32-moving", "64-moving")
-CSV_FIELDS = ["scene", "bodies", "traversal", "resolution", "spp", "load_s", "stock_load_s", "load_vs_stock", "first_s", "compile_s", "kernels_compiled", "warm_s", "first_vs_per_body", "warm_vs_per_body"]
+CSV_FIELDS = ["scene", "bodies", "traversal", "resolution", "spp", "load_s", "stock_load_s", "load_vs_stock", "first_s", "compile_s", "kernels_compiled", "warm_s", "cached_first_s", "cached_compile_s", "cached_kernels_compiled", "first_vs_per_body", "warm_vs_per_body"]
 
 
 def parse_args(argv):
@@ -82,7 +85,7 @@ def measure_one(scene_name, traversal, args):
     first = time.perf_counter() - t
     history = dr.kernel_history()
     compile_s = _common.compile_seconds(history)
-    compiled = sum(1 for k in history if k.get("cache_hit") == 0 and k.get("backend_time", 0.0) > 0)
+    compiled = sum(1 for k in history if k.get("cache_hit") == 0 and not k.get("cache_disk") and k.get("backend_time", 0.0) > 0)
     t = time.perf_counter()
     render(2)
     warm = time.perf_counter() - t
@@ -91,16 +94,19 @@ def measure_one(scene_name, traversal, args):
 
 
 def in_fresh_process(scene_name, traversal, args, argv):
-    """:func:`measure_one` in a child process with an empty Dr.Jit kernel cache; None
-    where it ran past ``--timeout-s``."""
+    """:func:`measure_one` in a child process with an empty Dr.Jit kernel cache, and its
+    first render again in a second child that finds the first one's kernels on disk (a
+    render of the same scene in a new process: ``cached_first_s``, ``cached_compile_s``,
+    ``cached_kernels_compiled``); None where they ran past ``--timeout-s``."""
     import subprocess
 
     script_args = [*(sys.argv[1:] if argv is None else argv), "--one", scene_name, traversal]
     try:
-        out = _common.run_with_empty_kernel_cache(__file__, script_args, capture_output=True, text=True, check=True, timeout=args.timeout_s)
+        runs = _common.run_with_empty_kernel_cache(__file__, script_args, runs=2, capture_output=True, text=True, check=True, timeout=args.timeout_s)
     except subprocess.TimeoutExpired:
         return None
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    first, again = (json.loads(run.stdout.strip().splitlines()[-1]) for run in runs)
+    return {**first, "cached_first_s": again["first_s"], "cached_compile_s": again["compile_s"], "cached_kernels_compiled": again["kernels_compiled"]}
 
 
 def main(argv=None):
@@ -125,7 +131,8 @@ def main(argv=None):
                    "warm_vs_per_body": r["warm_s"] / per_body["warm_s"] if per_body else None}
             rows.append(row)
             run.log(f"[{name}] {traversal:<8} load {r['load_s']:6.2f} s ({r['load_vs_stock']:.1f}x stock)  "
-                    f"first {r['first_s']:7.2f} s (compiling {r['compile_s']:6.2f} s, {r['kernels_compiled']} kernels)  second {r['warm_s']:6.2f} s")
+                    f"first {r['first_s']:7.2f} s (compiling {r['compile_s']:6.2f} s, {r['kernels_compiled']} kernels)  second {r['warm_s']:6.2f} s  "
+                    f"new process {r['cached_first_s']:6.2f} s (compiling {r['cached_compile_s']:5.2f} s, {r['cached_kernels_compiled']} kernels)")
     print()
     print("| scene | " + " | ".join(f"{t}: first render (compiling), second" for t in args.traversals) + " |")
     print("|---|" + "---:|" * len(args.traversals))
