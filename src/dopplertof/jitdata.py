@@ -5,7 +5,7 @@ aligned as Dr.Jit aligns its own (64 bytes, the vector width) is written into ev
 that reads the array: ``align 1`` loads instead of aligned ones. numpy's addresses are
 aligned to 16 bytes, so which kernel a render compiles depended on where numpy put a table
 (a street's 24 bodies' motion parameters: a different kernel, and a fresh compile, in
-nearly every process; Dr.Jit's kernel cache never hit). :func:`jit_array` copies the data
+nearly every process: Dr.Jit's kernel cache rarely hit). :func:`jit_array` copies the data
 into memory aligned as Dr.Jit's own first, so a kernel's code depends on the scene alone
 (``tests/test_jitdata.py``).
 
