@@ -169,6 +169,21 @@ def compile_seconds(history):
     return sum(k.get("backend_time", 0.0) + k.get("codegen_time", 0.0) for k in history) / 1e3
 
 
+def kernels_compiled(history):
+    """How many kernels of ``history`` (``drjit.kernel_history()``) Dr.Jit compiled: found
+    neither in its memory nor on disk.
+
+    Parameters
+    ----------
+    history : list of dict
+
+    Returns
+    -------
+    int
+    """
+    return sum(1 for k in history if k.get("cache_hit") == 0 and not k.get("cache_disk") and k.get("backend_time", 0.0) > 0)
+
+
 # ----------------------------------------------------------------------------------------
 # Command line
 

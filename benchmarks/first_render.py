@@ -84,8 +84,7 @@ def measure_one(scene_name, traversal, args):
     render(1)
     first = time.perf_counter() - t
     history = dr.kernel_history()
-    compile_s = _common.compile_seconds(history)
-    compiled = sum(1 for k in history if k.get("cache_hit") == 0 and not k.get("cache_disk") and k.get("backend_time", 0.0) > 0)
+    compile_s, compiled = _common.compile_seconds(history), _common.kernels_compiled(history)
     t = time.perf_counter()
     render(2)
     warm = time.perf_counter() - t

@@ -19,13 +19,10 @@ UNALIGNED_LOAD = ", align 1,"  # how Dr.Jit's LLVM backend loads an input it mar
 def _kernels_reading_unaligned_memory(work) -> list:
     """The operation counts of the kernels ``work()`` launched whose code loads an input
     as unaligned."""
-    dr.set_flag(dr.JitFlag.KernelHistory, True)
-    try:
+    with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
         dr.kernel_history()
         work()
         history = dr.kernel_history()
-    finally:
-        dr.set_flag(dr.JitFlag.KernelHistory, False)
     irs = [(k.get("operation_count"), k["ir"].getvalue() if hasattr(k["ir"], "getvalue") else str(k["ir"])) for k in history if "ir" in k]
     assert irs, "the kernel history holds no kernel code to check"
     return [ops for ops, ir in irs if UNALIGNED_LOAD in ir]

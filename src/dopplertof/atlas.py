@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from .jitdata import jit_array
+
 ATLAS_ANALYTIC_SHAPES = ("Sphere", "Disk", "Cylinder")  # Mitsuba class names placed by to_world alone
 CELL_SCALE = 1.25  # cell side over the largest body's bounding-box side
 CELL_MARGIN_M = 1e-2  # added to the cell side, m

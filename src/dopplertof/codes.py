@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .jitdata import jit_array
+
 TWO_PI = 2.0 * math.pi
 MIN_SAMPLES = 8
 # Largest common grid two sampled codes are resampled to (the lcm of their lengths): its

@@ -62,6 +62,7 @@ import re
 import numpy as np
 
 from .jitdata import jit_array
+
 BODY_KEY = "__dopplertof_slice_body_{}_{}"  # a body copy's shape in a member scene
 MERGED_KEY = "__dopplertof_slice_meshes_{}"  # moving meshes merged into one in a member scene
 MERGED = 0xFFFFFFFF  # a merged mesh's entry in the body table: its triangles give the body

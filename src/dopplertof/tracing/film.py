@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..jitdata import jit_array
+
 _TABLE_SIZE = 2049
 
 

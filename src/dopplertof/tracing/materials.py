@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jitdata import jit_array
+
 _REFRACTING = ("SmoothDielectric", "RoughDielectric")
 
 
