@@ -519,7 +519,8 @@ class PassTracer:
 
         scene.set_time_window(settings.exposure_start, settings.exposure_start + settings.exposure_s)
         self.scene, self.settings, self.grid = scene, settings, grid
-        self.slices = self._frozen_group = None
+        self.slices = None
+        self._frozen_groups = {}  # traversal "slices": tile size -> its recorded group pass (_sliced)
         if scene.bodies and scene.traversal_in_use() == "slices":
             self.slices = scene.slice_scenes(settings.group_size)
         self.tables = MaterialTables.of(scene)
@@ -555,19 +556,24 @@ class PassTracer:
 
         s, n = self.settings, self.settings.group_size
         slices, scene, tables = self.slices, self.scene, self.tables
-        template = dataclasses.replace(setup, samples=n, first_sample=0)
+        # What the recording fixes: everything of the pass but its data (the tile's first
+        # pixel, the group's first sample, the members' times, the placed scenes), so one
+        # recording per tile size (a render's last tile may be smaller).
+        template = dataclasses.replace(setup, samples=n, first_sample=0, pixel_start=0)
 
-        def group(first_sample, slice_u, state):
+        def group(pixel_start, first_sample, slice_u, state):
             slices.set_state(state)
-            return trace_pass(scene, s, dataclasses.replace(template, first_sample=first_sample, slice_u=slice_u), tables)
+            return trace_pass(scene, s, dataclasses.replace(template, pixel_start=pixel_start, first_sample=first_sample, slice_u=slice_u), tables)
 
         settle = None
-        if self._frozen_group is None:
+        if setup.n_pixels not in self._frozen_groups:
             gc.collect()  # garbage of earlier renders goes now, not while the pass is recorded (_collector_paused)
             scene.emitters.far_reference()  # built now, not while the pass is recorded
             inputs = kernel_inputs(scene, tables)  # what the kernel reads that no argument holds
-            self._frozen_group = dr.freeze(group, state_fn=lambda *_: inputs)
+            self._frozen_groups[setup.n_pixels] = dr.freeze(group, state_fn=lambda *_: inputs)
             settle = dr.freeze(lambda *_: None, state_fn=lambda *_: inputs)  # _settled_inputs
+        traced = self._frozen_groups[setup.n_pixels]
+        pixel_start = dr.opaque(mi.UInt32, setup.pixel_start)
         parts = []
         for j, u in enumerate(slice_times(setup, s)):
             slices.place(float(s.exposure_start) + u * float(s.exposure_s))
@@ -577,16 +583,16 @@ class PassTracer:
             try:
                 with _collector_paused():
                     if settle is not None:
-                        _settled_inputs(settle, first, times, slices.state())
+                        _settled_inputs(settle, pixel_start, first, times, slices.state())
                         settle = None
-                    out = self._frozen_group(first, times, slices.state())
+                    out = traced(pixel_start, first, times, slices.state())
             except RuntimeError as exc:  # the recording or its replay failed: trace every group instead
                 if _interrupt_in(exc) is not None:
                     raise
                 cause = str(exc.__cause__ or exc).splitlines()[0]
                 warnings.warn(f"traversal='slices' traces every group of this render anew (slower): dr.freeze could not record its pass ({cause})", stacklevel=2)
-                self._frozen_group = group
-                out = group(first, times, slices.state())
+                self._frozen_groups[setup.n_pixels] = traced = group
+                out = group(pixel_start, first, times, slices.state())
             dr.eval(out)  # before the next group moves the scenes
             parts.append(out)
         return slices_in_pass_order(parts, setup.n_pixels, 1 if s.paired else n)
