@@ -58,6 +58,39 @@ def test_member_scenes_hit_what_the_bodies_hit_at_their_instants(scene):
     assert (a[4] == b[4]).mean() > 0.99
 
 
+def test_member_scenes_give_the_per_lane_tracers_float64_distances(scene):
+    """The Float64 distances a path's optical length is made of (``hit_distance64``), from
+    Float64 origins at the two members' times: on triangles, moving or static, the member
+    scenes' world planes at those instants (a table of Float64 planes placed by the bodies'
+    Float64 poses) give the per-body loop's distances (its rest planes, the ray taken into
+    the body's frame) to 1e-9 m, where the float32 distances of the same hits are off by up
+    to 1e-7 relative: so the distances of two instants differ by the motion alone."""
+    from dopplertof.tracing.path import hit_distance64
+
+    ray, _ = _rays(3000, seed=7)
+    times = (0.2e-3, 1.3e-3)
+    scene.slice_scenes(2).place(times)
+    time_s = mi.Float64(np.where(np.arange(dr.width(ray.o)) % 2, *times[::-1]))
+    origin = mi.Vector3d(ray.o) + mi.Vector3d(1e-9, -2e-9, 3e-9)  # not float32 numbers
+
+    def distances(traversal):
+        scene.traversal = traversal
+        try:
+            hit = scene.intersect(ray, time_s)
+            t64, _ = hit_distance64(scene, scene.poses(time_s, precise=True), hit, origin, ray.d)
+            values = [hit.body, t64, hit.si.t, hit.si.shape.is_mesh()]
+            dr.eval(values)
+            return [np.array(v) for v in values]
+        finally:
+            scene.traversal = "auto"
+
+    a, b = distances("per-body"), distances("slices")
+    on_triangle = (a[0] == b[0]) & np.isfinite(a[1]) & a[3] & b[3]
+    assert on_triangle.mean() > 0.5 and (on_triangle & (a[0] > 0)).mean() > 0.2
+    np.testing.assert_allclose(b[1][on_triangle], a[1][on_triangle], rtol=0, atol=1e-9)
+    assert np.abs(b[2][on_triangle] - a[1][on_triangle]).max() > 1e-8  # float32 is seen: the check can fail
+
+
 def test_a_render_in_pixel_tiles_is_the_render_in_one():
     """Films larger than a pass (``lanes_per_pass``) are traced in tiles of pixels: each
     tile's groups replay a recording with the tile's first pixel as data, and the last,

@@ -151,7 +151,10 @@ class Hit:
     for every hit of the primitive (a triangle's first vertex; ``p_local`` for analytic
     shapes), so distances recomputed against it cancel exactly between correlated paths;
     ``pose`` the body's float32 :class:`~dopplertof.motion.Pose` at the lane's time (the
-    identity for static geometry and misses), evaluated once per hit.
+    identity for static geometry and misses), evaluated once per hit; ``plane64`` with
+    ``traversal="slices"`` the hit primitive's plane in the world at the lane's instant,
+    Float64 ``(normal, offset)`` (:meth:`dopplertof.slices.SliceScenes.local_frame`), which
+    the distance is then recomputed against instead (else None).
     """
 
     si: object
@@ -160,6 +163,7 @@ class Hit:
     n_local: object
     plane_local: object
     pose: object
+    plane64: object = None
 
 
 class LanePoses:
@@ -762,8 +766,8 @@ class DynamicScene:
         if slices is not None:  # one scene per member, each at its instant: hits in the world
             pi, body_index, pose = slices.intersect(ray, mi.Float64(time_s), active, coherent, self.select_pose, LanePoses(mi.Float64(time_s), False))
             si = pi.compute_surface_interaction(ray, mi.RayFlags.All, active)
-            p_local, n_local, plane_local = slices.local_frame(si, body_index, pose, active)
-            return Hit(si=si, body=body_index, p_local=p_local, n_local=n_local, plane_local=plane_local, pose=pose)
+            p_local, n_local, plane_local, plane64 = slices.local_frame(si, body_index, pose, mi.Float64(time_s), active)
+            return Hit(si=si, body=body_index, p_local=p_local, n_local=n_local, plane_local=plane_local, pose=pose, plane64=plane64)
         pi = self.static.ray_intersect_preliminary(ray, coherent=coherent, active=active)
         ray_hit = mi.Ray3f(ray)
         body_index = mi.UInt32(0)

@@ -25,10 +25,15 @@ A hit keeps what the per-lane traversals give (:class:`~dopplertof.scene.Hit`): 
 (looked up from the hit shape, on a merged mesh from its triangle), the body's pose at the
 lane's time, and, for a mesh, the hit triangle's plane in the body's frame from the rest
 positions of the body's own scene (read from a table by the shape's registry id, not
-through the meshes' methods), so that Float64 distances of correlated paths at different
-instants differ by the motion alone (DESIGN §3.5). For an analytic shape the plane's point
-is the world hit taken back into the body's frame (float32 at the world's scale, not the
-body's).
+through the meshes' methods); for an analytic shape the plane's point is the world hit
+taken back into the body's frame (float32 at the world's scale, not the body's). Its
+Float64 distance is recomputed against the hit primitive's plane in the world at the
+member's instant (``Hit.plane64``): every triangle's, made on the host in float64 when the
+members are placed (a moving triangle's from its rest corners by its body's Float64 pose),
+read from a table; an analytic shape's, its tangent plane at the hit. Float64 distances of
+correlated paths at different instants then differ by the motion alone (DESIGN §3.5), with
+no pose evaluated in the kernel for them (the per-lane traversals take the ray into the
+body's frame instead).
 
 Emitter sampling and everything that is not a ray query stay as they are: bodies' area
 emitters are sampled in their body's scene at the lane's time
@@ -151,6 +156,19 @@ def _matrices(pose) -> np.ndarray:
         return np.stack([np.asarray(c, np.float64) for c in components], -1)
 
     return compose(stacked(pose.translation), stacked(pose.q), stacked(pose.scale))
+
+
+def _planes(corners, matrices=None) -> np.ndarray:
+    """(n, 4) float64 planes ``(normal, offset)``, ``normal · x = offset``, of n triangles
+    (``corners``: (n, 3, 3)), each first placed by its (4, 4) matrix where given. The normal
+    is a unit vector (NaN for a degenerate triangle, whose distances then fall back to the
+    hit's own)."""
+    if matrices is not None:
+        corners = corners @ np.swapaxes(matrices[:, :3, :3], 1, 2) + matrices[:, None, :3, 3]  # (matmul: einsum is 3x slower)
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    return np.concatenate([normal, np.einsum("ni,ni->n", normal, corners[:, 0])[:, None]], axis=1)
 
 
 def kernel_inputs(*roots) -> list:
@@ -316,7 +334,9 @@ class SliceScenes:
         for shape_id, b in body_of.items():
             table[shape_id] = b
         self.body_table = jit_array(mi.UInt32, table)
-        self._triangles = self._triangle_tables(rest_of, static_of, size)
+        self._triangles, self._plane_source = self._triangle_tables(rest_of, static_of, size)
+        self._planes = None  # the triangles' Float64 world planes at the placed times (place)
+        self._moving_triangles = len(self._plane_source[0])  # listed first in the triangle tables
         self.pose_table = scene._pose_table()
         self.n_bodies = len(scene.bodies)
         self.times_s = np.full(members, np.nan)  # mutated in place: a frozen pass sees one object
@@ -331,7 +351,9 @@ class SliceScenes:
         first for every mesh (a moving mesh's: its bodies' rest triangles; a static mesh's:
         its own), the other two for the moving meshes alone (listed first), whose rest
         normals they give; and the moving triangles' bodies (1-based), which give a merged
-        mesh's hit its body.
+        mesh's hit its body. Second, on the host, what the triangles' world planes are made
+        of (:meth:`place`): the moving triangles' rest corners (float64, (moving, 3, 3)), their
+        bodies (0-based) and the static triangles' planes (:func:`_planes`).
 
         Parameters
         ----------
@@ -363,9 +385,12 @@ class SliceScenes:
         lengths = (len(triangles), max(moving, 1), max(moving, 1))
         corners = [mi.Point3f(*(jit_array(mi.Float, triangles[: lengths[k], k, i]) for i in range(3))) for k in range(3)]
         offsets_dr = jit_array(mi.Int32, offsets, np.int32)
-        triangle_body = jit_array(mi.UInt32, np.concatenate([*bodies, np.zeros(1, np.uint32)])[: max(moving, 1)])
-        dr.make_opaque(offsets_dr, triangle_body, *corners)
-        return offsets_dr, corners, triangle_body
+        triangle_body = np.concatenate([*bodies, np.zeros(1, np.uint32)])
+        triangle_body_dr = jit_array(mi.UInt32, triangle_body[: max(moving, 1)])
+        dr.make_opaque(offsets_dr, triangle_body_dr, *corners)
+        corners64 = triangles[:-1].astype(np.float64)
+        static = _planes(corners64[moving:])
+        return (offsets_dr, corners, triangle_body_dr), (corners64[:moving], triangle_body[:moving].astype(np.int64) - 1, static)
 
     def place(self, times_s):
         """Place member ``m``'s scene at ``times_s[m]`` (s) where it is elsewhere.
@@ -395,16 +420,26 @@ class SliceScenes:
                 self.placements[m].place(matrices[m * self.n_bodies : (m + 1) * self.n_bodies])
                 self.times_s[m] = t
                 self._opaque_times[m] = dr.opaque(mi.Float64, t)
+        # Every triangle's plane in the world, in Float64, at each member's time: moving
+        # triangles' (member-major) from their rest corners by their bodies' Float64 poses,
+        # then the static ones'. Correlated paths' distances to a moving triangle at two
+        # instants then differ by its motion alone (DESIGN §3.5).
+        rest, body, static = self._plane_source
+        member_body = (np.arange(self.members)[:, None] * self.n_bodies + body[None, :]).ravel()
+        moving = _planes(np.tile(rest, (self.members, 1, 1)), matrices[member_body])
+        planes = np.concatenate([moving, static, np.zeros((1, 4))])  # never empty
+        self._planes = (mi.Vector3d(*(jit_array(mi.Float64, planes[:, i]) for i in range(3))), jit_array(mi.Float64, planes[:, 3]))
+        dr.make_opaque(*self._planes)
 
     def state(self) -> tuple:
         """Everything of the member scenes a pass's kernel reads (the scenes, the hit
         tables, the placed times and poses): the arguments of a frozen pass
         (:meth:`dopplertof.passes.PassTracer._sliced`), which :meth:`set_state` puts back."""
-        return (self.scenes, self.body_table, self._triangles, self._opaque_times, self._poses[False], self._poses[True])
+        return (self.scenes, self.body_table, self._triangles, self._planes, self._opaque_times, self._poses[False], self._poses[True])
 
     def set_state(self, state: tuple):
         """Use ``state`` (:meth:`state`'s layout) in what is traced next."""
-        self.scenes, self.body_table, self._triangles, times, poses32, poses64 = state
+        self.scenes, self.body_table, self._triangles, self._planes, times, poses32, poses64 = state
         self._opaque_times, self._poses = list(times), {False: poses32, True: poses64}
 
     def member_of(self, time_s):
@@ -486,11 +521,13 @@ class SliceScenes:
             )  # fmt: skip
         return blocked
 
-    def local_frame(self, si, body, pose, active):
-        """(p_local, n_local, plane_local) of world hits ``si`` (:class:`~dopplertof.scene.Hit`):
-        for static geometry (``body`` 0) the world's, a mesh's plane through its
-        triangle's first vertex; on a body in the body's frame at ``pose`` (module
-        docstring)."""
+    def local_frame(self, si, body, pose, time_s, active):
+        """(p_local, n_local, plane_local, plane64) of world hits ``si``
+        (:class:`~dopplertof.scene.Hit`): for static geometry (``body`` 0) the world's, a
+        mesh's plane through its triangle's first vertex; on a body in the body's frame at
+        ``pose`` (module docstring). ``plane64``: the hit primitive's plane in the world at
+        the lane's member's time ``time_s``, in Float64 (normal, offset): a triangle's from
+        the table :meth:`place` made, an analytic shape's the tangent plane at the hit."""
         import drjit as dr
         import mitsuba as mi
 
@@ -518,4 +555,10 @@ class SliceScenes:
             lambda p, n, *_: (p, n), label="dopplertof slices: body frame",
         )  # fmt: skip
         plane_local = dr.select(on_mesh, p0, p_local)
-        return p_local, n_local, plane_local
+        normals, offsets64 = self._planes
+        moving = self._moving_triangles  # the table holds them per member, then the static ones
+        row = triangle + dr.select(triangle < moving, self.member_of(time_s), self.members - 1) * moving
+        n_hit = mi.Vector3d(si.n)
+        n64 = dr.select(on_mesh, dr.gather(mi.Vector3d, normals, row, on_mesh), n_hit)
+        c64 = dr.select(on_mesh, dr.gather(mi.Float64, offsets64, row, on_mesh), dr.dot(n_hit, mi.Vector3d(si.p)))
+        return p_local, n_local, plane_local, (n64, c64)

@@ -158,8 +158,10 @@ def next_hit(scene, ray, time_s, poses, hide_emitters, active=True, from_camera=
 def hit_distance64(scene, poses64, hit, x_prev, direction):
     """Float64 distance from ``x_prev`` (mi.Vector3d) along ``direction`` to ``hit``, and the point.
 
-    Recomputed against the hit primitive's plane in the body's frame, so two correlated
-    paths hitting the same primitive at different times differ by the motion alone.
+    Recomputed against the hit primitive's plane in the body's frame (with
+    ``traversal="slices"``: its plane in the world at the lane's instant, ``hit.plane64``),
+    so two correlated paths hitting the same primitive at different times differ by the
+    motion alone.
 
     Parameters
     ----------
@@ -187,11 +189,15 @@ def hit_distance64(scene, poses64, hit, x_prev, direction):
         pose64 = scene.select_pose(poses64, body)
         return pose64.point_to_local(x_prev), pose64.vector_to_local(d64)
 
-    o_local, d_local = mi.Vector3d(x_prev), d64  # static geometry's frame is the world
-    if scene.bodies:  # a branch: a SIMD packet whose lanes all hit static geometry skips the pose
-        o_local, d_local = dr.if_stmt((o_local, d64, hit.body), hit.body > 0, to_body, lambda x_prev, d64, body: (x_prev, d64), label="dopplertof: hit in the body's frame")
-    n_local = mi.Vector3d(hit.n_local)
-    t64 = dr.dot(n_local, mi.Vector3d(hit.plane_local) - o_local) / dr.dot(n_local, d_local)
+    if hit.plane64 is not None:  # traversal "slices": the plane at the lane's instant, in the world
+        n64, offset64 = hit.plane64
+        t64 = (offset64 - dr.dot(n64, mi.Vector3d(x_prev))) / dr.dot(n64, d64)
+    else:
+        o_local, d_local = mi.Vector3d(x_prev), d64  # static geometry's frame is the world
+        if scene.bodies:  # a branch: a SIMD packet whose lanes all hit static geometry skips the pose
+            o_local, d_local = dr.if_stmt((o_local, d64, hit.body), hit.body > 0, to_body, lambda x_prev, d64, body: (x_prev, d64), label="dopplertof: hit in the body's frame")
+        n_local = mi.Vector3d(hit.n_local)
+        t64 = dr.dot(n_local, mi.Vector3d(hit.plane_local) - o_local) / dr.dot(n_local, d_local)
     t64 = dr.select(dr.isfinite(t64) & (t64 > 0), t64, mi.Float64(hit.si.t))
     return t64, x_prev + d64 * t64
 
