@@ -23,7 +23,12 @@ purpose: they measure what a part costs, not what it computes). D-ToF with 4 cam
 * ``f32-weights``  -- the modulation weights' sincos(kL) in Float32;
 * ``replicates``   -- ``stratify_intervals`` off: 16 independent replicates per pixel instead of
   strata (other reductions, other times);
-* ``uniform``      -- uniform time sampling, one time per path (no groups, no replay).
+* ``uniform``      -- uniform time sampling, one time per path (no groups, no replay);
+* ``slice-rows``   -- the same paths, the lanes of a pass in a slice kernel's order
+  (``traversal="slices"``: pixels fastest, along rows), so a SIMD packet holds 16 pixels'
+  paths, not 16 paths of one pixel (images scrambled);
+* ``slice-blocks`` -- pixels fastest in 4x4 blocks of pixels (images scrambled; where the
+  film's width is a multiple of 4 and the pass holds whole bands of 4 rows, else rows).
 
 Reported per configuration: medians over the repetitions of the wall-time and the CPU-time
 (``time.process_time``, both threads; less sensitive to other load) ratios to stock, the
@@ -45,16 +50,16 @@ import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets th
 import _common
 import throughput
 
-ABLATIONS = ("full", "1-camera", "no-cameras", "no-truth", "f32-length", "f32-weights", "replicates", "uniform")
+ABLATIONS = ("full", "1-camera", "no-cameras", "no-truth", "f32-length", "f32-weights", "replicates", "uniform", "slice-rows", "slice-blocks")
 
 
 @contextlib.contextmanager
 def ablation(name):
     """Switch off the part of the tracer that ``name`` names, for the ``with`` block."""
     from dopplertof import modulation
-    from dopplertof.tracing import single, sink
+    from dopplertof.tracing import lanes, single, sink
 
-    saved = (single.ground_truth, sink.Sink.needs_length, modulation.CameraBank.weights)
+    saved = (single.ground_truth, sink.Sink.needs_length, modulation.CameraBank.weights, lanes.pixel_and_index)
     try:
         if name == "no-truth":
             single.ground_truth = _zero_truth
@@ -62,9 +67,28 @@ def ablation(name):
             sink.Sink.needs_length = property(lambda self: False)
         elif name == "f32-weights":
             modulation.CameraBank.weights = _weights32
+        elif name in ("slice-rows", "slice-blocks"):
+            lanes.pixel_and_index = lambda setup, per_pixel: _pixels_fastest(setup, per_pixel, blocks=name == "slice-blocks")
         yield
     finally:
-        single.ground_truth, sink.Sink.needs_length, modulation.CameraBank.weights = saved
+        single.ground_truth, sink.Sink.needs_length, modulation.CameraBank.weights, lanes.pixel_and_index = saved
+
+
+def _pixels_fastest(setup, per_pixel, blocks):
+    """lanes.pixel_and_index with the pass's pixels fastest (a slice kernel's order), along
+    rows or in 4x4 blocks: the same (pixel, index) pairs in other lanes."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from dopplertof.tracing import lanes
+
+    lane = dr.arange(mi.UInt32, setup.n_pixels * per_pixel)
+    n_pixels = lanes.opaque_u32(setup.n_pixels)
+    pixel = lane % n_pixels
+    if blocks and setup.width % 4 == 0 and setup.n_pixels % (4 * setup.width) == 0:
+        band, block, within = pixel // (4 * setup.width), pixel % (4 * setup.width) // 16, pixel % 16
+        pixel = (band * 4 + within // 4) * setup.width + block * 4 + within % 4
+    return pixel + lanes.opaque_u32(setup.pixel_start), lane // n_pixels
 
 
 def _zero_truth(scene, hit, ray_d, depth_m, time_s, poses, pinhole):
