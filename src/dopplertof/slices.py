@@ -62,8 +62,6 @@ slice times        :func:`dopplertof.tracing.lanes.slice_times`
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from .jitdata import jit_array
@@ -211,57 +209,67 @@ class _MemberPlacement:
     def __init__(self, mi_scene, body_shapes):
         import mitsuba as mi
 
-        self.params = mi.traverse(mi_scene)
-        keys = set(self.params.keys())
+        params = mi.traverse(mi_scene)
+        keys = set(params.keys())
         spans, normal_spans, to_world = [], [], []
         vertices, vertex_body, normals, normal_body = [], [], [], []
         used = used_n = 0
         for key, body in body_shapes:
             if f"{key}.vertex_positions" in keys:
-                v = np.array(self.params[f"{key}.vertex_positions"], np.float64).reshape(-1, 3)
+                v = np.array(params[f"{key}.vertex_positions"], np.float64).reshape(-1, 3)
                 spans.append((key, used, used + len(v)))
                 vertices.append(v)
                 vertex_body.append(np.broadcast_to(body, len(v)))
                 used += len(v)
-                n = np.array(self.params[f"{key}.vertex_normals"], np.float64).reshape(-1, 3) if f"{key}.vertex_normals" in keys else np.zeros((0, 3))
+                n = np.array(params[f"{key}.vertex_normals"], np.float64).reshape(-1, 3) if f"{key}.vertex_normals" in keys else np.zeros((0, 3))
                 if len(n):
                     normal_spans.append((key, used_n, used_n + len(n)))
                     normals.append(n)
                     normal_body.append(np.broadcast_to(body, len(n)))
                     used_n += len(n)
             elif f"{key}.to_world" in keys:
-                to_world.append((key, body, np.array(self.params[f"{key}.to_world"].matrix, np.float64).reshape(4, 4)))
+                to_world.append((key, body, np.array(params[f"{key}.to_world"].matrix, np.float64).reshape(4, 4)))
             else:
                 raise ValueError(f"a moving shape ({key}) has neither vertex positions nor a to_world to place it by")
         self.spans, self.normal_spans, self.to_world = spans, normal_spans, to_world
         placed = [f"{k}.vertex_positions" for k, _, _ in spans] + [f"{k}.vertex_normals" for k, _, _ in normal_spans] + [f"{k}.to_world" for k, _, _ in to_world]
-        self.params.keep([re.escape(k) + "$" for k in placed])  # an update looks at these alone, not at every parameter of the scene
+        # What an update of these parameters does (``mi.SceneParameters.update``), without its
+        # bookkeeping per parameter (a third of a street group's placement): each changed
+        # shape is told which of its parameters changed, then the scene (Embree's rebuild).
+        self.scene, self.fields, changed = mi_scene, {}, {}
+        for key in placed:
+            field, field_type, shape, _ = params.properties[key]
+            self.fields[key] = (field, field_type, shape)
+            changed.setdefault(id(shape), (shape, []))[1].append(key.rsplit(".", 1)[1])
+        self.changed = list(changed.values())
         self.rest = np.concatenate(vertices) if vertices else np.zeros((0, 3))
         self.vertex_body = np.concatenate(vertex_body) if vertex_body else np.zeros(0, np.int64)
         self.rest_normals = np.concatenate(normals) if normals else np.zeros((0, 3))
         self.normal_body = np.concatenate(normal_body) if normal_body else np.zeros(0, np.int64)
 
     def _write(self, key, values):
-        """Overwrite the parameter's buffer with ``values`` (float32) in place and mark it
-        changed: its Dr.Jit variable stays the same, so a frozen pass replayed after the
-        placement reads the new values (a new variable would make ``dr.freeze`` record the
-        pass again). Embree shares the buffer; the update rebuilds its tree."""
+        """Overwrite the parameter's buffer with ``values`` (float32) in place (no kernel
+        may be reading it: :meth:`place`): its Dr.Jit variable stays the same, so a frozen
+        pass replayed after the placement reads the new values (a new variable would make
+        ``dr.freeze`` record the pass again). Embree shares the buffer; the update rebuilds
+        its tree."""
         import ctypes
 
         import drjit as dr
+        import mitsuba as mi
 
-        buffer = self.params[key]
+        buffer = mi.get_property(*self.fields[key])
         flat = np.ascontiguousarray(values, np.float32).ravel()  # as many values as it holds: a mesh keeps its size
         dr.eval(buffer)
-        dr.sync_thread()  # no kernel reads it while it is written
         address = np.from_dlpack(buffer).ctypes.data  # the view is read-only: write through its address
         np.ctypeslib.as_array((ctypes.c_float * flat.size).from_address(address))[:] = flat
-        self.params.set_dirty(key)
 
     def place(self, matrices):
         """Place every body shape by its body's matrix (``matrices``: (bodies, 4, 4))."""
+        import drjit as dr
         import mitsuba as mi
 
+        dr.sync_thread()  # no kernel reads the buffers while they are written
         linear, offset = matrices[:, :3, :3], matrices[:, :3, 3]
         v = (np.einsum("vij,vj->vi", linear[self.vertex_body], self.rest) + offset[self.vertex_body]).astype(np.float32)
         for key, a, b in self.spans:
@@ -273,8 +281,12 @@ class _MemberPlacement:
             for key, a, b in self.normal_spans:
                 self._write(f"{key}.vertex_normals", n[a:b])
         for key, body, rest in self.to_world:  # from Python floats: Dr.Jit literals, which Mitsuba's update reads without a copy each
-            self.params[f"{key}.to_world"] = mi.Transform4f((matrices[body] @ rest).tolist())
-        self.params.update()  # the shapes, then the scene: Embree rebuilds its tree
+            field, field_type, _ = self.fields[f"{key}.to_world"]
+            mi.set_property(field, field_type, mi.Transform4f((matrices[body] @ rest).tolist()))
+        for shape, names in self.changed:  # the shapes, then the scene: Embree rebuilds its tree
+            shape.parameters_changed(names)
+        self.scene.parameters_changed([])
+        dr.eval()
 
 
 class SliceScenes:
