@@ -156,6 +156,18 @@ def _matrices(pose) -> np.ndarray:
     return compose(stacked(pose.translation), stacked(pose.q), stacked(pose.scale))
 
 
+def _plane_table(planes):
+    """(normals mi.Vector3d, offsets mi.Float64) of (n, 4) ``planes`` (:func:`_planes`),
+    one row more of zeros (never empty), opaque."""
+    import drjit as dr
+    import mitsuba as mi
+
+    planes = np.concatenate([planes, np.zeros((1, 4))])
+    table = (mi.Vector3d(*(jit_array(mi.Float64, planes[:, i]) for i in range(3))), jit_array(mi.Float64, planes[:, 3]))
+    dr.make_opaque(*table)
+    return table
+
+
 def _planes(corners, matrices=None) -> np.ndarray:
     """(n, 4) float64 planes ``(normal, offset)``, ``normal · x = offset``, of n triangles
     (``corners``: (n, 3, 3)), each first placed by its (4, 4) matrix where given. The normal
@@ -346,9 +358,12 @@ class SliceScenes:
         for shape_id, b in body_of.items():
             table[shape_id] = b
         self.body_table = jit_array(mi.UInt32, table)
-        self._triangles, self._plane_source = self._triangle_tables(rest_of, static_of, size)
-        self._planes = None  # the triangles' Float64 world planes at the placed times (place)
-        self._moving_triangles = len(self._plane_source[0])  # listed first in the triangle tables
+        self._triangles, (rest, rest_body, static_planes) = self._triangle_tables(rest_of, static_of, size)
+        self._plane_source = (rest, rest_body)  # the moving triangles' rest corners and bodies
+        self._moving_triangles = len(rest)  # listed first in the triangle tables
+        # The triangles' Float64 planes in the world: the static ones' once, the moving ones'
+        # per member at its placed time (place).
+        self._planes = (None, _plane_table(static_planes))
         self.pose_table = scene._pose_table()
         self.n_bodies = len(scene.bodies)
         self.times_s = np.full(members, np.nan)  # mutated in place: a frozen pass sees one object
@@ -432,16 +447,13 @@ class SliceScenes:
                 self.placements[m].place(matrices[m * self.n_bodies : (m + 1) * self.n_bodies])
                 self.times_s[m] = t
                 self._opaque_times[m] = dr.opaque(mi.Float64, t)
-        # Every triangle's plane in the world, in Float64, at each member's time: moving
-        # triangles' (member-major) from their rest corners by their bodies' Float64 poses,
-        # then the static ones'. Correlated paths' distances to a moving triangle at two
-        # instants then differ by its motion alone (DESIGN §3.5).
-        rest, body, static = self._plane_source
+        # The moving triangles' planes in the world, in Float64, at each member's time
+        # (member-major), from their rest corners by their bodies' Float64 poses: correlated
+        # paths' distances to a moving triangle at two instants then differ by its motion
+        # alone (DESIGN §3.5).
+        rest, body = self._plane_source
         member_body = (np.arange(self.members)[:, None] * self.n_bodies + body[None, :]).ravel()
-        moving = _planes(np.tile(rest, (self.members, 1, 1)), matrices[member_body])
-        planes = np.concatenate([moving, static, np.zeros((1, 4))])  # never empty
-        self._planes = (mi.Vector3d(*(jit_array(mi.Float64, planes[:, i]) for i in range(3))), jit_array(mi.Float64, planes[:, 3]))
-        dr.make_opaque(*self._planes)
+        self._planes = (_plane_table(_planes(np.tile(rest, (self.members, 1, 1)), matrices[member_body])), self._planes[1])
 
     def state(self) -> tuple:
         """Everything of the member scenes a pass's kernel reads (the scenes, the hit
@@ -567,10 +579,11 @@ class SliceScenes:
             lambda p, n, *_: (p, n), label="dopplertof slices: body frame",
         )  # fmt: skip
         plane_local = dr.select(on_mesh, p0, p_local)
-        normals, offsets64 = self._planes
-        moving = self._moving_triangles  # the table holds them per member, then the static ones
-        row = triangle + dr.select(triangle < moving, self.member_of(time_s), self.members - 1) * moving
+        (moving_normals, moving_offsets), (static_normals, static_offsets) = self._planes
+        moving = self._moving_triangles  # moving triangles first, then the static ones
+        on_moving, on_static = on_mesh & (triangle < moving), on_mesh & (triangle >= moving)
+        row = dr.select(on_moving, triangle + self.member_of(time_s) * moving, triangle - moving)  # moving planes are member-major
         n_hit = mi.Vector3d(si.n)
-        n64 = dr.select(on_mesh, dr.gather(mi.Vector3d, normals, row, on_mesh), n_hit)
-        c64 = dr.select(on_mesh, dr.gather(mi.Float64, offsets64, row, on_mesh), dr.dot(n_hit, mi.Vector3d(si.p)))
+        n64 = dr.select(on_moving, dr.gather(mi.Vector3d, moving_normals, row, on_moving), dr.select(on_static, dr.gather(mi.Vector3d, static_normals, row, on_static), n_hit))
+        c64 = dr.select(on_moving, dr.gather(mi.Float64, moving_offsets, row, on_moving), dr.select(on_static, dr.gather(mi.Float64, static_offsets, row, on_static), dr.dot(n_hit, mi.Vector3d(si.p))))
         return p_local, n_local, plane_local, (n64, c64)
