@@ -28,9 +28,10 @@ positions of the body's own scene (read from a table by the shape's registry id,
 through the meshes' methods); for an analytic shape the plane's point is the world hit
 taken back into the body's frame (float32 at the world's scale, not the body's). Its
 Float64 distance is recomputed against the hit primitive's plane in the world at the
-member's instant (``Hit.plane64``): every triangle's, made on the host in float64 when the
-members are placed (a moving triangle's from its rest corners by its body's Float64 pose),
-read from a table; an analytic shape's, its tangent plane at the hit. Float64 distances of
+member's instant (``Hit.plane64``): a triangle's, made on the host in float64 and read
+from a table (a static triangle's once, a moving triangle's when the members are placed,
+from its rest corners by its body's Float64 pose); an analytic shape's, its tangent plane
+at the hit. Float64 distances of
 correlated paths at different instants then differ by the motion alone (DESIGN §3.5), with
 no pose evaluated in the kernel for them (the per-lane traversals take the ray into the
 body's frame instead).
