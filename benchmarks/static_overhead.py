@@ -28,7 +28,12 @@ purpose: they measure what a part costs, not what it computes). D-ToF with 4 cam
   (``traversal="slices"``: pixels fastest, along rows), so a SIMD packet holds 16 pixels'
   paths, not 16 paths of one pixel (images scrambled);
 * ``slice-blocks`` -- pixels fastest in 4x4 blocks of pixels (images scrambled; where the
-  film's width is a multiple of 4 and the pass holds whole bands of 4 rows, else rows).
+  film's width is a multiple of 4 and the pass holds whole bands of 4 rows, else rows);
+* ``members-apart`` -- pixel-major as shipped, but a pixel's lanes member-major: a SIMD
+  packet holds 16 groups' paths of one pixel at one member, where as shipped it holds 8
+  groups' paths at both members, whose rays coincide but for the bodies' motion (the same
+  random numbers: replay). Separates what ``slice-rows`` loses to its pixels from what it
+  loses to its members (images scrambled).
 
 Reported per configuration: medians over the repetitions of the wall-time and the CPU-time
 (``time.process_time``, both threads; less sensitive to other load) ratios to stock, the
@@ -50,7 +55,7 @@ import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets th
 import _common
 import throughput
 
-ABLATIONS = ("full", "1-camera", "no-cameras", "no-truth", "f32-length", "f32-weights", "replicates", "uniform", "slice-rows", "slice-blocks")
+ABLATIONS = ("full", "1-camera", "no-cameras", "no-truth", "f32-length", "f32-weights", "replicates", "uniform", "slice-rows", "slice-blocks", "members-apart")
 
 
 @contextlib.contextmanager
@@ -69,6 +74,8 @@ def ablation(name):
             modulation.CameraBank.weights = _weights32
         elif name in ("slice-rows", "slice-blocks"):
             lanes.pixel_and_index = lambda setup, per_pixel: _pixels_fastest(setup, per_pixel, blocks=name == "slice-blocks")
+        elif name == "members-apart":
+            lanes.pixel_and_index = _members_apart
         yield
     finally:
         single.ground_truth, sink.Sink.needs_length, modulation.CameraBank.weights, lanes.pixel_and_index = saved
@@ -89,6 +96,20 @@ def _pixels_fastest(setup, per_pixel, blocks):
         band, block, within = pixel // (4 * setup.width), pixel % (4 * setup.width) // 16, pixel % 16
         pixel = (band * 4 + within // 4) * setup.width + block * 4 + within % 4
     return pixel + lanes.opaque_u32(setup.pixel_start), lane // n_pixels
+
+
+def _members_apart(setup, per_pixel):
+    """lanes.pixel_and_index with a pixel's lanes member-major (``n_times`` members of
+    ``per_pixel / n_times`` groups): the same (pixel, index) pairs in other lanes."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from dopplertof.tracing import lanes
+
+    lane = dr.arange(mi.UInt32, setup.n_pixels * per_pixel)
+    per, groups = lanes.opaque_u32(per_pixel), lanes.opaque_u32(per_pixel // setup.n_times)
+    within = lane % per
+    return lane // per + lanes.opaque_u32(setup.pixel_start), within % groups * setup.n_times + within // groups
 
 
 def _zero_truth(scene, hit, ray_d, depth_m, time_s, poses, pinhole):
