@@ -21,7 +21,11 @@ scenes); the run gets an empty kernel cache, since a second run of the same seed
 the first one's kernels compiled (``--warm-cache`` keeps it). Reported: wall time, samples per hour, and from the workers' own clocks the share
 of time outside ``dopplertof.render`` (drawing the record, building the Mitsuba scene, the
 sensor model, serialising and writing the shard; a worker's one-time start-up, imports and
-backend, is reported apart as ``worker_startup_s``, summed over shards). Targets: Ray / local-2 wall time ≤ 1.1,
+backend, is reported apart as ``worker_startup_s``, summed over shards). For ``local-1``,
+which renders in this process, also from Dr.Jit's kernel history: the seconds spent
+generating and compiling kernels (``compile_s``, its share of the wall time
+``compile_share``), the kernels compiled, and how many distinct kernels of more than
+1000 operations (the path tracers') the samples compiled. Targets: Ray / local-2 wall time ≤ 1.1,
 outside-the-renderer share ≤ 10 %.
 """
 
@@ -40,7 +44,9 @@ import _common
 
 CONFIGS = ("local-1", "local-2", "ray-2")
 CSV_FIELDS = ["config", "samples", "resolution", "spp", "cameras", "wall_s", "samples_per_hour", "outside_render_share",
-              "record_s", "scene_s", "render_s", "sensor_s", "write_s", "worker_total_s", "worker_startup_s"]
+              "record_s", "scene_s", "render_s", "sensor_s", "write_s", "worker_total_s", "worker_startup_s",
+              "compile_s", "compile_share", "kernels_compiled", "large_kernels_compiled"]
+LARGE_KERNEL_OPS = 1000  # a path tracer's kernel: thousands of operations; the reductions' tens
 
 
 def parse_args(argv):
@@ -86,9 +92,16 @@ def run_config(name, args, seed, scratch, log):
         finally:
             ray.shutdown()
     else:
+        import drjit as dr
+
+        in_process = name == "local-1"  # its kernels are compiled here: Dr.Jit's history sees them
+        dr.set_flag(dr.JitFlag.KernelHistory, in_process)
+        dr.kernel_history()
         t0 = time.perf_counter()
         result = generate(folder, args.samples, seed, workers=int(name.split("-")[1]), **kwargs)
         wall = time.perf_counter() - t0
+        history = dr.kernel_history() if in_process else None
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
     sec = result["seconds"]
     total = sec["total"]
     row = {
@@ -97,6 +110,13 @@ def run_config(name, args, seed, scratch, log):
         "record_s": sec["record"], "scene_s": sec["scene"], "render_s": sec["render"], "sensor_s": sec["sensor"], "write_s": sec["write"],
         "worker_total_s": total, "worker_startup_s": sec.get("startup", 0.0),
     }  # fmt: skip
+    if name == "local-1":
+        compiled = [k for k in history if _common.kernels_compiled([k])]
+        row.update(compile_s=_common.compile_seconds(history), kernels_compiled=len(compiled),
+                   large_kernels_compiled=len({k["hash"] for k in compiled if (k.get("operation_count") or 0) > LARGE_KERNEL_OPS}))
+        row["compile_share"] = row["compile_s"] / wall
+        log(f"{name}: compiling kernels {row['compile_s']:.1f} s ({100 * row['compile_share']:.0f} % of the wall time), "
+            f"{row['kernels_compiled']} kernels compiled, {row['large_kernels_compiled']} of them path tracers (> {LARGE_KERNEL_OPS} operations)")
     log(f"{name}: {wall:.1f} s, {row['samples_per_hour']:.0f} samples/h, outside the renderer {100 * row['outside_render_share']:.1f} %")
     shutil.rmtree(folder, ignore_errors=True)
     return row

@@ -188,7 +188,7 @@ def test_ctrl_c_while_the_command_loads_is_one_line(after_s):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP], ids=["SIGTERM", "SIGINT", "SIGHUP"])
-def test_a_signal_keeps_the_work_and_resume_is_bit_identical(tmp_path, sig):
+def test_a_signal_keeps_the_work_and_resume_is_bit_identical(tmp_path, uninterrupted, sig):
     status, stderr, out, args = _interrupt(tmp_path, sig, "interrupted")
     assert status == 128 + sig, stderr
     assert "--resume" in stderr
@@ -201,7 +201,7 @@ def test_a_signal_keeps_the_work_and_resume_is_bit_identical(tmp_path, sig):
     resumed = _cli(*args, "--resume")
     assert resumed.returncode == 0, resumed.stderr
     assert not (out / "checkpoint.npz").exists()
-    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+    _assert_same_as_an_uninterrupted_render(uninterrupted, out)
 
 
 
@@ -224,16 +224,23 @@ def _start_and_wait_for_a_checkpoint(out):
     return proc
 
 
-def _assert_same_as_an_uninterrupted_render(tmp_path, out):
-    whole = tmp_path / "whole"
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    """The output folder of ``_KILLABLE`` rendered without a fault, once for the tests that
+    resume it."""
+    whole = tmp_path_factory.mktemp("uninterrupted") / "out"
     run = _cli(*_KILLABLE, "-o", str(whole))
     assert run.returncode == 0, run.stderr
+    return whole
+
+
+def _assert_same_as_an_uninterrupted_render(whole, out):
     for name in _EXRS:
         np.testing.assert_array_equal(io.read_exr(out / name), io.read_exr(whole / name), err_msg=name)
 
 
 @pytest.mark.slow
-def test_sigkill_loses_at_most_the_checkpoint_interval_and_resume_is_bit_identical(tmp_path):
+def test_sigkill_loses_at_most_the_checkpoint_interval_and_resume_is_bit_identical(tmp_path, uninterrupted):
     out = tmp_path / "killed"
     proc = _start_and_wait_for_a_checkpoint(out)
     proc.kill()
@@ -246,7 +253,7 @@ def test_sigkill_loses_at_most_the_checkpoint_interval_and_resume_is_bit_identic
     resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
     assert resumed.returncode == 0, resumed.stderr
     assert not (out / "checkpoint.npz").exists() and not [p for p in os.listdir(out) if ".partial" in p]
-    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+    _assert_same_as_an_uninterrupted_render(uninterrupted, out)
 
 
 @pytest.fixture
@@ -264,7 +271,7 @@ def small_disk(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_identical(tmp_path, small_disk):
+def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_identical(tmp_path, uninterrupted, small_disk):
     import errno
 
     out = small_disk / "out"
@@ -287,7 +294,7 @@ def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_ide
     resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
     assert resumed.returncode == 0, resumed.stderr
     assert not (out / "checkpoint.npz").exists()
-    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+    _assert_same_as_an_uninterrupted_render(uninterrupted, out)
 
 
 def test_a_dataset_on_a_full_disk_is_one_error_line_and_leaves_no_partial_shard(small_disk):
@@ -302,7 +309,7 @@ def test_a_dataset_on_a_full_disk_is_one_error_line_and_leaves_no_partial_shard(
 
 
 @pytest.mark.slow
-def test_a_disk_that_fills_while_the_images_are_written_keeps_the_rendered_sums(tmp_path, small_disk):
+def test_a_disk_that_fills_while_the_images_are_written_keeps_the_rendered_sums(tmp_path, uninterrupted, small_disk):
     """The render finishes, its checkpoint is saved, then the disk is too full for the images:
     one error line, and --resume writes them without rendering again."""
     from dopplertof.render import checkpoint_disk_bytes
@@ -323,7 +330,7 @@ def test_a_disk_that_fills_while_the_images_are_written_keeps_the_rendered_sums(
     resumed = _cli(*_KILLABLE, "-o", str(out), "--resume")
     assert resumed.returncode == 0, resumed.stderr
     assert not (out / "checkpoint.npz").exists()
-    _assert_same_as_an_uninterrupted_render(tmp_path, out)
+    _assert_same_as_an_uninterrupted_render(uninterrupted, out)
 
 
 def test_a_checkpoint_is_continued_only_by_the_scene_it_was_made_of(tmp_path, monkeypatch):
