@@ -89,8 +89,11 @@ class MaterialTables:
         from .film import FilterSampler
         from .path import pinhole_scales
 
-        # Nothing moves: no apparent motion, no projection needed.
+        # Nothing moves: no apparent motion, no projection needed. Else the scales are data
+        # (opaque), not code: another field of view or film size reuses the kernel.
         pinhole = pinhole_scales(scene.sensor) if scene.motions() else (0.0, 0.0)
+        if scene.motions() and pinhole is not None:
+            pinhole = tuple(dr.opaque(mi.Float, scale) for scale in pinhole)
         return cls(*arrays, film=FilterSampler(scene.sensor.film()), pinhole=pinhole, refracts=any(v != 1.0 for v in ior.values()))
 
     def gather(self, table, bsdf, active):
