@@ -89,10 +89,9 @@ class MaterialTables:
         from .film import FilterSampler
         from .path import pinhole_scales
 
-        # Nothing moves: no apparent motion, no projection needed. Else the scales are data
-        # (opaque), not code: another field of view or film size reuses the kernel.
-        pinhole = pinhole_scales(scene.sensor) if scene.motions() else (0.0, 0.0)
-        if scene.motions() and pinhole is not None:
+        if not scene.motions():  # nothing moves: no apparent motion, no projection needed
+            pinhole = (0.0, 0.0)
+        elif (pinhole := pinhole_scales(scene.sensor)) is not None:  # data, not code: another field of view reuses the kernel
             pinhole = tuple(dr.opaque(mi.Float, scale) for scale in pinhole)
         return cls(*arrays, film=FilterSampler(scene.sensor.film()), pinhole=pinhole, refracts=any(v != 1.0 for v in ior.values()))
 
