@@ -51,30 +51,3 @@ def test_no_render_kernel_reads_unaligned_memory(name, traversal):
     scene.traversal = traversal
     assert _kernels_reading_unaligned_memory(lambda: dt.render(scene, spp=4, seed=1)) == []
 
-
-def _path_kernels(fov_deg) -> list:
-    """The hashes of the path-tracing kernels (over 1000 operations) of a render of the
-    moving Cornell box with its camera's field of view ``fov_deg``, with no other scene of
-    this test alive (Dr.Jit lays a kernel's calls out over every live Mitsuba object)."""
-    import gc
-
-    scene_dict = dt.scenes.cornell_box_dict(resolution=8)
-    next(v for v in scene_dict.values() if isinstance(v, dict) and v.get("type") == "perspective")["fov"] = fov_deg
-    gc.collect()
-    scene = dt.load_scene(scene_dict)
-    with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
-        dr.kernel_history()
-        dt.render(scene, spp=2, seed=0)
-        history = dr.kernel_history()
-    del scene
-    gc.collect()
-    return [k["hash"] for k in history if (k.get("operation_count") or 0) > 1000]
-
-
-def test_another_field_of_view_reuses_the_kernel():
-    """The optical flow's projection scales (``tracing.path.pinhole_scales``) are kernel
-    data: a scene seen through another field of view (or placed camera) is the same kernel,
-    found in Dr.Jit's cache. As literals they made every field of view compile anew."""
-    _path_kernels(25.0)  # a process's first render leaves objects of its own alive
-    kernels = [_path_kernels(fov) for fov in (20.0, 30.0)]
-    assert kernels[0] and kernels[0] == kernels[1], kernels
