@@ -51,3 +51,36 @@ def test_no_render_kernel_reads_unaligned_memory(name, traversal):
     scene.traversal = traversal
     assert _kernels_reading_unaligned_memory(lambda: dt.render(scene, spp=4, seed=1)) == []
 
+
+
+# Run in a new process for each field of view: a kernel's virtual calls are laid out over
+# every live Mitsuba object of the process (Dr.Jit's registry), so two renders in the
+# suite's own process can differ by what other tests left alive, not by the field of view.
+_PATH_KERNELS = """
+import sys
+import drjit as dr
+import dopplertof as dt
+scene_dict = dt.scenes.cornell_box_dict(resolution=8)
+next(v for v in scene_dict.values() if isinstance(v, dict) and v.get("type") == "perspective")["fov"] = float(sys.argv[1])
+scene = dt.load_scene(scene_dict)
+with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
+    dr.kernel_history()
+    dt.render(scene, spp=2, seed=0)
+    history = dr.kernel_history()
+print(sorted(k["hash"] for k in history if (k.get("operation_count") or 0) > 1000))
+"""
+
+
+def test_another_field_of_view_reuses_the_kernel():
+    """The optical flow's projection scales (``tracing.path.pinhole_scales``) are kernel
+    data: the moving Cornell box seen through another field of view is the same path
+    kernel, found in Dr.Jit's cache. As literals they made every field of view compile
+    anew. Each field of view renders in a new process (see above)."""
+    import subprocess
+    import sys
+
+    runs = [subprocess.Popen([sys.executable, "-c", _PATH_KERNELS, fov], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for fov in ("20", "30")]
+    outputs = [run.communicate(timeout=600) for run in runs]
+    assert all(run.returncode == 0 for run in runs), [err for _, err in outputs]
+    kernels = [out.strip().splitlines()[-1] for out, _ in outputs]
+    assert kernels[0] != "[]" and kernels[0] == kernels[1], kernels
