@@ -230,7 +230,9 @@ def test_design_interrupted_in_its_sweep_stops_at_once_and_names_what_is_kept(tm
         [*design, "--record", "r/record.npz", "-o", "s"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
     )  # fmt: skip
-    time.sleep(4.0)  # imports and reading the record take ~2 s, the sweep ~8 s more
+    deadline = time.monotonic() + 120  # the sweep (9191 points) takes seconds: a signal once it starts lands in it
+    while time.monotonic() < deadline and (line := process.stderr.readline()) and not line.startswith("sweeping 9191 point(s) of modulation_frequency x exposure over 1 record(s)"):
+        pass
     process.send_signal(signal.SIGTERM)
     _, stderr = process.communicate(timeout=120)
     assert process.returncode == 143, stderr

@@ -29,6 +29,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import glob
+import math
 import os
 import sys
 
@@ -161,6 +162,8 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
             unit = "m/s" if objective == "velocity_crb" else "m"
             best = sensor
             if sweeps:
+                points = math.prod(len(values) for _, values in sweeps)
+                click.echo(f"sweeping {points} point(s) of {' x '.join(k for k, _ in sweeps)} over {len(records)} record(s)", err=True)
                 rows = sweep(records, sensor, sweeps, objective)
                 written.append(_write_csv(os.path.join(output, "sweep.csv"), rows))
                 written += _plots(output, rows, [k for k, _ in sweeps], objective, unit)
