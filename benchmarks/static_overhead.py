@@ -39,13 +39,17 @@ Reported per configuration: medians over the repetitions of the wall-time and th
 (``time.process_time``, both threads; less sensitive to other load) ratios to stock, the
 operation count of the path-tracing kernel and the split of the wall time between that
 kernel, the other kernels (the reductions in ``dopplertof.passes``) and the host (Python
-tracing of the kernel, numpy), from Dr.Jit's kernel history.
+tracing of the kernel, numpy), from Dr.Jit's kernel history; and the minor page faults of a
+render (``resource.getrusage``: memory the process touches for the first time, which costs
+several microseconds a page on a virtual machine: the host's sums are new numpy arrays in
+every render, where stock Mitsuba's memory comes from Dr.Jit's cache).
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
+import resource
 import statistics
 import sys
 import time
@@ -112,7 +116,7 @@ def _members_apart(setup, per_pixel):
     return lane // per + lanes.opaque_u32(setup.pixel_start), within % groups * setup.n_times + within // groups
 
 
-def _zero_truth(scene, hit, ray_d, depth_m, time_s, poses, pinhole):
+def _zero_truth(scene, hit, ray_d, depth_m, time_s, pinhole):
     import drjit as dr
     import mitsuba as mi
 
@@ -208,11 +212,13 @@ def main(argv=None):
 
     def timed(job, seed):
         dr.kernel_history()  # drop what came before
+        faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
         cpu, wall = time.process_time(), time.perf_counter()
         jobs[job](seed)
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - faults
         ops, main_s, other_s = kernel_split(dr.kernel_history())
-        return dict(wall=wall, cpu=cpu, ops=ops, main=main_s, other=other_s, host=wall - main_s - other_s)
+        return dict(wall=wall, cpu=cpu, ops=ops, main=main_s, other=other_s, host=wall - main_s - other_s, faults=faults)
 
     for job in jobs:
         timed(job, 10_000)  # JIT compilation
@@ -238,15 +244,16 @@ def main(argv=None):
             wall_ratio_median=med(job, "wall_ratio"), cpu_ratio_median=med(job, "cpu_ratio"),
             wall_s_median=med(job, "wall"), main_kernel_ops=samples[job][-1]["ops"],
             main_kernel_s_median=med(job, "main"), other_kernels_s_median=med(job, "other"), host_s_median=med(job, "host"),
+            minor_page_faults_median=med(job, "faults"),
             wall_ratios=" ".join(f"{x['wall_ratio']:.3f}" for x in samples[job]),
         ))  # fmt: skip
     print()
-    print("| configuration | wall time / stock | CPU time / stock | tracing kernel: ops | tracing kernel s | other kernels s | host s |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
+    print("| configuration | wall time / stock | CPU time / stock | tracing kernel: ops | tracing kernel s | other kernels s | host s | page faults |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for row in rows:
         print(
             f"| {row['config']} | {row['wall_ratio_median']:.3f}x | {row['cpu_ratio_median']:.3f}x | {row['main_kernel_ops']} | "
-            f"{row['main_kernel_s_median']:.3f} | {row['other_kernels_s_median']:.3f} | {row['host_s_median']:.3f} |"
+            f"{row['main_kernel_s_median']:.3f} | {row['other_kernels_s_median']:.3f} | {row['host_s_median']:.3f} | {row['minor_page_faults_median']:.0f} |"
         )
     print()
     return run.finish(rows, list(rows[0]), total_note=f"; load avg at end {_common.loadavg()}")
