@@ -64,3 +64,53 @@ def test_unit_sums_are_the_block_sums_bit_for_bit(within, size):
     for name, value in expected.items():
         assert np.array_equal(np.asarray(inc[name]), np.asarray(value)), name
     assert np.array_equal(inc["hits"], np.rint(truth[-1]).astype(np.int32))
+
+
+def test_spare_sums_hand_back_zeroed_arrays_and_keep_only_whole_ones_within_their_size():
+    """:class:`SpareSums` gives a kept array back filled (its pages mapped already), keeps
+    no view (a map may look at the memory) and nothing over its size."""
+    from dopplertof.passes import SpareSums
+
+    spares = SpareSums(max_bytes=2000)  # room for two arrays of 800 bytes
+    a, b = np.arange(100.0), np.ones((2, 50))
+    spares.keep(a, b, np.arange(200.0)[::2], np.ones(100))  # a strided view, then one over the size
+    again = spares.full(100, np.float64)
+    assert again is a and not again.any()
+    assert spares.full((2, 50), np.float64, 7.0) is b and (b == 7.0).all()
+    assert spares.full(100, np.float64) is not a  # no spare of that shape left: a new one
+    assert spares.full(5, np.int32, -1).tolist() == [-1] * 5
+
+
+def test_a_render_reuses_the_sums_of_the_last_without_touching_its_result():
+    """The next render's sums are the arrays the last one's finished (no new pages to map:
+    ``benchmarks/static_overhead.py``), its maps are its own (the first result is unchanged
+    by the second render), and a render after another gives the same images as the first."""
+    import dopplertof as dt
+    from dopplertof import passes
+
+    scene = dt.scenes.build("cornell-box", resolution=16)
+    cameras = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, np.pi / 2)]
+    passes.SPARE_SUMS.clear()  # what earlier renders (other films) kept
+    first = dt.render(scene, spp=8, seed=1, cameras=cameras)
+    before = {name: np.array(value, copy=True) for name, value in first.maps.items()}
+    kept = [id(a) for a in passes.SPARE_SUMS._kept]  # (a test may look inside)
+    assert kept, "the finished render kept none of its sums"
+    made = []
+    init = passes.Accumulator.__init__
+
+    def spy(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        made.append({id(a) for a in self.state.values()})
+
+    passes.Accumulator.__init__ = spy
+    try:
+        other = dt.render(scene, spp=8, seed=2, cameras=cameras)
+    finally:
+        passes.Accumulator.__init__ = init
+    for name, value in before.items():
+        np.testing.assert_array_equal(first.maps[name], value, err_msg=name)
+    assert set(kept) <= made[0]
+    again = dt.render(scene, spp=8, seed=1, cameras=cameras)
+    assert not np.array_equal(other.measurements, first.measurements)
+    for name, value in before.items():
+        np.testing.assert_array_equal(again.maps[name], value, err_msg=name)

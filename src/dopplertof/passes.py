@@ -282,6 +282,58 @@ class Reducer:
         return self.replicated and equal and all(b - a == size for a, b, _, size in segments)
 
 
+class SpareSums:
+    """The sums of finished renders, kept for the next render's :class:`Accumulator` (at
+    most ``max_bytes`` of them): their pages are mapped already. A new array's pages are
+    mapped when first written, which on a virtual machine costs microseconds a page: at
+    256² new sums were half of a render's 7355 page faults and 19 ms of its host work
+    (``benchmarks/static_overhead.py``, its ``page faults`` column), where stock Mitsuba's
+    memory comes from Dr.Jit's cache. The result's maps are new arrays all the same.
+
+    ==========  =====  ==================================================
+    max_bytes   int    the most kept at once, bytes (default 64 MiB)
+    ==========  =====  ==================================================
+    """
+
+    def __init__(self, max_bytes: int = 64 << 20):
+        import threading
+
+        self.max_bytes = max_bytes
+        self._kept = []
+        self._lock = threading.Lock()
+
+    def full(self, shape, dtype, value=0) -> np.ndarray:
+        """An array of ``shape`` and ``dtype`` holding ``value``: a kept one if one fits."""
+        shape, dtype = tuple(np.atleast_1d(shape)), np.dtype(dtype)
+        with self._lock:
+            for i in range(len(self._kept) - 1, -1, -1):  # the last kept first
+                kept = self._kept[i]
+                if kept.shape == shape and kept.dtype == dtype:
+                    del self._kept[i]
+                    kept.fill(value)
+                    return kept
+        return np.zeros(shape, dtype) if value == 0 else np.full(shape, value, dtype)
+
+    def clear(self):
+        """Free every kept array."""
+        with self._lock:
+            self._kept.clear()
+
+    def keep(self, *arrays):
+        """Keep ``arrays`` for a later :meth:`full`: the caller holds no reference to them
+        (nor to a view of them) any more. Arrays that do not own their memory (views, a
+        checkpoint's) and what would exceed ``max_bytes`` are left to be freed."""
+        with self._lock:
+            held = sum(kept.nbytes for kept in self._kept)
+            for array in arrays:
+                if array.flags.owndata and array.flags.writeable and array.flags.c_contiguous and held + array.nbytes <= self.max_bytes:
+                    self._kept.append(array)
+                    held += array.nbytes
+
+
+SPARE_SUMS = SpareSums()  # one per process: the Accumulators' arrays
+
+
 class Accumulator(Reducer):
     """Float64 per-pixel sums (module docstring) of ``n_pixels`` pixels; ``state`` is what a
     checkpoint holds. A pass is added by ``apply(p, reduce(p, out))``, wherever ``reduce``
@@ -294,19 +346,19 @@ class Accumulator(Reducer):
 
     def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps, record_channels=0):
         super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps)
-        c, n = color_channels + n_cameras, n_pixels
-        self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": np.zeros((c, n)), "groups_done": np.zeros(n, np.int32)}
+        c, n, pairs, zeros = color_channels + n_cameras, n_pixels, len(self.pairs), SPARE_SUMS.full
+        self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": zeros((c, n), np.float64), "groups_done": zeros(n, np.int32)}
         if self.replicated and self.within:  # the open stratum's sums, and the closed strata's Q_s
-            self.state.update(open_sum=np.zeros((c, n)), open_sq=np.zeros((c, n)), within_sq=np.zeros((c, n)), strata_closed=np.zeros(n, np.int32))
+            self.state.update(open_sum=np.zeros((c, n)), open_sq=np.zeros((c, n)), within_sq=zeros((c, n), np.float64), strata_closed=zeros(n, np.int32))
             if self.pairs:
-                self.state.update(open_cross=np.zeros((len(self.pairs), n)), within_cross=np.zeros((len(self.pairs), n)))
+                self.state.update(open_cross=np.zeros((pairs, n)), within_cross=zeros((pairs, n), np.float64))
         elif self.replicated:
-            self.state.update(open_sum=np.zeros((c, n)), rep_sum=np.zeros((c, n)), rep_sq=np.zeros((c, n)), reps_closed=np.zeros(n, np.int32))
+            self.state.update(open_sum=np.zeros((c, n)), rep_sum=zeros((c, n), np.float64), rep_sq=zeros((c, n), np.float64), reps_closed=zeros(n, np.int32))
             if self.pairs:
-                self.state["rep_cross"] = np.zeros((len(self.pairs), n))
+                self.state["rep_cross"] = zeros((pairs, n), np.float64)
         truth_channels = sum(o.channels for o in TRUTH)
-        self.state.update(truth_sum=np.zeros((truth_channels, n)), hits=np.zeros(n, np.int32), samples=np.zeros(n, np.int32))
-        self.state["instance_id"] = np.full(n, -1, np.int32)
+        self.state.update(truth_sum=zeros((truth_channels, n), np.float64), hits=zeros(n, np.int32), samples=zeros(n, np.int32))
+        self.state["instance_id"] = np.full(n, -1, np.int32)  # the result's map is a view of it: never kept
         if record_channels:  # (channels, pixels) Float64 sums over lanes of a response record's phasors (PhasorGrid)
             self.state["record_sum"] = np.zeros((record_channels, n))
 
@@ -384,8 +436,9 @@ class Accumulator(Reducer):
                 s[name][:, pix] = 0.0
 
     def finish(self, height, width, n_cameras) -> dict:
-        """The result's maps (float32). Consumes the state: each Float64 sum is freed as soon
-        as its maps are made, so the peak is the sums or the maps, not both."""
+        """The result's maps (float32). Consumes the state: each sum goes as soon as its maps
+        are made (to :data:`SPARE_SUMS`, up to its size, else freed), so the peak is the sums
+        or the maps, not both, beyond the spares."""
         s = self.state
         cc = self.color_channels
         n_pix = height * width
@@ -393,18 +446,23 @@ class Accumulator(Reducer):
         def image(rows):  # float32 rows (k, pixels) -> (H, W) or (H, W, k)
             return rows[0].reshape(height, width) if len(rows) == 1 else np.stack(rows, axis=-1).reshape(height, width, len(rows))
 
+        keep = SPARE_SUMS.keep  # each sum once read (the maps are new arrays)
         with np.errstate(invalid="ignore", divide="ignore"):
-            groups = s.pop("groups_done").astype(np.float64)
-            mean = [(row / groups).astype(np.float32) for row in s.pop("group_sum")]
+            groups = s["groups_done"].astype(np.float64)
+            keep(s.pop("groups_done"))
+            mean = [(row / groups).astype(np.float32) for row in s["group_sum"]]
+            keep(s.pop("group_sum"))
             self.stderr_dof = stderr_dof(s)
             if "within_sq" in s:  # Var(μ̂) = Σ_s Q_s / G² (class docstring)
-                closed = s.pop("strata_closed") >= 1
-                err = np.where(closed, np.sqrt(np.maximum(s.pop("within_sq"), 0.0)) / groups, np.nan).astype(np.float32)
+                closed = s["strata_closed"] >= 1
+                err = np.where(closed, np.sqrt(np.maximum(s["within_sq"], 0.0)) / groups, np.nan).astype(np.float32)
+                keep(s.pop("strata_closed"), s.pop("within_sq"))
             elif "rep_sum" in s:
-                n = s.pop("reps_closed").astype(np.float64)
-                rep_mean = s.pop("rep_sum") / n
-                var = np.maximum(s.pop("rep_sq") / n - rep_mean * rep_mean, 0.0) * n / (n - 1)
+                n = s["reps_closed"].astype(np.float64)
+                rep_mean = s["rep_sum"] / n
+                var = np.maximum(s["rep_sq"] / n - rep_mean * rep_mean, 0.0) * n / (n - 1)
                 err = np.where(n >= 2, np.sqrt(var / n), np.nan).astype(np.float32)
+                keep(s.pop("reps_closed"), s.pop("rep_sum"), s.pop("rep_sq"))
                 del var
             else:
                 err = np.full((len(mean), n_pix), np.nan, np.float32)
@@ -419,11 +477,13 @@ class Accumulator(Reducer):
                     else:
                         cross = np.where(n >= 2, (s["rep_cross"][k] / n - rep_mean[cc + i] * rep_mean[cc + j]) * n / (n - 1) / n, np.nan)
                     covariance[i, j] = covariance[j, i] = cross
-                s.pop("within_cross" if self.within else "rep_cross")
+                keep(s.pop("within_cross" if self.within else "rep_cross"))
             del groups
-            hits = s.pop("hits")
-            truth_rows = [(row / hits).astype(np.float32) for row in s.pop("truth_sum")]
-            coverage = (hits / s.pop("samples")).astype(np.float32)
+            hits = s["hits"]
+            truth_rows = [(row / hits).astype(np.float32) for row in s["truth_sum"]]
+            coverage = (hits / s["samples"]).astype(np.float32)
+            del hits
+            keep(s.pop("hits"), s.pop("truth_sum"), s.pop("samples"))
         maps = {}
         for o in ESTIMATES:
             if o.channels == "color":
