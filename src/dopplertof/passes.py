@@ -321,8 +321,8 @@ class SpareSums:
 
     def keep(self, *arrays):
         """Keep ``arrays`` for a later :meth:`full`: the caller holds no reference to them
-        (nor to a view of them) any more. Arrays that do not own their memory (views, a
-        checkpoint's) and what would exceed ``max_bytes`` are left to be freed."""
+        (nor to a view of them) any more. Views, read-only or non-contiguous arrays and what
+        would exceed ``max_bytes`` are left to be freed."""
         with self._lock:
             held = sum(kept.nbytes for kept in self._kept)
             for array in arrays:
