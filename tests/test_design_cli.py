@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import dopplertof as dt
+from test_faults import _render_until_progress
 
 FAST = ["--resolution", "8", "--spp", "4", "--max-depth", "2"]
 DOCS = Path(__file__).resolve().parents[1] / "docs"
@@ -178,17 +179,12 @@ def test_design_interrupted_keeps_its_passes_and_resumes_to_the_same_record(tmp_
     sums are now in record.checkpoint.npz, and --resume finishes the same record (and so the
     same sweep) as an uninterrupted run."""
     import signal
-    import time
 
     # a record long enough to be interrupted while it renders (8 M paths in 32 passes)
     design = ["design", "cornell-box", "--sensor", "dtof-prototype", "--sweep", "f=10e6:100e6:4", "--resolution", "32", "--spp", "8192", "--lanes-per-pass", "262144"]
-    process = subprocess.Popen([sys.executable, "-m", "dopplertof.cli", *design, "-o", "o"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
-    deadline = time.time() + 120
-    while time.time() < deadline and "rendering the record" not in process.stderr.readline():
-        pass
-    time.sleep(1.0)
+    process, finish = _render_until_progress([*design, "-o", str(tmp_path / "o")], r"\|\s*([1-9]\d*)/32")  # a pass is done
     process.send_signal(getattr(signal, signame))
-    _, stderr = process.communicate(timeout=120)
+    stderr = finish()
     assert process.returncode == 128 + getattr(signal, signame), stderr
     assert stderr.strip().splitlines()[-1] == "error: interrupted before the record was finished; kept the rendered passes in record.checkpoint.npz: continue with the same command and --resume"
     assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["record.checkpoint.npz"]

@@ -45,7 +45,7 @@ import warnings
 import click
 import numpy as np
 
-from .clitools import StopOnSignal, cameras_layer, fail, given_settings, output_folder, settings_options
+from .clitools import StopOnSignal, cameras_layer, fail, given_settings, output_folder, quiet_option, settings_options
 
 from . import io, viz
 from .differences import differences
@@ -423,7 +423,7 @@ def render_animation(scene, output: str, *, frames: int, fps: float = DEFAULT_FP
 @click.option("--method", type=click.Choice(["auto", "ratio", "fit"]), default=None,
               help="Velocity reconstruction (default: auto, the fit for sinusoidal cameras, else the ratio).")
 @click.option("--overwrite", is_flag=True, help="Replace a clip with other settings in the output folder.")
-@click.option("--quiet", is_flag=True, help="No progress bar.")
+@quiet_option
 @settings_options(exclude=("exposure_start",))
 def animate_command(scene, frames, fps, resolution, defines, output, camera_specs, method, overwrite, quiet, **options):
     """Render SCENE as a clip: one D-ToF exposure per frame, with reconstructed velocity and a GIF.

@@ -16,7 +16,7 @@ import click
 
 from . import __version__
 from ._startup import release
-from .clitools import StopOnSignal, cameras_layer, fail, given_settings, output_folder, settings_options, show_warning
+from .clitools import StopOnSignal, cameras_layer, fail, given_settings, output_folder, quiet_option, settings_options, show_warning
 from .settings import DEFAULT_CHECKPOINT_INTERVAL_S
 
 release()  # loaded: Ctrl-C is the command's own again (KeyboardInterrupt)
@@ -117,7 +117,7 @@ def scenes():
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file (overrides its <default>). Repeatable.")
 @click.option("--overwrite", is_flag=True, help="Replace the files of another render in the output folder (only those).")
 @click.option("--resume", is_flag=True, help="Continue the interrupted render in the output folder: the same command (same settings and spp) plus --resume.")
-@click.option("--quiet", is_flag=True, help="No progress bar.")
+@quiet_option
 @click.option("--ray", "use_ray", is_flag=True, help="Trace the passes on Ray workers; the result is bit-identical to the local render's.")
 @click.option("--address", default=None, help="Ray cluster address (with --ray; default: the running Ray, else a local one).")
 @click.option("--workers", type=click.IntRange(min=1), default=None, help="Ray workers, each with CPUs / workers threads (with --ray; default: one per CPU, with a cuda variant one per GPU).")

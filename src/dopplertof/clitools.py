@@ -95,6 +95,9 @@ class StopOnSignal:
         return signal.Signals(self.signum or signal.SIGINT).name
 
 
+quiet_option = click.option("--quiet", is_flag=True, help="No progress bar.")  # every command that renders
+
+
 # Settings the command line sets through options of its own (cameras) or not at all.
 _NOT_OPTIONS = ("cameras",)
 

@@ -15,6 +15,7 @@ import sys
 import click
 
 from ..clitools import fail as _fail
+from ..clitools import quiet_option
 from .generate import DEFAULT_SHARD_SIZE
 
 
@@ -35,7 +36,7 @@ def dataset_group():
 @click.option("--ray", "use_ray", is_flag=True, help="Render on Ray: one task per shard (one actor per GPU with a cuda variant).")
 @click.option("--address", default=None, help="Ray cluster address (with --ray; default: a local Ray).")
 @click.option("--shards", "shard_range", default=None, help="Only shards a:b (b excluded), e.g. one Slurm array task.")
-@click.option("--quiet", is_flag=True, help="No progress bar.")
+@quiet_option
 def generate_command(output, samples, seed, config_path, resolution, spp, shard_size, workers, use_ray, address, shard_range, quiet):
     """Generate (or resume) a dataset in OUTPUT."""
     from ..backend import BackendError

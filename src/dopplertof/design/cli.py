@@ -36,7 +36,7 @@ import sys
 import click
 import numpy as np
 
-from ..clitools import StopOnSignal, fail, given_settings, settings_options
+from ..clitools import StopOnSignal, fail, given_settings, quiet_option, settings_options
 from ..folder import DESIGN_OUTPUTS
 from .search import OBJECTIVES, OPTIMIZE_KEYS
 
@@ -66,8 +66,9 @@ def _render_options(options: dict, resolution) -> list[str]:
 @click.option("--resume", is_flag=True, help="Continue the interrupted design run in the output folder: the same command plus --resume (finished records are read, an unfinished one continues from its checkpoint).")
 @click.option("--resolution", default=None, help="Film size in pixels: N (square) or WxH; replaces the scene's.")
 @click.option("-D", "defines", multiple=True, metavar="NAME=VALUE", help="Value of $NAME in a scene file. Repeatable.")
+@quiet_option
 @settings_options(exclude=("exposure",))
-def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, record_paths, rmse_draws, dataset_config, samples, dataset_seed, output, overwrite, resume, resolution, defines, **options):
+def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, record_paths, rmse_draws, dataset_config, samples, dataset_seed, output, overwrite, resume, resolution, defines, quiet, **options):
     """Sweep and optimise SENSOR's parameters on SCENES (one or more, or a dataset's: the
     objective averaged over them) from one render of each (its response record)."""
     from ..backend import signals_as_interrupt
@@ -147,7 +148,7 @@ def design_command(scenes, sensor_spec, sweep_specs, optimize_keys, objective, r
                     resuming = f", continuing {os.path.basename(checkpoint)}" if checkpoint_kept and os.path.exists(checkpoint) else ""
                     click.echo(f"rendering the record of {scene}: {spec.frequencies_hz.size} frequencies x {len(spec.beats)} beats, {len(settings.windows)} window(s), {settings.spp} spp{resuming}", err=True)
                     with stop:  # SIGINT, SIGTERM, SIGHUP end the render after its pass in progress
-                        record = render(dyn, settings=settings, record=spec, stop=stop, checkpoint=checkpoint_kept, keep_checkpoint=True).record
+                        record = render(dyn, settings=settings, record=spec, stop=stop, checkpoint=checkpoint_kept, keep_checkpoint=True, progress=not quiet).record
                     if record is None:  # a render stopped early keeps no record (its checkpoint, if any, its sums)
                         raise KeyboardInterrupt
                     record.info["scene"] = identity  # what a later --record is checked against
