@@ -181,7 +181,13 @@ def kernels_compiled(history):
     -------
     int
     """
-    return sum(1 for k in history if k.get("cache_hit") == 0 and not k.get("cache_disk") and k.get("backend_time", 0.0) > 0)
+    return sum(1 for k in history if compiled_here(k))
+
+
+def compiled_here(kernel) -> bool:
+    """Whether Dr.Jit compiled ``kernel`` (an entry of ``drjit.kernel_history()``): found
+    neither in its memory nor on disk."""
+    return kernel.get("cache_hit") == 0 and not kernel.get("cache_disk") and kernel.get("backend_time", 0.0) > 0
 
 
 # ----------------------------------------------------------------------------------------

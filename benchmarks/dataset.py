@@ -111,7 +111,7 @@ def run_config(name, args, seed, scratch, log):
         "worker_total_s": total, "worker_startup_s": sec.get("startup", 0.0),
     }  # fmt: skip
     if name == "local-1":
-        compiled = [k for k in history if _common.kernels_compiled([k])]
+        compiled = [k for k in history if _common.compiled_here(k)]
         row.update(compile_s=_common.compile_seconds(history), kernels_compiled=len(compiled),
                    large_kernels_compiled=len({k["hash"] for k in compiled if (k.get("operation_count") or 0) > LARGE_KERNEL_OPS}))
         row["compile_share"] = row["compile_s"] / wall

@@ -52,7 +52,6 @@ def test_no_render_kernel_reads_unaligned_memory(name, traversal):
     assert _kernels_reading_unaligned_memory(lambda: dt.render(scene, spp=4, seed=1)) == []
 
 
-
 # Run in a new process for each field of view: a kernel's virtual calls are laid out over
 # every live Mitsuba object of the process (Dr.Jit's registry), so two renders in the
 # suite's own process can differ by what other tests left alive, not by the field of view.
