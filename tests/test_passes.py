@@ -66,38 +66,6 @@ def test_unit_sums_are_the_block_sums_bit_for_bit(within, size):
     assert np.array_equal(inc["hits"], np.rint(truth[-1]).astype(np.int32))
 
 
-@pytest.mark.parametrize("within, size, lanes_per_group", [(True, 2, 2), (True, 2, 1), (False, 1, 2), (False, 4, 2), (False, 3, 1)])
-def test_a_pass_reduced_group_by_group_is_the_pass_reduced_in_pass_order_bit_for_bit(within, size, lanes_per_group):
-    """``traversal="slices"`` traces a group per kernel (member-major lanes) and reduces the
-    groups as they are (:meth:`Reducer.reduce_groups`): the increments are those of the same
-    lanes laid out in pass order and reduced at once, bit for bit; a pass that is not whole
-    units (a replicate cut by the pass) too."""
-    import drjit as dr
-
-    from dopplertof.tracing.lanes import slices_in_pass_order
-
-    rng = np.random.default_rng(size + 10 * within + 100 * lanes_per_group)
-    n_pixels, group, n_cameras = 24, 2, 4
-    spp = 24 if size == 3 else 16
-    groups = spp // group
-    reducer = Reducer(3, n_cameras, spp, group, lanes_per_group, groups // size, () if within else None)
-    for p in (Pass(0, spp, 0, n_pixels), Pass(group, spp - group, 0, n_pixels)):
-        n_groups = p.samples // group
-        parts = [_outputs(rng, n_pixels * lanes_per_group, n_cameras)[0] for _ in range(n_groups)]
-        for out in parts:
-            out["instance_id"] = mi.Float(rng.integers(0, 9, n_pixels * lanes_per_group).astype(np.float32))
-            dr.eval(out)
-        whole = reducer.whole(reducer.segments(p))
-        assert whole == (p.first_sample == 0 or size == 1)  # a pass that cuts a unit too
-        in_order = reducer.reduce(p, slices_in_pass_order(parts, n_pixels, lanes_per_group))
-        by_group = reducer.reduce_groups(p, parts)
-        assert in_order.keys() == by_group.keys()
-        for name, value in in_order.items():
-            assert np.array_equal(np.asarray(by_group[name]), np.asarray(value)), name
-        if p.first_sample == 0:  # each pixel's first lane: member 0 of the first group
-            assert by_group["instance_id"].tolist() == np.asarray(parts[0]["instance_id"])[:n_pixels].astype(int).tolist()
-
-
 def test_spare_sums_hand_back_zeroed_arrays_and_keep_only_whole_ones_within_their_size():
     """:class:`SpareSums` gives a kept array back filled (its pages mapped already), keeps
     no view (a map may look at the memory) and nothing over its size."""

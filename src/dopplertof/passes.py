@@ -46,25 +46,6 @@ def schedule(n_pixels: int, spp: int, group: int, lanes_per_pass: int) -> list[P
 # Accumulation
 
 
-@dataclass(frozen=True)
-class _GroupLanes:
-    """Where one group of every pixel of a pass is in its per-lane outputs: pixel ``i``'s
-    lane ``k`` of the group is ``first[i] + k · stride``.
-
-    ========  ===========  ===================================================
-    channels  list         per-lane estimates (colour channels, then cameras)
-    truth     list         per-lane truth values, the last the hit count
-    first     mi.UInt32    per pixel, the group's first lane
-    stride    int          lanes between the group's members
-    ========  ===========  ===================================================
-    """
-
-    channels: list
-    truth: list
-    first: object
-    stride: object
-
-
 class Reducer:
     """How a render's passes reduce to per-pixel increments of the sums (module docstring).
 
@@ -143,7 +124,7 @@ class Reducer:
             The pass.
         out : dict
             Its per-lane outputs (:meth:`~dopplertof.tracing.sink.Sink.outputs`), not yet
-            evaluated, in pass order (pixel-major, then group, then the group's lanes).
+            evaluated.
 
         Returns
         -------
@@ -156,7 +137,9 @@ class Reducer:
 
         group, lanes_per_group = self.group, self.lanes_per_group
         lanes_per_pixel = p.samples // group * lanes_per_group
-        channels, truth = self._lane_values(out)
+        intensity = out["intensity"]
+        channels = [intensity[c] for c in range(self.color_channels)] + list(out["measurements"])
+        truth = [x for o in TRUTH for x in _components(out[o.name], o.channels)] + [out["hits"]]
         record = None
         if "record" in out:  # a response record's phasors, summed per pixel in the tracing kernel
             from .tracing.sink import scatter_pixels
@@ -166,10 +149,15 @@ class Reducer:
 
         g0, g1 = self.groups(p)
         segments = self.segments(p)
+        inc = {}
         if self.whole(segments):  # the usual pass: complete units (pairs of groups, or replicates of one size)
-            inc = self._unit_increments(self._unit_sums(channels, truth, p.n_pixels, lanes_per_pixel, len(segments), segments[0][1] - segments[0][0]))
+            size, count = segments[0][1] - segments[0][0], len(segments)
+            sums, squares, cross, truth_sums = self._unit_sums(channels, truth, p.n_pixels, lanes_per_pixel, count, size)
+            prefix = "within" if self.within else "rep"
+            inc["group_sum" if self.within else "rep_sum"] = [np.asarray(x.numpy()) for x in sums]
+            inc[f"{prefix}_sq"] = [np.asarray(x.numpy()) for x in squares]
+            inc[f"{prefix}_cross"] = [np.asarray(x.numpy()) for x in cross]
         else:
-            inc = {}
             n_groups = p.n_pixels * (g1 - g0)
             first = dr.arange(mi.UInt32, n_groups) * lanes_per_group
             means = [self._group_mean(x, first) for x in channels]
@@ -182,150 +170,25 @@ class Reducer:
                 inc["parts_sq"] = np.stack([(x * x).sum(axis=2) for x in pieces], axis=2)
                 cc = self.color_channels
                 inc["parts_cross"] = [np.stack([(x[cc + i] * x[cc + j]).sum(axis=1) for x in pieces], axis=1) for i, j in self.pairs]
-            self._add_truth_increments(inc, truth_sums)
+        truth_sums = [np.asarray(x.numpy()) for x in truth_sums]
+        inc["truth_sum"] = truth_sums[:-1]
+        inc["hits"] = np.rint(truth_sums[-1]).astype(np.int32)  # counts of hits: whole numbers
         if p.first_sample == 0:  # the label of the pixel's first sample
             inc["instance_id"] = np.asarray(out["instance_id"].numpy()).reshape(p.n_pixels, lanes_per_pixel)[:, 0].astype(np.int32)
         if record is not None:  # (channels, pixels) sums over the pass's lanes
             inc["record"] = np.asarray(record.numpy()).reshape(p.n_pixels, -1).T
         return inc
 
-    def reduce_groups(self, p: Pass, parts: list) -> dict:
-        """:meth:`reduce` of a pass traced one group per kernel (``traversal="slices"``:
-        :meth:`PassTracer._sliced`), from the groups' outputs as they are, not first laid
-        out in pass order (a scatter of every output of every group: 8 % of a render with 8
-        moving cubes at 128² × 64 spp, ad hoc profile). A pass of whole units adds one unit per kernel (the same Float64
-        sums, in the same order, as :meth:`_unit_sums`'s loop); any other pass, or one with a
-        response record, is laid out in pass order and reduced by :meth:`reduce`.
-
-        Parameters
-        ----------
-        p : Pass
-            The pass.
-        parts : list of dict
-            Per group of the pass, in order: its per-lane outputs, evaluated, member-major
-            (a pixel's lane of member ``k`` is ``k · n_pixels + pixel``;
-            :func:`~dopplertof.tracing.lanes.slices_in_pass_order`).
-
-        Returns
-        -------
-        dict
-            As :meth:`reduce`.
-        """
-        import drjit as dr
-        import mitsuba as mi
-
-        from .tracing.lanes import slices_in_pass_order
-
-        segments = self.segments(p)
-        if not self.whole(segments) or "record" in parts[0]:
-            return self.reduce(p, slices_in_pass_order(parts, p.n_pixels, self.lanes_per_group))
-        pixel = dr.arange(mi.UInt32, p.n_pixels)
-        groups = [_GroupLanes(*self._lane_values(out), pixel, p.n_pixels) for out in parts]
-        size = segments[0][1] - segments[0][0]
-        totals = self._zero_totals(p.n_pixels)
-        for g in range(0, len(groups), 2 if self.within else 1):
-            if self.within:
-                totals = self._add_stratum(totals, groups[g], groups[g + 1])
-            else:
-                totals = self._add_replicate_group(totals, groups[g], mi.Bool((g + 1) % size == 0), 1.0 / size)
-            dr.eval(totals)  # one kernel per unit, the same for each
-        inc = self._unit_increments(totals[-4:])
-        if p.first_sample == 0:  # the label of the pixel's first sample: member 0 of the first group
-            inc["instance_id"] = np.asarray(parts[0]["instance_id"].numpy())[: p.n_pixels].astype(np.int32)
-        return inc
-
-    def _lane_values(self, out):
-        """(channels, truth) of per-lane outputs: the colour channels, then the cameras'
-        measurements; the ground truth's components (:data:`~dopplertof.outputs.TRUTH`),
-        then the hits."""
-        intensity = out["intensity"]
-        channels = [intensity[c] for c in range(self.color_channels)] + list(out["measurements"])
-        truth = [x for o in TRUTH for x in _components(out[o.name], o.channels)] + [out["hits"]]
-        return channels, truth
-
-    def _unit_increments(self, totals) -> dict:
-        """The increments of a pass of whole units from its per-pixel sums (Float64 arrays:
-        sums, squares, camera products, truth sums)."""
-        sums, squares, cross, truth_sums = totals
-        prefix = "within" if self.within else "rep"
-        inc = {"group_sum" if self.within else "rep_sum": [np.asarray(x.numpy()) for x in sums]}
-        inc[f"{prefix}_sq"] = [np.asarray(x.numpy()) for x in squares]
-        inc[f"{prefix}_cross"] = [np.asarray(x.numpy()) for x in cross]
-        self._add_truth_increments(inc, truth_sums)
-        return inc
-
-    @staticmethod
-    def _add_truth_increments(inc, truth_sums):
-        """``inc``'s truth sums and hit counts from the per-pixel truth sums (Float64, the
-        last the hits)."""
-        truth_sums = [np.asarray(x.numpy()) for x in truth_sums]
-        inc["truth_sum"] = truth_sums[:-1]
-        inc["hits"] = np.rint(truth_sums[-1]).astype(np.int32)  # counts of hits: whole numbers
-
-    def _group_mean(self, x, first, stride=1):
+    def _group_mean(self, x, first):
         """Float64 mean of per-lane ``x`` (mi.Float) over the groups whose first lanes are
-        ``first`` (mi.UInt32), their lanes ``stride`` apart, summed in lane order
-        (mi.Float64, one value per group)."""
+        ``first`` (mi.UInt32), summed in lane order (mi.Float64, one value per group)."""
         import drjit as dr
         import mitsuba as mi
 
         total = mi.Float64(dr.gather(mi.Float, x, first))
         for k in range(1, self.lanes_per_group):
-            total += mi.Float64(dr.gather(mi.Float, x, first + k * stride))
+            total += mi.Float64(dr.gather(mi.Float, x, first + k))
         return total * (1.0 / self.lanes_per_group)
-
-    def _zero_totals(self, n_pixels) -> tuple:
-        """The per-pixel Float64 totals of a pass of whole units before its first group:
-        strata: (sums, squares, camera products, truth sums); replicates: the open
-        replicate's sums first."""
-        import drjit as dr
-        import mitsuba as mi
-
-        def zeros(n):
-            return [dr.zeros(mi.Float64, n_pixels) for _ in range(n)]
-
-        n_channels = self.color_channels + self.n_cameras
-        n_truth = sum(o.channels for o in TRUTH) + 1
-        totals = (zeros(n_channels), zeros(n_channels), zeros(len(self.pairs)), zeros(n_truth))
-        return totals if self.within else (zeros(n_channels), *totals)
-
-    def _add_truth(self, truth_sums, g):
-        """``truth_sums`` plus every lane of group ``g`` (:class:`_GroupLanes`), in lane order."""
-        import drjit as dr
-        import mitsuba as mi
-
-        for k in range(self.lanes_per_group):
-            truth_sums = [t + mi.Float64(dr.gather(mi.Float, x, g.first + k * g.stride)) for t, x in zip(truth_sums, g.truth)]
-        return truth_sums
-
-    def _add_stratum(self, totals, a, b) -> tuple:
-        """Strata totals plus the stratum of groups ``a`` and ``b`` (:class:`_GroupLanes`):
-        their means, their difference's square and camera products, their truth."""
-        sums, squares, cross, truth_sums = totals
-        cc = self.color_channels
-        ma = [self._group_mean(x, a.first, a.stride) for x in a.channels]
-        mb = [self._group_mean(x, b.first, b.stride) for x in b.channels]
-        sums = [s + x + y for s, x, y in zip(sums, ma, mb)]
-        d = [x - y for x, y in zip(ma, mb)]
-        squares = [q + x * x for q, x in zip(squares, d)]
-        cross = [c + d[cc + i] * d[cc + j] for c, (i, j) in zip(cross, self.pairs)]
-        return sums, squares, cross, self._add_truth(self._add_truth(truth_sums, a), b)
-
-    def _add_replicate_group(self, totals, g, closing, inv_size) -> tuple:
-        """Replicate totals plus group ``g`` (:class:`_GroupLanes`); where ``closing`` (the
-        replicate's last group), its replicate's mean (open sums × ``inv_size``) is added
-        and the open sums start again."""
-        import drjit as dr
-
-        open_sums, sums, squares, cross, truth_sums = totals
-        cc = self.color_channels
-        open_sums = [o + self._group_mean(x, g.first, g.stride) for o, x in zip(open_sums, g.channels)]
-        r = [o * inv_size for o in open_sums]
-        sums = [dr.select(closing, s + x, s) for s, x in zip(sums, r)]
-        squares = [dr.select(closing, q + x * x, q) for q, x in zip(squares, r)]
-        cross = [dr.select(closing, c + r[cc + i] * r[cc + j], c) for c, (i, j) in zip(cross, self.pairs)]
-        open_sums = [dr.select(closing, 0.0, o) for o in open_sums]
-        return open_sums, sums, squares, cross, self._add_truth(truth_sums, g)
 
     def _unit_sums(self, channels, truth, n_pixels, lanes_per_pixel, count, size):
         """Per-pixel Float64 sums of a pass made of ``count`` complete units of ``size``
@@ -333,9 +196,8 @@ class Reducer:
         lists of Float64 arrays (one value per pixel), computed in one kernel.
 
         Strata (pairs of groups): the sums of the group means, and of the squares and camera
-        products of the pairs' differences (:meth:`_add_stratum`). Replicates: of the
-        replicates' means, their squares and camera products (:meth:`_add_replicate_group`).
-        Truth: of every lane's value.
+        products of the pairs' differences. Replicates: of the replicates' means, their
+        squares and camera products. Truth: of every lane's value.
 
         A symbolic loop per pixel walks its units in group order and adds in the order of
         Dr.Jit's block sums (one after another from 0), so the sums are bit-identical to
@@ -361,32 +223,57 @@ class Reducer:
         import drjit as dr
         import mitsuba as mi
 
-        lanes_per_group = self.lanes_per_group
+        F = mi.Float64
+        lanes_per_group, cc = self.lanes_per_group, self.color_channels
         groups = mi.UInt32(count * size)
         per_pixel = mi.UInt32(lanes_per_pixel)
-        inv_size = mi.Float64(1.0 / size)
+        inv_size = F(1.0 / size)
         unit_size = mi.UInt32(size)
         dr.make_opaque(groups, per_pixel, inv_size, unit_size)
         base = dr.arange(mi.UInt32, n_pixels) * per_pixel
+        n_channels, n_truth, n_pairs = len(channels), len(truth), len(self.pairs)
 
-        def group(g):
-            return _GroupLanes(channels, truth, base + g * lanes_per_group, 1)
+        def zeros(n):
+            return [dr.zeros(F, n_pixels) for _ in range(n)]
+
+        def add_truth(truth_sums, first_lane):
+            for k in range(lanes_per_group):
+                truth_sums = [t + F(dr.gather(mi.Float, x, first_lane + k)) for t, x in zip(truth_sums, truth)]
+            return truth_sums
 
         if self.within:  # units are pairs of groups: one iteration per pair
 
-            def body(g, *totals):
-                return g + 2, *self._add_stratum(totals, group(g), group(g + 1))
+            def body(g, sums, squares, cross, truth_sums):
+                first_a = base + g * lanes_per_group
+                first_b = first_a + lanes_per_group
+                a = [self._group_mean(x, first_a) for x in channels]
+                b = [self._group_mean(x, first_b) for x in channels]
+                sums = [s + ma + mb for s, ma, mb in zip(sums, a, b)]
+                d = [ma - mb for ma, mb in zip(a, b)]
+                squares = [q + x * x for q, x in zip(squares, d)]
+                cross = [c + d[cc + i] * d[cc + j] for c, (i, j) in zip(cross, self.pairs)]
+                truth_sums = add_truth(add_truth(truth_sums, first_a), first_b)
+                return g + 2, sums, squares, cross, truth_sums
 
+            state = (mi.UInt32(0), zeros(n_channels), zeros(n_channels), zeros(n_pairs), zeros(n_truth))
+            _, sums, squares, cross, truth_sums = dr.while_loop(state, lambda g, *_: g < groups, body, label="dopplertof strata sums")
         else:  # units are replicates of `size` groups: one iteration per group, a replicate closed every `size`
 
-            def body(g, *totals):
-                return g + 1, *self._add_replicate_group(totals, group(g), (g % unit_size) == unit_size - 1, inv_size)
+            def body(g, open_sums, sums, squares, cross, truth_sums):
+                first = base + g * lanes_per_group
+                open_sums = [o + self._group_mean(x, first) for o, x in zip(open_sums, channels)]
+                closing = (g % unit_size) == unit_size - 1
+                r = [o * inv_size for o in open_sums]
+                sums = [dr.select(closing, s + x, s) for s, x in zip(sums, r)]
+                squares = [dr.select(closing, q + x * x, q) for q, x in zip(squares, r)]
+                cross = [dr.select(closing, c + r[cc + i] * r[cc + j], c) for c, (i, j) in zip(cross, self.pairs)]
+                open_sums = [dr.select(closing, 0.0, o) for o in open_sums]
+                return g + 1, open_sums, sums, squares, cross, add_truth(truth_sums, first)
 
-        label = "dopplertof strata sums" if self.within else "dopplertof replicate sums"
-        _, *totals = dr.while_loop((mi.UInt32(0), *self._zero_totals(n_pixels)), lambda g, *_: g < groups, body, label=label)
-        totals = totals[-4:]
-        dr.eval(totals)
-        return tuple(totals)
+            state = (mi.UInt32(0), zeros(n_channels), zeros(n_channels), zeros(n_channels), zeros(n_pairs), zeros(n_truth))
+            _, _, sums, squares, cross, truth_sums = dr.while_loop(state, lambda g, *_: g < groups, body, label="dopplertof replicate sums")
+        dr.eval(sums, squares, cross, truth_sums)
+        return sums, squares, cross, truth_sums
 
     def whole(self, segments) -> bool:
         """Whether a pass's segments are complete units of one size (pairs, where stratified)."""
@@ -711,14 +598,13 @@ class PassTracer:
             exposure_start_s=float(s.exposure_start), exposure_s=float(s.exposure_s), seed=s.seed, grid=self.grid,
         )  # fmt: skip
         with interrupts_unwrapped():  # the path loop and the reduction loop are traced here
-            if self.slices is None:
-                return self.reducer.reduce(p, trace_pass(self.scene, s, setup, self.tables))
-            return self.reducer.reduce_groups(p, self._sliced(setup))
+            out = trace_pass(self.scene, s, setup, self.tables) if self.slices is None else self._sliced(setup)
+            return self.reducer.reduce(p, out)
 
-    def _sliced(self, setup) -> list:
-        """A pass's per-lane outputs with ``traversal="slices"``, per group of the pass (for
-        :meth:`Reducer.reduce_groups`): one kernel per group, every pixel's member m at one
-        instant, its scene placed there first (:mod:`dopplertof.slices`). The group's pass is traced once and replayed
+    def _sliced(self, setup):
+        """A pass's per-lane outputs with ``traversal="slices"``: one kernel per group of the
+        pass, every pixel's member m at one instant, its scene placed there first
+        (:mod:`dopplertof.slices`). The group's pass is traced once and replayed
         (``dr.freeze``) for the others: what changes from group to group (the first sample,
         the members' times, the bodies' poses and vertices) is its arguments' data."""
         import drjit as dr
@@ -726,7 +612,7 @@ class PassTracer:
 
         from .slices import kernel_inputs
         from .tracing import _interrupt_in, trace_pass
-        from .tracing.lanes import slice_times
+        from .tracing.lanes import slice_times, slices_in_pass_order
 
         s, n = self.settings, self.settings.group_size
         slices, scene, tables = self.slices, self.scene, self.tables
@@ -769,4 +655,4 @@ class PassTracer:
                 out = group(pixel_start, first, times, slices.state())
             dr.eval(out)  # before the next group moves the scenes
             parts.append(out)
-        return parts
+        return slices_in_pass_order(parts, setup.n_pixels, 1 if s.paired else n)
