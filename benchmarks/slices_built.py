@@ -12,8 +12,10 @@ configuration (kernels compiled), ``--reps`` interleaved renders of each: the me
 time, its ratio to stock ``path`` on the same geometry (the throughput scenes only), and for
 ``slices`` the time its path-tracing kernels ran (Dr.Jit's kernel history) and the time
 Python spent tracing them (``tracing.trace_pass``: a recorded pass's replays skip it),
-and the milliseconds one group's placement of the bodies takes (``SliceScenes.place``,
-timed from when the kernels in flight are done). ``agree``: the
+the milliseconds one group's placement of the bodies takes (``SliceScenes.place``,
+timed from when the kernels in flight are done), and the rest of a render's wall time (its
+wall time less those three: replaying the recorded pass, the pass's other kernels and its
+reduction, the host work of the render). ``agree``: the
 spread of z = (slices − auto) / sqrt(σ²_slices + σ²_auto) over the measurements whose
 errors are not zero, and the same spread between two renders of ``auto`` (seeds 1 and 2):
 equal where both estimate the same thing. With ``--baseline REV`` a fourth configuration
@@ -100,7 +102,8 @@ class Timer:
 
 
 def timed(render):
-    """(wall s, path-kernel s, tracing s, placement ms per group, result) of ``render()``."""
+    """(wall s, path-kernel s, tracing s, placement ms per group, result, rest s) of
+    ``render()``; the rest: the wall time less the other three."""
     import drjit as dr
 
     from dopplertof.slices import SliceScenes
@@ -112,7 +115,7 @@ def timed(render):
         result = render()
         wall = time.perf_counter() - t0
     kernels = sum(k.get("execution_time", 0.0) for k in dr.kernel_history() if (k.get("operation_count") or 0) > 1000) / 1e3
-    return wall, kernels, traced.seconds, 1e3 * placing.seconds / max(placing.calls, 1), result
+    return wall, kernels, traced.seconds, 1e3 * placing.seconds / max(placing.calls, 1), result, wall - kernels - traced.seconds - placing.seconds
 
 
 def z_spread(a, b):
@@ -172,6 +175,7 @@ def bench(name, args, log, baseline=None):
     row["slices_kernels_s"] = statistics.median(t[1] for t in times["slices"])
     row["slices_tracing_s"] = statistics.median(t[2] for t in times["slices"])
     row["slices_placing_ms_per_group"] = statistics.median(t[3] for t in times["slices"])
+    row["slices_rest_s"] = statistics.median(t[5] for t in times["slices"])
     placement = scene.slice_scenes(2).placements[0]  # the renders' member scenes (antithetic pairs)
     row["moving_meshes"], row["moving_other_shapes"] = len(placement.spans), len(placement.to_world)  # per member scene
     row["auto_kernels_s"] = statistics.median(t[1] for t in times["auto"])
@@ -202,14 +206,14 @@ def main(argv=None):
     with tempfile.TemporaryDirectory(prefix="dopplertof-baseline-") as folder:
         baseline = _common.import_baseline(args.baseline, folder) if args.baseline else None
         rows = [bench(n, args, run.log, baseline) for n in names]
-    fields = ["scene", "bodies", "resolution", "spp", "stock_s", "auto_s", "slices_s", "auto_kernels_s", "slices_kernels_s", "slices_tracing_s", "slices_placing_ms_per_group", "moving_meshes", "moving_other_shapes",
+    fields = ["scene", "bodies", "resolution", "spp", "stock_s", "auto_s", "slices_s", "auto_kernels_s", "slices_kernels_s", "slices_tracing_s", "slices_placing_ms_per_group", "slices_rest_s", "moving_meshes", "moving_other_shapes",
               "auto_vs_stock", "slices_vs_stock", "slices_vs_auto", "agree_z_spread", "agree_beyond_3", "auto_z_spread", "auto_beyond_3",
               *(["baseline_s", "baseline_kernels_s", "slices_vs_baseline", "slices_kernels_vs_baseline", "same_as_baseline"] if args.baseline else [])]  # fmt: skip
-    print("| scene | bodies | auto ÷ stock | slices ÷ stock | slices ÷ auto | slices: kernels / tracing s, placing ms a group | z spread (beyond 3), slices vs auto | auto vs auto |")
+    print("| scene | bodies | auto ÷ stock | slices ÷ stock | slices ÷ auto | slices: kernels / tracing / rest s, placing ms a group | z spread (beyond 3), slices vs auto | auto vs auto |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         f = lambda k: f"{r[k]:.2f}" if k in r else "-"  # noqa: E731
-        print(f"| {r['scene']} | {r['bodies']} | {f('auto_vs_stock')} | {f('slices_vs_stock')} | {f('slices_vs_auto')} | {f('slices_kernels_s')} / {f('slices_tracing_s')}, {f('slices_placing_ms_per_group')} | {f('agree_z_spread')} ({100 * r['agree_beyond_3']:.1f} %) | {f('auto_z_spread')} ({100 * r.get('auto_beyond_3', float('nan')):.1f} %) |")
+        print(f"| {r['scene']} | {r['bodies']} | {f('auto_vs_stock')} | {f('slices_vs_stock')} | {f('slices_vs_auto')} | {f('slices_kernels_s')} / {f('slices_tracing_s')} / {f('slices_rest_s')}, {f('slices_placing_ms_per_group')} | {f('agree_z_spread')} ({100 * r['agree_beyond_3']:.1f} %) | {f('auto_z_spread')} ({100 * r.get('auto_beyond_3', float('nan')):.1f} %) |")
     if args.baseline:
         print(f"\n| scene | slices ÷ slices at {args.baseline} | its kernels ÷ | same measurements |\n|---|---:|---:|---|")
         for r in rows:
