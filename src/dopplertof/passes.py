@@ -346,6 +346,9 @@ class Accumulator(Reducer):
 
     def __init__(self, n_pixels, color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps, record_channels=0):
         super().__init__(color_channels, n_cameras, spp, group, lanes_per_group, replicates, wraps)
+        # The sums every pass writes come from the spares (their pages mapped already); the
+        # open unit's sums stay np.zeros, whose pages are mapped only where a pass that cuts
+        # a unit writes them (rarely), and are not handed back by finish.
         c, n, pairs, zeros = color_channels + n_cameras, n_pixels, len(self.pairs), SPARE_SUMS.full
         self.state = {"passes_done": np.zeros(1, np.int64), "group_sum": zeros((c, n), np.float64), "groups_done": zeros(n, np.int32)}
         if self.replicated and self.within:  # the open stratum's sums, and the closed strata's Q_s
