@@ -20,7 +20,8 @@ spread of z = (slices − auto) / sqrt(σ²_slices + σ²_auto) over the measure
 errors are not zero, and the same spread between two renders of ``auto`` (seeds 1 and 2):
 equal where both estimate the same thing. With ``--baseline REV`` a fourth configuration
 renders ``slices`` with the package at git ``REV`` (imported as ``dopplertof_baseline``,
-its own scene objects): its wall and kernel times and the current ``slices`` ÷ it.
+its own scene objects, timed as the current package is): its wall and kernel times and the
+current ``slices`` ÷ it.
 """
 
 from __future__ import annotations
@@ -101,19 +102,27 @@ class Timer:
         setattr(self.owner, self.name, self.shipped)
 
 
-def timed(render):
+def timed(render, package=dopplertof):
     """(wall s, path-kernel s, tracing s, placement ms per group, result, rest s) of
-    ``render()``; the rest: the wall time less the other three."""
+    ``render()``, a render by ``package`` (the current one or the baseline: both are timed
+    alike, Python's collector run before and paused during the render, the timers' syncs
+    before each placement in both); the rest: the wall time less the other three."""
+    import importlib
+
     import drjit as dr
 
-    from dopplertof.slices import SliceScenes
-    from dopplertof import tracing
-
+    SliceScenes = importlib.import_module(f"{package.__name__}.slices").SliceScenes
+    tracing = importlib.import_module(f"{package.__name__}.tracing")
     dr.kernel_history()
-    with Timer(tracing, "trace_pass") as traced, Timer(SliceScenes, "place", synced=True) as placing:
-        t0 = time.perf_counter()
-        result = render()
-        wall = time.perf_counter() - t0
+    gc.collect()  # before bd4736b Python's collector could free objects while a pass was recorded: an abort
+    gc.disable()
+    try:
+        with Timer(tracing, "trace_pass") as traced, Timer(SliceScenes, "place", synced=True) as placing:
+            t0 = time.perf_counter()
+            result = render()
+            wall = time.perf_counter() - t0
+    finally:
+        gc.enable()
     kernels = sum(k.get("execution_time", 0.0) for k in dr.kernel_history() if (k.get("operation_count") or 0) > 1000) / 1e3
     return wall, kernels, traced.seconds, 1e3 * placing.seconds / max(placing.calls, 1), result, wall - kernels - traced.seconds - placing.seconds
 
@@ -148,12 +157,7 @@ def bench(name, args, log, baseline=None):
         if config == "stock":
             return timed(lambda: np.asarray(mi.render(stock, spp=options["spp"], seed=seed)))
         if config == "baseline":  # the same seeds as slices: the same images where the change keeps them
-            gc.collect()  # before bd4736b Python's collector could free objects while a pass was recorded: an abort
-            gc.disable()
-            try:
-                return timed(lambda: baseline.render(base_scene, seed=seed + 1000, **base_options))
-            finally:
-                gc.enable()
+            return timed(lambda: baseline.render(base_scene, seed=seed + 1000, **base_options), baseline)
         scene.traversal = config
         seed += 1000 if config == "slices" else 0  # other paths than auto's: their errors independent
         return timed(lambda: dopplertof.render(scene, seed=seed, **options))

@@ -613,7 +613,7 @@ class PassTracer:
         import drjit as dr
         import mitsuba as mi
 
-        from .slices import kernel_inputs
+        from .slices import kernel_inputs, table_only_motions
         from .tracing import _interrupt_in, trace_pass
         from .tracing.lanes import slice_times, slices_in_pass_order
 
@@ -632,7 +632,7 @@ class PassTracer:
         if setup.n_pixels not in self._frozen_groups:
             gc.collect()  # garbage of earlier renders goes now, not while the pass is recorded (_collector_paused)
             scene.emitters.far_reference()  # built now, not while the pass is recorded
-            inputs = kernel_inputs(scene, tables)  # what the kernel reads that no argument holds
+            inputs = kernel_inputs(scene, tables, leave_out=table_only_motions(scene))  # what the kernel reads that no argument holds
             self._frozen_groups[setup.n_pixels] = dr.freeze(group, state_fn=lambda *_: inputs)
             settle = dr.freeze(lambda *_: None, state_fn=lambda *_: inputs)  # _settled_inputs
         traced = self._frozen_groups[setup.n_pixels]
