@@ -1,6 +1,7 @@
-"""The benchmarks that switch parts of the tracer off by replacing its functions still run:
-they call internals by their signatures (slices_built.py times two of them), which the suite does not otherwise use, so a
-change of a signature broke ``static_overhead.py`` (its ``no-truth`` ablation) unseen."""
+"""The benchmarks that replace functions of the tracer (to switch parts of it off, or, in
+``slices_built.py``, to time them) still run: they call internals by their signatures,
+which the suite does not otherwise use, so a change of a signature broke
+``static_overhead.py`` (its ``no-truth`` ablation) unseen."""
 
 from __future__ import annotations
 

@@ -259,11 +259,11 @@ def test_a_slice_pass_is_given_the_motions_it_reads_and_no_other(name):
     """A recorded pass's replays walk its inputs, so the bodies' motions its kernel reads
     only through the pose table's concatenation are left out of them (with 128 cubes,
     2816 of 3526 inputs); what reads a motion itself keeps it: a body's area emitter, the
-    camera, a moving light (street), a spinning sphere's pose table. Dr.Jit refuses to
-    record a pass that reads an array it was not given, so the render also shows that
-    nothing it reads was left out: it records and replays without falling back (a
-    warning). Before, the camera's and the light's motions were left out with the bodies'
-    and the street's recording failed."""
+    camera, a moving light (street). Dr.Jit refuses to record a pass that reads an array
+    it was not given, so the render also shows that nothing it reads was left out: it
+    records and replays without falling back (a warning). A first version left the
+    camera's and the light's motions out with the bodies', and the street's recording
+    failed."""
     import warnings
 
     from dopplertof.slices import kernel_inputs, table_only_motions
