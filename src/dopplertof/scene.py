@@ -278,13 +278,23 @@ class PoseTable:
     KEYFRAMED_FIELDS = ("t", "b0", "b1", "b2", "db0", "db1", "db2", "s0", "s1", "s2", "ds0", "ds1", "ds2", "q0", "q1", "q2", "q3", "axis0", "axis1", "axis2", "angle", "duration")
     PARAMETRIC_FIELDS = ("v", "axis", "rate", "pivot", "b0", "q0", "s0")
 
+    @staticmethod
+    def packed_model(motion):
+        """The motion model whose arrays the table concatenates for ``motion``
+        (:class:`~dopplertof.motion.Keyframed` or :class:`~dopplertof.motion.Parametric`,
+        exactly), or None for one it reaches through ``dr.switch`` to the motion's own
+        ``pose``."""
+        from .motion import Keyframed, Parametric
+
+        return type(motion) if type(motion) in (Keyframed, Parametric) else None
+
     def __init__(self, motions):
         import mitsuba as mi
 
         from .motion import Keyframed, Parametric
 
         self.motions = list(motions)
-        models = [Keyframed if type(m) is Keyframed else Parametric if type(m) is Parametric else None for m in self.motions]
+        models = [self.packed_model(m) for m in self.motions]
         rows = {model: [b for b, m in enumerate(models) if m is model] for model in (Keyframed, Parametric, None)}
         self.keyframed, self.parametric, self.other = rows[Keyframed], rows[Parametric], rows[None]
         model_code = np.array([0 if m is Keyframed else 1 if m is Parametric else 2 for m in models], np.uint32)

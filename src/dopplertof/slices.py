@@ -221,9 +221,9 @@ def table_only_motions(scene) -> list:
     without emitters, moving no camera or light. A pass's inputs leave them out
     (:func:`kernel_inputs`): with 128 moving cubes they were 2816 of its 3526 inputs, each
     walked on every replay."""
-    from .motion import Keyframed, Parametric
+    from .scene import PoseTable
 
-    read = [b.motion for b in scene.bodies if type(b.motion) not in (Keyframed, Parametric) or b.scene.emitters()]
+    read = [b.motion for b in scene.bodies if PoseTable.packed_model(b.motion) is None or b.scene.emitters()]
     read_ids = {id(m) for m in read + scene.motions()[len(scene.bodies) :]}  # + the camera's and the lights'
     return [b.motion for b in scene.bodies if id(b.motion) not in read_ids]
 
