@@ -409,6 +409,8 @@ def stratum(setup: LaneSetup, group, wraps, rotation):
     import mitsuba as mi
     import numpy as np
 
+    from ..jitdata import jit_array
+
     g0 = setup.first_sample // setup.n_times
     g1 = g0 + setup.samples // setup.n_times
     table = np.zeros((4, g1 - g0), np.uint32)  # per group of the pass: count, place, piece start, piece span
@@ -416,7 +418,8 @@ def stratum(setup: LaneSetup, group, wraps, rotation):
         a, b = max(first, g0) - g0, min(first + n, g1) - g0
         table[:, a:b] = np.array([n, place, start, span], np.uint32)[:, None]
     local = group - opaque_u32(g0)
-    count, place, start, span = (dr.gather(mi.UInt32, mi.UInt32(row), local) for row in table)  # data, not code
+    # data, not code; aligned, as a pass of one group reads each row as a scalar (jitdata)
+    count, place, start, span = (dr.gather(mi.UInt32, jit_array(mi.UInt32, row), local) for row in table)
     F = mi.Float64
     offset = F(place - start)
     rotated = offset + 2.0 * dr.floor(F(rotation) * F(span) * 0.5)
