@@ -18,8 +18,10 @@ purpose: they measure what a part costs, not what it computes). D-ToF with 4 cam
 * ``1-camera``     -- one camera (h = 1, psi = 0) instead of four;
 * ``no-cameras``   -- no camera (intensity only: no modulation weights, no Float64 lengths);
 * ``no-truth``     -- the ground-truth maps of the camera ray's hit replaced by zeros;
-* ``f32-length``   -- optical lengths from the Float32 hit distance (no Float64 re-intersection
-  with the hit primitive's plane), still summed in Float64;
+* ``f32-length``   -- optical lengths from the Float32 hit distance on every path (no Float64
+  re-intersection with the hit primitive's plane), still summed in Float64: on this static
+  scene what ``full`` does (a path that met no motion keeps Float32 distances,
+  ``tracing.path.float64_distances``);
 * ``f32-weights``  -- the modulation weights' sincos(kL) in Float32;
 * ``replicates``   -- ``stratify_intervals`` off: 16 independent replicates per pixel instead of
   strata (other reductions, other times);
@@ -66,14 +68,14 @@ ABLATIONS = ("full", "1-camera", "no-cameras", "no-truth", "f32-length", "f32-we
 def ablation(name):
     """Switch off the part of the tracer that ``name`` names, for the ``with`` block."""
     from dopplertof import modulation
-    from dopplertof.tracing import lanes, single, sink
+    from dopplertof.tracing import lanes, single
 
-    saved = (single.ground_truth, sink.Sink.needs_length, modulation.CameraBank.weights, lanes.pixel_and_index)
+    saved = (single.ground_truth, single.float64_distances, modulation.CameraBank.weights, lanes.pixel_and_index)
     try:
         if name == "no-truth":
             single.ground_truth = _zero_truth
         elif name == "f32-length":
-            sink.Sink.needs_length = property(lambda self: False)
+            single.float64_distances = lambda scene, needs_length: "none"
         elif name == "f32-weights":
             modulation.CameraBank.weights = _weights32
         elif name in ("slice-rows", "slice-blocks"):
@@ -82,7 +84,7 @@ def ablation(name):
             lanes.pixel_and_index = _members_apart
         yield
     finally:
-        single.ground_truth, sink.Sink.needs_length, modulation.CameraBank.weights, lanes.pixel_and_index = saved
+        single.ground_truth, single.float64_distances, modulation.CameraBank.weights, lanes.pixel_and_index = saved
 
 
 def _pixels_fastest(setup, per_pixel, blocks):

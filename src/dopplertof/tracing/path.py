@@ -11,8 +11,9 @@ phase                   what it does
                         ``hide_emitters`` passes through emitter surfaces (stock path)
 :func:`extend`          the Float64 optical length to a new vertex: index × distance, the
                         distance recomputed against the hit primitive's plane in the body's
-                        frame (DESIGN §3.5). **The one place the refractive index enters**,
-                        with :func:`segment_index` for the index of a segment
+                        frame (DESIGN §3.5) where the path met motion
+                        (:func:`float64_distances`). **The one place the refractive index
+                        enters**, with :func:`segment_index` for the index of a segment
 :func:`emitter_hit`     the emitted radiance where a path hits (or escapes to) an emitter,
                         and the density with which emitter sampling would have found it
 :func:`sample_emitter`  next-event estimation: a light sample, its visibility at the
@@ -202,12 +203,44 @@ def hit_distance64(scene, poses64, hit, x_prev, direction):
     return t64, x_prev + d64 * t64
 
 
+def float64_distances(scene, needs_length: bool) -> str:
+    """Which lanes of the independent tracer take Float64 distances (:func:`extend`'s
+    ``precise``).
+
+    The members of a group trace one path at their own instants. Where nothing on the path
+    moves, it is the same path at every instant, the Float32 rounding of its distances is
+    common to the members and the phases between them are exact; where it met motion, its
+    segments differ by micrometres between members, which Float32 distances (rounded by
+    up to a micrometre at 4 m) would blur (``tests/test_dtof.py``).
+
+    Parameters
+    ----------
+    scene : DynamicScene
+    needs_length : bool
+        Whether the outputs read optical lengths (``Sink.needs_length``).
+
+    Returns
+    -------
+    str
+        ``"all"`` (a moving camera: every path moves), ``"none"`` (no lengths read, or no
+        moving body: moving point lights' legs are Float64 anyway, :func:`length_to_emitter`)
+        or ``"met-motion"`` (the lanes whose path has hit a moving body).
+    """
+    if not needs_length or (scene.camera_motion is None and not scene.bodies):
+        return "none"
+    return "all" if scene.camera_motion is not None else "met-motion"
+
+
 def extend(scene, poses64, hit, x_prev, direction, length_m, index, active, precise=True):
     """(optical length to ``hit``, Float64 hit point, Float64 distance): ``length_m`` plus
     ``index`` × the distance from ``x_prev``, where ``active`` and the ray hit.
 
-    ``precise``: the distance from the primitive's plane in Float64 (needed for phases);
-    else the float32 hit distance (intensity only).
+    ``precise``: the distance from the primitive's plane in Float64, where the members of a
+    group may see a segment at lengths that differ by micrometres (phases); else the
+    Float32 hit distance (intensity only, or a path that is the same at every instant of
+    its group: its rounding is common to the members). A bool for every lane, or an
+    ``mi.Bool`` per lane (a branch: a SIMD packet with no precise lane skips the Float64
+    work).
 
     Parameters
     ----------
@@ -223,7 +256,7 @@ def extend(scene, poses64, hit, x_prev, direction, length_m, index, active, prec
     index : mi.Float
         Refractive index of the segment.
     active : mi.Bool
-    precise : bool, default True
+    precise : bool or mi.Bool, default True
 
     Returns
     -------
@@ -232,10 +265,16 @@ def extend(scene, poses64, hit, x_prev, direction, length_m, index, active, prec
     import drjit as dr
     import mitsuba as mi
 
-    if precise:
-        t64, x_hit = hit_distance64(scene, poses64, hit, x_prev, direction)
-    else:  # from x_prev, not the ray's origin: camera rays start at the near-clip plane
-        t64, x_hit = mi.Float64(dr.norm(hit.si.p - mi.Point3f(x_prev))), mi.Vector3d(hit.si.p)
+    def exact(x_prev, direction):
+        return hit_distance64(scene, poses64, hit, x_prev, direction)
+
+    def rounded(x_prev, direction):  # from x_prev, not the ray's origin: camera rays start at the near-clip plane
+        return mi.Float64(dr.norm(hit.si.p - mi.Point3f(x_prev))), mi.Vector3d(hit.si.p)
+
+    if isinstance(precise, bool):
+        t64, x_hit = (exact if precise else rounded)(x_prev, direction)
+    else:
+        t64, x_hit = dr.if_stmt((x_prev, direction), precise, exact, rounded, label="dopplertof: Float64 distance")
     hit_here = active & hit.si.is_valid()
     # A ray that escapes keeps its origin as the path's last vertex: light from an
     # infinitely distant emitter is measured to it (emitter_hit_length).
