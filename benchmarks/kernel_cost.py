@@ -17,7 +17,7 @@ kernels differ, so neither finds the other's), alternating which package goes fi
   (:func:`dopplertof.dataset.sample.render_record`: the full and the direct-light render,
   which shares the full render's kernel, and the sensor model);
 * ``throughput.py``'s scenes (``static``, ``8-moving``: the per-body loop, ``32-moving`` and
-  ``128-moving``: the tree), rendered with D-ToF, 4 cameras, antithetic + replay; and
+  ``128-moving``: the tree), rendered with D-ToF, 4 cameras, antithetic + replay (``--correlation``: another); and
   ``area-hidden``: the built-in ``cornell-box-area`` (its moving boxes and area light) with
   ``hide_emitters``, whose camera rays pass through the light.
 
@@ -63,6 +63,7 @@ def parse_args(argv):
     p.add_argument("--resolution", type=int, default=None, help="film size (default 128; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel (default 64; quick 8)")
     p.add_argument("--reps", type=int, default=None, help="later renders of each throughput scene per package, interleaved (default 5; quick 2)")
+    p.add_argument("--correlation", default="replay", help="the throughput scenes' correlation (default replay; reconnection, adaptive: the paired tracer)")
     _common.add_output_options(p, "kernel_cost", quick_help="smoke test: 2 street samples and 2 scenes, 32x32, 8 spp", plot=False)
     args = p.parse_args(argv)
     quick = {"samples": 2, "resolution": 32, "spp": 8, "scenes": ["static", "32-moving"], "reps": 2}
@@ -131,7 +132,7 @@ def scene_jobs(args, packages):
         runs = {}
         for which, package in packages.items():
             scene = package.scenes.build(HIDDEN_EMITTER_SCENE, resolution=args.resolution) if hidden else package.load_scene(ours)
-            options = dict(cameras=[package.Camera(**c) for c in cameras], spp=args.spp, max_depth=5, time_sampling="antithetic", correlation="replay", hide_emitters=hidden)
+            options = dict(cameras=[package.Camera(**c) for c in cameras], spp=args.spp, max_depth=5, time_sampling="antithetic", correlation=args.correlation, hide_emitters=hidden)
             runs[which] = (lambda p=package, s=scene, o=options: p.render(s, seed=1, **o), lambda p=package, s=scene, o=options: p.render(s, seed=2, **o))  # fmt: skip
         yield name, len(scene.bodies), runs
 
@@ -142,7 +143,7 @@ def main(argv=None):
     if status is not None:
         return status
     settings = (f"settings: {args.resolution}x{args.resolution}, {args.spp} spp, {args.samples} street samples ({args.street_bodies}-{args.street_bodies + 4} "
-                f"moving bodies; full + direct renders), throughput scenes {' '.join(args.scenes) or '-'} (D-ToF 4 cameras, antithetic + replay), "
+                f"moving bodies; full + direct renders), throughput scenes {' '.join(args.scenes) or '-'} (D-ToF 4 cameras, antithetic + {args.correlation}), "
                 f"baseline {args.baseline}, empty kernel cache")  # fmt: skip
     run = _common.Run("kernel_cost", args, argv, settings)
     import drjit as dr

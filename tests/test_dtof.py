@@ -109,32 +109,41 @@ def test_analytic_mode_rejects_what_it_cannot_integrate():
         dt.render(scene, cameras=[dt.Camera()], spp=2, time_sampling="analytic", correlation="none")
 
 
-def _mean_heterodyne_measurements(distances64, seed):
-    """Image means of two h = 1 cameras of the Cornell box whose boxes travel 1.5 µm during
-    the exposure (1 mm/s), the tracer's Float64 distances chosen by ``distances64``
-    (:func:`dopplertof.tracing.path.float64_distances`' values)."""
-    from dopplertof.tracing import single
+def _render_with_distances(distances64, scene, **options):
+    """``dt.render(scene, **options)`` with both tracers' Float64 distances chosen by
+    ``distances64`` (one of :func:`dopplertof.tracing.path.float64_distances`' values)
+    instead of by the rule."""
+    from dopplertof.tracing import paired, single
 
     rule = single.float64_distances
-    single.float64_distances = lambda scene, needs_length: distances64 if needs_length else "none"
+    single.float64_distances = paired.float64_distances = lambda scene, needs_length: distances64 if needs_length else "none"
     try:
-        cameras = [dt.Camera(heterodyne=1.0, phase=psi) for psi in (0.0, math.pi / 2)]
-        result = dt.render(dt.scenes.cornell_box(resolution=32, displacement=1.5e-6), spp=1024, seed=seed, max_depth=4, cameras=cameras)
-        return result.measurements.mean(axis=(1, 2)).astype(np.float64)
+        return dt.render(scene, **options)
     finally:
-        single.float64_distances = rule
+        single.float64_distances = paired.float64_distances = rule
 
 
-def test_paths_that_met_no_motion_take_float32_distances_without_bias():
+# The independent tracer (replay) and the paired one (reconnection).
+TRACERS = ["replay", "reconnection"]
+
+
+@pytest.mark.parametrize("correlation", TRACERS)
+def test_paths_that_met_no_motion_take_float32_distances_without_bias(correlation):
     """A path that met no moving body is the same path at every instant of its group, so
     its distances are Float32 (``float64_distances`` "met-motion"); a path that met one
     keeps Float64 distances. Seed by seed, the heterodyne image means of boxes moving at
     1 mm/s then differ from Float64 distances everywhere by noise alone, and by less than a
     tenth of the bias of Float32 distances everywhere, which the same seeds show (more than
-    5 standard errors: the check can fail). Measured: (4 ± 3)e-13 and (0 ± 2)e-13 against
-    (2.0 ± 0.2)e-11 and (-1.8 ± 0.2)e-11, image means -5e-9 and 3e-9."""
-    seeds = range(8)
-    rows = np.array([[_mean_heterodyne_measurements(mode, seed) for mode in ("all", "met-motion", "none")] for seed in seeds])
+    5 standard errors: the check can fail). Measured with replay: (4 ± 3)e-13 and
+    (0 ± 2)e-13 against (2.0 ± 0.2)e-11 and (-1.8 ± 0.2)e-11, image means -5e-9 and 3e-9."""
+    cameras = [dt.Camera(heterodyne=1.0, phase=psi) for psi in (0.0, math.pi / 2)]
+
+    def image_means(mode, seed):
+        scene = dt.scenes.cornell_box(resolution=32, displacement=1.5e-6)
+        result = _render_with_distances(mode, scene, spp=1024, seed=seed, max_depth=4, cameras=cameras, correlation=correlation)
+        return result.measurements.mean(axis=(1, 2)).astype(np.float64)
+
+    rows = np.array([[image_means(mode, seed) for mode in ("all", "met-motion", "none")] for seed in range(8)])
     for camera in range(2):
         rule, rounded = rows[:, 1, camera] - rows[:, 0, camera], rows[:, 2, camera] - rows[:, 0, camera]
         stderr = lambda x: x.std(ddof=1) / math.sqrt(len(x))  # noqa: E731
@@ -143,24 +152,17 @@ def test_paths_that_met_no_motion_take_float32_distances_without_bias():
         assert abs(rule.mean()) < 0.1 * abs(rounded.mean()), (camera, rule.mean(), rounded.mean())
 
 
-def test_a_path_that_met_a_moving_body_keeps_float64_distances_to_its_end():
+@pytest.mark.parametrize("correlation", TRACERS)
+def test_a_path_that_met_a_moving_body_keeps_float64_distances_to_its_end(correlation):
     """Where every camera ray of a pixel hits a moving box first (the box fills the pixel's
     5 x 5 neighbourhood), every segment of every path is Float64 under the rule as with
     Float64 distances everywhere: the same measurements bit for bit. (Had the rule forgotten
-    the body after the next bounce, 7 % of these pixels would be.)"""
-    from dopplertof.tracing import single
-
+    the body after the next bounce, 7 % of these pixels would be, with replay; reconnection
+    measures a reconnected vertex's distance from its body's pose whatever the rule.)"""
     cameras = [dt.Camera(heterodyne=1.0), dt.Camera(heterodyne=0.0)]
-    rule = single.float64_distances
-    measurements = {}
-    try:
-        for mode in ("met-motion", "all"):
-            single.float64_distances = lambda scene, needs_length, mode=mode: mode if needs_length else "none"
-            result = dt.render(dt.scenes.cornell_box(resolution=32), spp=16, seed=3, max_depth=4, cameras=cameras)
-            measurements[mode] = result.measurements
-    finally:
-        single.float64_distances = rule
-    body = result.instance_id
+    options = {"spp": 16, "seed": 3, "max_depth": 4, "cameras": cameras, "correlation": correlation}
+    measurements = {mode: _render_with_distances(mode, dt.scenes.cornell_box(resolution=32), **options).measurements for mode in ("met-motion", "all")}
+    body = dt.render(dt.scenes.cornell_box(resolution=32), spp=4, seed=3, max_depth=1).instance_id
     window = np.lib.stride_tricks.sliding_window_view(np.pad(body, 2, mode="edge"), (5, 5))
     inside = (body >= 0) & (window.min(axis=(2, 3)) == body) & (window.max(axis=(2, 3)) == body)
     assert inside.sum() > 40

@@ -204,8 +204,8 @@ def hit_distance64(scene, poses64, hit, x_prev, direction):
 
 
 def float64_distances(scene, needs_length: bool) -> str:
-    """Which lanes of the independent tracer take Float64 distances (:func:`extend`'s
-    ``precise``).
+    """Which lanes take Float64 distances (:func:`extend`'s ``precise``), in the independent
+    tracer and, per member, in the paired one.
 
     The members of a group trace one path at their own instants. Where nothing on the path
     moves, it is the same path at every instant, the Float32 rounding of its distances is
