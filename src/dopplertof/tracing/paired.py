@@ -53,7 +53,7 @@ from .. import modulation
 from ..timesampling import ANALYTIC, ANALYTIC_TIMES
 from . import lanes
 from .path import (
-    camera_ray, emitter_hit, emitter_hit_length, extend, float64_distances, ground_truth, next_hit, place_camera_ray, sample_emitter, segment_index, vertex_interaction,
+    camera_ray, emitter_hit, emitter_hit_length, extend, float64_distances, ground_truth, met_motion, next_hit, place_camera_ray, sample_emitter, segment_index, vertex_interaction,
 )  # fmt: skip
 from .sink import Sink
 
@@ -127,10 +127,10 @@ def trace_pair(scene, settings, setup, tables):
     # Float64 distances where a member's path may differ from its partner's (path.float64_distances):
     # a path that met no moving body is the same path at both times.
     distances64 = float64_distances(scene, sink.needs_length)
-    precise, per_lane = distances64 == "all", distances64 == "met-motion"
-    met1, met2 = (hit1.body > 0, hit2.body > 0) if per_lane else (mi.Bool(False), mi.Bool(False))
-    length1, x1, t1 = extend(scene, poses1_64, hit1, x0_1, ray1.d, mi.Float64(0), mi.Float(1), True, met1 if per_lane else precise)
-    length2, x2, t2 = extend(scene, poses2_64, hit2, x0_2, ray2.d, mi.Float64(0), mi.Float(1), True, met2 if per_lane else precise)
+    met1, precise1 = met_motion(distances64, mi.Bool(False), hit1)
+    met2, precise2 = met_motion(distances64, mi.Bool(False), hit2)
+    length1, x1, t1 = extend(scene, poses1_64, hit1, x0_1, ray1.d, mi.Float64(0), mi.Float(1), True, precise1)
+    length2, x2, t2 = extend(scene, poses2_64, hit2, x0_2, ray2.d, mi.Float64(0), mi.Float(1), True, precise2)
     truth1, valid1 = ground_truth(scene, hit1, ray1.d, t1, time1, tables.pinhole)
     truth2, valid2 = ground_truth(scene, hit2, ray2.d, t2, time2, tables.pinhole)
     label = truth1.pop("instance_id")
@@ -173,7 +173,7 @@ def trace_pair(scene, settings, setup, tables):
         tracing,
         label="dopplertof paired path",
         max_iterations=-1,
-        exclude=[scene, correlation, bank1, bank2, poses1, poses2, poses1_64, poses2_64, tables, sink, bsdf_ctx, threshold, analytic, own_coef, shift_coef, opaque_cameras, precise, per_lane],
+        exclude=[scene, correlation, bank1, bank2, poses1, poses2, poses1_64, poses2_64, tables, sink, bsdf_ctx, threshold, analytic, own_coef, shift_coef, opaque_cameras, distances64],
     ):
         valid1 = active1 & si1.is_valid()
         if dr.hint(analytic, mode="scalar"):
@@ -267,10 +267,10 @@ def trace_pair(scene, settings, setup, tables):
         index1_next = segment_index(index1, tables, bsdf1, next1, si1.wi, bs1.wo)
         wo2 = dr.select(reconnect, si2.to_local(d2), bs2.wo)
         index2_next = segment_index(index2, tables, bsdf2, next2, si2.wi, wo2)
-        met1 = met1 | (hit1n.body > 0) if per_lane else met1
-        met2 = met2 | (hit2n.body > 0) if per_lane else met2
-        length1_next, x1n, _ = extend(scene, poses1_64, hit1n, x1, ray1_next.d, length1, index1_next, next1, met1 if per_lane else precise)
-        length2_next, x2n, _ = extend(scene, poses2_64, hit2n, x2, ray2_next.d, length2, index2_next, next2, met2 if per_lane else precise)
+        met1, precise1 = met_motion(distances64, met1, hit1n)
+        met2, precise2 = met_motion(distances64, met2, hit2n)
+        length1_next, x1n, _ = extend(scene, poses1_64, hit1n, x1, ray1_next.d, length1, index1_next, next1, precise1)
+        length2_next, x2n, _ = extend(scene, poses2_64, hit2n, x2, ray2_next.d, length2, index2_next, next2, precise2)
         # A reconnected pair shares the body-local point: its lengths differ by the motion only.
         p_local64 = mi.Vector3d(hit1n.p_local)
         x1r = scene.select_pose(poses1_64, hit1n.body).point_to_world(p_local64)

@@ -12,8 +12,9 @@ phase                   what it does
 :func:`extend`          the Float64 optical length to a new vertex: index × distance, the
                         distance recomputed against the hit primitive's plane in the body's
                         frame (DESIGN §3.5) where the path met motion
-                        (:func:`float64_distances`). **The one place the refractive index
-                        enters**, with :func:`segment_index` for the index of a segment
+                        (:func:`float64_distances`, :func:`met_motion`). **The one place the
+                        refractive index enters**, with :func:`segment_index` for the index
+                        of a segment
 :func:`emitter_hit`     the emitted radiance where a path hits (or escapes to) an emitter,
                         and the density with which emitter sampling would have found it
 :func:`sample_emitter`  next-event estimation: a light sample, its visibility at the
@@ -229,6 +230,29 @@ def float64_distances(scene, needs_length: bool) -> str:
     if not needs_length or (scene.camera_motion is None and not scene.bodies):
         return "none"
     return "all" if scene.camera_motion is not None else "met-motion"
+
+
+def met_motion(rule: str, met, hit):
+    """(met, precise) of a path reaching ``hit``: the lanes whose path has now met a moving
+    body (``met``, loop state), and :func:`extend`'s ``precise`` for the segment to ``hit``
+    under ``rule`` (:func:`float64_distances`).
+
+    Parameters
+    ----------
+    rule : str
+        :func:`float64_distances`' value.
+    met : mi.Bool
+        The lanes whose path had met a moving body (``mi.Bool(False)`` at the camera).
+    hit : Hit
+
+    Returns
+    -------
+    tuple of (mi.Bool, bool or mi.Bool)
+    """
+    if rule != "met-motion":
+        return met, rule == "all"
+    met = met | (hit.body > 0)
+    return met, met
 
 
 def extend(scene, poses64, hit, x_prev, direction, length_m, index, active, precise=True):

@@ -15,7 +15,7 @@ import drjit as dr
 import mitsuba as mi
 
 from . import lanes
-from .path import camera_ray, emitter_hit, emitter_hit_length, extend, float64_distances, ground_truth, next_hit, no_ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction
+from .path import camera_ray, emitter_hit, emitter_hit_length, extend, float64_distances, ground_truth, met_motion, next_hit, no_ground_truth, place_camera_ray, sample_emitter, segment_index, vertex_interaction
 from .sink import Sink
 
 
@@ -77,7 +77,6 @@ def trace(scene, settings, setup, tables):
     sink = Sink(settings.cameras, setup.grid)
     bank = sink.bank(u)
     distances64 = float64_distances(scene, sink.needs_length)
-    precise, per_lane = distances64 == "all", distances64 == "met-motion"
 
     bsdf_ctx = mi.BSDFContext()
     # Data, not literals: a render of another depth (a dataset's direct-light render) reuses the kernel.
@@ -97,13 +96,13 @@ def trace(scene, settings, setup, tables):
     prev_delta = mi.Bool(True)
     depth = mi.UInt32(0)
     active = mi.Bool(True)
-    met_motion = mi.Bool(False)  # the path has met a moving body (with per_lane)
+    met = mi.Bool(False)  # the path has met a moving body (path.met_motion)
 
-    while dr.hint(active, label="dopplertof path", max_iterations=-1, exclude=[scene, settings, correlation, bank, poses, poses64, tables, sink, bsdf_ctx, precise, per_lane, grouped]):
+    while dr.hint(active, label="dopplertof path", max_iterations=-1, exclude=[scene, settings, correlation, bank, poses, poses64, tables, sink, bsdf_ctx, distances64, grouped]):
         # ---------------------------------------------------- the vertex (at the lane's time)
         hit = next_hit(scene, ray, time_s, poses, hide_emitters, active, depth == 0)
-        met_motion = met_motion | (hit.body > 0) if per_lane else met_motion
-        length, x, distance_m = extend(scene, poses64, hit, x, ray.d, length, index, active, met_motion if per_lane else precise)
+        met, precise = met_motion(distances64, met, hit)
+        length, x, distance_m = extend(scene, poses64, hit, x, ray.d, length, index, active, precise)
         si, body = hit.si, hit.body
         truth, hit_mask = dr.if_stmt(  # the camera ray's hit: ground truth (a branch: later bounces skip it)
             (truth, hit_mask), depth == 0, lambda *_: ground_truth(scene, hit, ray.d, distance_m, time_s, tables.pinhole), lambda *old: old,
