@@ -42,20 +42,35 @@ def test_a_numpy_array_off_alignment_is_seen_and_jit_array_aligns_it():
     np.testing.assert_array_equal(np.asarray(aligned), values)
 
 
+_FOUR_CAMERAS = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, 1.5707963267948966)]
+
+
 @pytest.mark.parametrize(
-    ("name", "traversal", "spp"),
-    [("street", "auto", 4), ("rotating", "per-body", 4), ("falling-box", "atlas", 4), ("cornell-box", "slices", 4), ("street", "slices", 4), ("cornell-box", "auto", 2)],
+    ("name", "traversal", "options"),
+    [
+        ("street", "auto", {}),
+        ("rotating", "per-body", {}),
+        ("falling-box", "atlas", {}),
+        ("cornell-box", "slices", {}),
+        ("street", "slices", {}),
+        ("cornell-box", "auto", {"spp": 2}),
+        ("glossy", "auto", {"spp": 2, "cameras": _FOUR_CAMERAS, "correlation": "reconnection"}),
+        ("rotating", "auto", {"spp": 2, "cameras": _FOUR_CAMERAS, "time_sampling": "analytic", "correlation": "replay"}),
+        ("cornell-box", "auto", {"spp": 8, "cameras": _FOUR_CAMERAS, "n_times": 4}),
+        ("cornell-box", "auto", {"spp": 4, "cameras": _FOUR_CAMERAS, "time_sampling": "uniform", "correlation": "none"}),
+    ],
 )
-def test_no_render_kernel_reads_unaligned_memory(name, traversal, spp):
+def test_no_render_kernel_reads_unaligned_memory(name, traversal, options):
     """A built-in scene's render (the street: 24 bodies' motion tables, the tree; atlas
-    cells; slices' hit tables and merged meshes; the film and material tables) compiles
-    the same kernels wherever numpy put its tables. At 2 spp a pass holds one antithetic
-    group, and the kernel reads each row of the strata table (``lanes.stratum``) as a
-    scalar: unaligned numpy rows there made the same scene's path kernel differ between
-    processes (``test_another_field_of_view_reuses_the_kernel`` failed now and then)."""
+    cells; slices' hit tables and merged meshes; the film and material tables; the paired
+    tracer, n_times 4, uniform times) compiles the same kernels wherever numpy put its
+    tables. At 2 spp a pass holds one antithetic group, and the kernel reads each row of
+    the strata table (``lanes.stratum``) as a scalar: unaligned numpy rows there made the
+    same scene's path kernel differ between processes
+    (``test_another_field_of_view_reuses_the_kernel`` failed now and then)."""
     scene = dt.scenes.build(name, resolution=8)
     scene.traversal = traversal
-    assert _kernels_reading_unaligned_memory(lambda: dt.render(scene, spp=spp, seed=1)) == []
+    assert _kernels_reading_unaligned_memory(lambda: dt.render(scene, **{"spp": 4, "seed": 1, **options})) == []
 
 
 # Run in a new process for each field of view: a kernel's virtual calls are laid out over
