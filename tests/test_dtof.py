@@ -177,6 +177,7 @@ def test_float64_distances_where_a_segment_can_differ_between_members():
 
     baked = {k: {kk: vv for kk, vv in v.items() if kk != "motion"} if isinstance(v, dict) else v for k, v in dt.scenes.cornell_box_dict(resolution=8).items()}
     static = dt.load_scene(baked)
+    lamp = dt.load_scene({**baked, "light": {**baked["light"], "motion": {"type": "parametric", "linear_velocity": [1.0, 0.0, 0.0]}}})
     bodies = dt.scenes.cornell_box(resolution=8)
     street = dt.scenes.build("street", resolution=8)
     assert street.camera_motion is not None and bodies.bodies and bodies.camera_motion is None
@@ -184,3 +185,4 @@ def test_float64_distances_where_a_segment_can_differ_between_members():
     assert float64_distances(bodies, True) == "met-motion"
     assert float64_distances(bodies, False) == float64_distances(street, False) == "none"
     assert not static.bodies and float64_distances(static, True) == "none"
+    assert lamp.lights and not lamp.bodies and float64_distances(lamp, True) == "none"
