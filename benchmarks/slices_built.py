@@ -49,7 +49,7 @@ def parse_args(argv):
     p.add_argument("--spp", type=int, default=None, help="paths per pixel of the throughput scenes (default 32; quick 8)")
     p.add_argument("--correlation", default=None, help="the throughput scenes' correlation (default replay; reconnection, adaptive: the paired tracer)")
     p.add_argument("--baseline", default=None, help="git revision whose slices to time beside the current (default: none)")
-    p.add_argument("--scenes", nargs="*", choices=["8-moving", "32-moving", "128-moving", "street"], default=None, help="default 8-moving 128-moving street")
+    p.add_argument("--scenes", nargs="*", choices=["8-moving", "32-moving", "128-moving", "1024-moving", "street"], default=None, help="default 8-moving 128-moving street")
     _common.add_output_options(p, "slices_built", quick_help="smoke test: 32x32, 8 spp, one rep", plot=False)
     args = p.parse_args(argv)
     _common.fill_defaults(args, {"reps": 1, "resolution": 32, "spp": 8} if args.quick else {"reps": 3, "resolution": 256, "spp": 32})
