@@ -87,6 +87,42 @@ def test_two_workers_and_a_killed_worker_give_the_same_bytes(reference, tmp_path
     assert digests(folder) == digests(reference)
 
 
+def test_auto_workers_are_one_per_cpu_within_the_shards_and_the_memory(monkeypatch):
+    render_mod = sys.modules["dopplertof.render"]  # the module (dopplertof.render is the function)
+    gib = 1 << 30
+    monkeypatch.setattr(execute, "usable_cpus", lambda: 8)
+    monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: 3 * gib + 1)
+    assert execute.auto_workers(10, "llvm_ad_rgb") == 3  # memory: one per GiB
+    assert execute.auto_workers(2, "llvm_ad_rgb") == 2  # no more than the shards
+    assert execute.auto_workers(10, "cuda_ad_rgb") == 1  # one GPU: this process
+    monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: gib // 2)
+    assert execute.auto_workers(10, "llvm_ad_rgb") == 1
+    monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: None)  # not Linux: no memory bound
+    assert execute.auto_workers(10, "llvm_ad_rgb") == 8
+
+
+def test_the_command_takes_auto_workers_and_the_api_one(reference, tmp_path, monkeypatch):
+    """``dataset generate`` renders on one worker per CPU unless told (Dr.Jit compiles each
+    new scene's kernel on one thread, so one process leaves the other cores waiting); the
+    API's default stays this process (more would import the calling script again). The
+    bytes are the reference's either way."""
+    taken = []
+    run_local = execute.run_local
+
+    def spy(jobs, workers, on_done, **kwargs):
+        taken.append(workers)
+        return run_local(jobs, 1, on_done, **kwargs)  # in this process: the spy sees what it was asked
+
+    monkeypatch.setattr(execute, "usable_cpus", lambda: 3)
+    monkeypatch.setattr(execute, "run_local", spy)
+    res = CliRunner().invoke(main, _cli_args(tmp_path / "cli"))
+    assert res.exit_code == 0, res.output
+    dt.dataset.generate(tmp_path / "api", **SMALL)
+    dt.dataset.generate(tmp_path / "api-auto", **SMALL, workers="auto", shards_range="0:1")
+    assert taken == [3, 1, 1]  # 4 shards on 3 CPUs; the API's default; "auto" for one shard
+    assert digests(tmp_path / "cli") == digests(reference) == digests(tmp_path / "api")
+
+
 @pytest.mark.slow
 def test_ray_with_a_killed_worker_gives_the_same_bytes(reference, tmp_path, monkeypatch):
     ray = pytest.importorskip("ray")
@@ -369,6 +405,8 @@ def test_bad_config_is_one_error_line_and_exit_2(tmp_path, toml, message):
         (["--samples", "4", "--spp", "3"], "'render.spp' must be a multiple of 2"),
         (["--samples", "4", "--address", "ray://x:1"], "--address needs --ray"),
         (["--samples", "4", "--spp", "2"], "'render.spp' must be at least 4 (antithetic, replay: two independent groups"),
+        (["--samples", "4", "--workers", "0"], "workers must be an integer ≥ 1 or 'auto', got 0"),
+        (["--samples", "4", "--workers", "many"], "Invalid value for '--workers': 'many' is neither an integer nor 'auto'"),
     ],
 )
 def test_bad_arguments_are_one_error_line_and_exit_2(tmp_path, args, message):

@@ -16,7 +16,18 @@ import click
 
 from ..clitools import fail as _fail
 from ..clitools import quiet_option
+from .execute import AUTO
 from .generate import DEFAULT_SHARD_SIZE
+
+
+def _workers(value: str):
+    """``--workers``: ``auto`` as it is, else an integer (:func:`~dopplertof.dataset.generate` checks its range)."""
+    if value == AUTO:
+        return value
+    try:
+        return int(value)
+    except ValueError:
+        raise click.BadParameter(f"{value!r} is neither an integer nor {AUTO!r}") from None
 
 
 @click.group("dataset")
@@ -32,7 +43,8 @@ def dataset_group():
 @click.option("--resolution", type=int, default=None, help="Override render.resolution (pixels).")
 @click.option("--spp", type=int, default=None, help="Override render.spp (paths per pixel).")
 @click.option("--shard-size", type=int, default=DEFAULT_SHARD_SIZE, show_default=True, help="Samples per shard.")
-@click.option("--workers", type=int, default=1, show_default=True, help="Local worker processes (spawned).")
+@click.option("--workers", default=AUTO, show_default=True, metavar="N|auto", callback=lambda ctx, param, value: _workers(value),
+              help="Local worker processes (spawned), or 'auto': one per CPU, at most one per shard and per GiB of available memory (1 with a cuda variant).")
 @click.option("--ray", "use_ray", is_flag=True, help="Render on Ray: one task per shard (one actor per GPU with a cuda variant).")
 @click.option("--address", default=None, help="Ray cluster address (with --ray; default: a local Ray).")
 @click.option("--shards", "shard_range", default=None, help="Only shards a:b (b excluded), e.g. one Slurm array task.")

@@ -2,9 +2,11 @@
 
 * local, one worker: in this process;
 * local, W workers: W processes of the *spawn* start method (Dr.Jit's LLVM/CUDA state must
-  never be forked), each with ``cpu_count // W`` Dr.Jit threads; a worker that dies (killed,
+  never be forked), each with ``cpus // W`` Dr.Jit threads; a worker that dies (killed,
   out of memory) breaks the pool, which is restarted with the unfinished shards, up to
-  ``max_retries`` times;
+  ``max_retries`` times. ``workers="auto"`` (:func:`auto_workers`, the command's default)
+  takes one per CPU: Dr.Jit compiles a sample's kernel on one thread, so with one process
+  the other cores wait for each new scene's kernel (a third of a street sample's time);
 * Ray: one task per shard (``max_retries`` retries of a killed worker), the driver
   collecting results as they finish; on a cluster with GPUs and a ``cuda_*`` variant, one
   long-lived actor per GPU instead, each importing Mitsuba inside the actor after Ray has
@@ -31,6 +33,48 @@ from ..raytools import gpu_workers, node_local_cache, start_ray
 from . import shards
 
 FAULT_ENV = "DOPPLERTOF_DATASET_FAULT"
+AUTO = "auto"  # workers="auto": auto_workers
+WORKER_MEMORY_BYTES = 1 << 30  # what workers="auto" sets aside per worker: a rule of thumb (one rendering 128² x 64 spp samples peaked at 0.23 GiB, ad hoc)
+
+
+def usable_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask where the OS has one: a container's
+    or a batch job's share, not the machine's).
+
+    Returns
+    -------
+    int
+        ≥ 1.
+    """
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def auto_workers(shards_to_render: int, variant: str) -> int:
+    """The local workers of ``workers="auto"``: one per usable CPU (:func:`usable_cpus`), at
+    most one per shard to render and one per :data:`WORKER_MEMORY_BYTES` of available memory;
+    1 (this process) with a ``cuda_*`` variant, whose processes would share one GPU.
+
+    Parameters
+    ----------
+    shards_to_render : int
+    variant : str
+        The Mitsuba variant the shards are rendered with.
+
+    Returns
+    -------
+    int
+        ≥ 1.
+    """
+    from ..render import available_memory_bytes
+
+    if variant.startswith("cuda"):
+        return 1
+    available = available_memory_bytes()
+    by_memory = usable_cpus() if available is None else available // WORKER_MEMORY_BYTES
+    return max(1, min(usable_cpus(), shards_to_render, by_memory))
 
 
 def _fault(job: dict) -> None:
@@ -145,7 +189,7 @@ def run_local(jobs: list[dict], workers: int, on_done, max_retries: int = 3) -> 
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
 
-    threads = max(1, (os.cpu_count() or 1) // workers)
+    threads = max(1, usable_cpus() // workers)
     pending = {job["index"]: {**job, "threads": job.get("threads") or threads} for job in jobs}
     attempts = 0
     context = multiprocessing.get_context("spawn")

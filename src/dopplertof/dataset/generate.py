@@ -143,7 +143,7 @@ def generate(
     resolution: int | None = None,
     spp: int | None = None,
     shard_size: int = DEFAULT_SHARD_SIZE,
-    workers: int = 1,
+    workers: int | str = 1,
     ray: bool = False,
     address: str | None = None,
     shards_range: str | None = None,
@@ -173,8 +173,12 @@ def generate(
         Override ``render.resolution`` and ``render.spp``.
     shard_size : int
         Samples per shard (default 16).
-    workers : int
-        Local worker processes (spawned; default 1: this process).
+    workers : int or "auto"
+        Local worker processes (spawned; default 1: this process). ``"auto"``: one per CPU,
+        at most one per shard to render and per GiB of available memory, 1 with a
+        ``cuda_*`` variant (:func:`~dopplertof.dataset.execute.auto_workers`; the command's
+        default). More than one spawns processes that import the calling script again: call
+        ``generate`` under ``if __name__ == "__main__":`` (hence the default of 1 here).
     ray : bool
         Render on Ray (one task per shard; one actor per GPU with a ``cuda_*`` variant).
     address : str, optional
@@ -210,7 +214,8 @@ def generate(
     if seed >= 1 << 63:
         raise ValueError(f"seed must be < 2**63, got {seed!r}")
     shard_size = _positive_int("shard_size", shard_size)
-    workers = _positive_int("workers", workers)
+    if workers != execute.AUTO and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"workers must be an integer ≥ 1 or {execute.AUTO!r}, got {workers!r}")
     max_retries = _positive_int("max_retries", max_retries, minimum=0)
     cfg = _resolve_config(config, resolution, spp)
     layout = shards.plan(samples, shard_size)
@@ -261,7 +266,8 @@ def generate(
             if jobs and ray:
                 execute.run_ray(jobs, on_done, address=address, max_retries=max_retries)
             elif jobs:
-                execute.run_local(jobs, workers, on_done, max_retries=max_retries)
+                local = execute.auto_workers(len(jobs), name) if workers == execute.AUTO else workers
+                execute.run_local(jobs, local, on_done, max_retries=max_retries)
     finally:
         if bar is not None:
             bar.close()
