@@ -71,6 +71,12 @@ if [ -z "$llvm" ]; then
     fi
 fi
 
+# A .venv whose interpreter does not run here (the checkout was moved or copied, or another
+# user made it: its links point elsewhere) is made again; `python3 -m venv` alone cannot.
+if [ -e .venv ] && ! .venv/bin/python -c '' >/dev/null 2>&1; then
+    echo "setup: .venv's Python does not run here (a moved or copied checkout?); making .venv again"
+    "$PY" -m venv --clear .venv || die "cannot remake .venv; remove it ('rm -rf .venv') and run setup again"
+fi
 # `python3 -m venv` on an existing .venv completes it, so a half-made one (no pip) heals.
 if ! .venv/bin/python -m pip --version >/dev/null 2>&1; then
     # Debian and Ubuntu ship venv's ensurepip apart, in python3-venv.

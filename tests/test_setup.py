@@ -190,3 +190,26 @@ def test_normal_user_without_venv_support_is_told_what_to_install(normal_user, c
     ]
     assert calls.read_text() == ""
     assert not (repo / ".venv").exists()
+
+
+@pytest.mark.slow
+def test_a_venv_made_elsewhere_is_made_again(normal_user, checkout, monkeypatch):
+    """A checkout copied with its ``.venv`` (another user's, or moved: its interpreter link
+    points where this user cannot go) used to stop setup with a bare ``Permission denied``;
+    now setup makes the environment again and finishes."""
+    monkeypatch.delenv(backend.LLVM_PATH_ENV, raising=False)
+    if backend.find_libllvm() is None:
+        pytest.skip("no libLLVM >= 16 on this machine (setup.sh as root installs one)")
+    repo, _, calls = checkout
+    bin_dir = repo / ".venv" / "bin"
+    bin_dir.mkdir(parents=True)
+    (bin_dir / "python3").symlink_to("/root/no-such-python/bin/python3")
+    (bin_dir / "python").symlink_to("python3")
+    subprocess.run(["chown", "-R", "--no-dereference", f"{normal_user}:", str(repo / ".venv")], check=True)
+    result = _run_setup(checkout, user=normal_user)
+    assert result.returncode == 0, result.stderr
+    assert "setup: .venv's Python does not run here (a moved or copied checkout?); making .venv again" in result.stdout
+    assert calls.read_text() == ""
+    check = subprocess.run(["runuser", "-u", normal_user, "--", ".venv/bin/python", "-c", "import dopplertof"],
+                           cwd=repo, capture_output=True, text=True, timeout=300)
+    assert check.returncode == 0, check.stderr
