@@ -116,10 +116,11 @@ def test_the_command_takes_auto_workers_and_the_api_one(reference, tmp_path, mon
     monkeypatch.setattr(execute, "usable_cpus", lambda: 3)
     monkeypatch.setattr(execute, "run_local", spy)
     res = CliRunner().invoke(main, _cli_args(tmp_path / "cli"))
-    assert res.exit_code == 0, res.output
-    dt.dataset.generate(tmp_path / "api", **SMALL)
+    assert res.exit_code == 0 and res.output.rstrip().endswith("s on 3 worker processes"), res.output  # it says what rendered
+    assert dt.dataset.generate(tmp_path / "api", **SMALL)["executor"] == "this process"
     dt.dataset.generate(tmp_path / "api-auto", **SMALL, workers="auto", shards_range="0:1")
     assert taken == [3, 1, 1]  # 4 shards on 3 CPUs; the API's default; "auto" for one shard
+    assert dt.dataset.generate(tmp_path / "api", **SMALL)["executor"] is None  # nothing left to render
     assert digests(tmp_path / "cli") == digests(reference) == digests(tmp_path / "api")
 
 

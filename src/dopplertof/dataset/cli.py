@@ -73,7 +73,8 @@ def generate_command(output, samples, seed, config_path, resolution, spp, shard_
     m = result["manifest"]
     click.echo(f"{len(result['generated'])} shards generated, {len(result['skipped'])} already complete; "
                f"{m['shards_done']}/{len(m['shards'])} shards ({m['samples_done']} samples) in {os.path.abspath(output)}"
-               f"{'' if m['complete'] else ' (incomplete)'}; {result['wall_s']:.1f} s")
+               f"{'' if m['complete'] else ' (incomplete)'}; {result['wall_s']:.1f} s"
+               + (f" on {result['executor']}" if result["executor"] else ""))
     if m["missing_fields"]:
         click.echo(f"note: fields not written (the renderer lacks them): {', '.join(m['missing_fields'])}")
 

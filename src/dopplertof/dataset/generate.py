@@ -197,7 +197,9 @@ def generate(
     dict
         ``manifest`` (the dataset.json content), ``generated`` and ``skipped`` (shard
         names), ``seconds`` (wall time per phase summed over the generated shards: record,
-        scene, render, sensor, write, total) and ``wall_s``.
+        scene, render, sensor, write, total), ``wall_s`` and ``executor`` (what rendered
+        the shards: ``"this process"``, ``"N worker processes"``, ``"Ray"``, or None when
+        none was left to render).
 
     Raises
     ------
@@ -261,12 +263,15 @@ def generate(
         if bar is not None:
             bar.update(record["count"])
 
+    executor = None
     try:
         with signals_as_interrupt():
             if jobs and ray:
+                executor = "Ray"
                 execute.run_ray(jobs, on_done, address=address, max_retries=max_retries)
             elif jobs:
                 local = execute.auto_workers(len(jobs), name) if workers == execute.AUTO else workers
+                executor = "this process" if local == 1 else f"{local} worker processes"
                 execute.run_local(jobs, local, on_done, max_retries=max_retries)
     finally:
         if bar is not None:
@@ -275,4 +280,4 @@ def generate(
         with shards.manifest_lock(output):
             manifest = shards.rebuild_manifest(output, header, layout)
     return {"manifest": manifest, "generated": sorted(generated), "skipped": [shards.shard_name(i) for i in skipped], "seconds": seconds,
-            "wall_s": time.perf_counter() - started}
+            "wall_s": time.perf_counter() - started, "executor": executor}
