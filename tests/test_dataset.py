@@ -408,6 +408,7 @@ def test_bad_config_is_one_error_line_and_exit_2(tmp_path, toml, message):
         (["--samples", "4", "--spp", "2"], "'render.spp' must be at least 4 (antithetic, replay: two independent groups"),
         (["--samples", "4", "--workers", "0"], "workers must be an integer ≥ 1 or 'auto', got 0"),
         (["--samples", "4", "--workers", "many"], "Invalid value for '--workers': 'many' is neither an integer nor 'auto'"),
+        (["--samples", "4", "--workers", "3", "--ray"], "workers=3 counts local processes; with Ray each shard is a task of its own"),
     ],
 )
 def test_bad_arguments_are_one_error_line_and_exit_2(tmp_path, args, message):

@@ -241,6 +241,7 @@ TOPICS = [
         ("config must be a TOML file path, a dict or None, got …", "the API's `config` is of another type", "pass a path or a dict"),
         ("… must be an integer ≥ …, got …", "a count (samples, shard size) is too small", "give an integer at or above the minimum"),
         ("workers must be an integer ≥ 1 or …, got …", "`--workers` (`generate(workers=…)`) below 1", "a positive integer, or `auto` (one per CPU)"),
+        ("workers=… counts local processes; with Ray each shard is a task of its own", "`--workers N` with `--ray`: Ray gives each shard a task and decides where it runs", "drop `--workers` (Ray uses its cluster's CPUs), or drop `--ray`"),
         ("shard range must be 'a:b' (shard indices, b excluded), got …", "`--shards` is not `a:b`", "write `0:4`"),
         ("shard range … is outside the dataset's … shards", "`--shards` names shards the dataset does not have", "a range within the one named"),
         ("datasets are rendered with an RGB variant (…), not …", "a mono variant is active", "`--variant llvm_ad_rgb` (or `cuda_ad_rgb`)"),

@@ -180,7 +180,8 @@ def generate(
         default). More than one spawns processes that import the calling script again: call
         ``generate`` under ``if __name__ == "__main__":`` (hence the default of 1 here).
     ray : bool
-        Render on Ray (one task per shard; one actor per GPU with a ``cuda_*`` variant).
+        Render on Ray (one task per shard; one actor per GPU with a ``cuda_*`` variant); a
+        number of ``workers`` is then refused.
     address : str, optional
         Ray cluster address (``ray.init(address=…)``); default: the running Ray, else a local one.
     shards_range : str, optional
@@ -218,6 +219,8 @@ def generate(
     shard_size = _positive_int("shard_size", shard_size)
     if workers != execute.AUTO and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ValueError(f"workers must be an integer ≥ 1 or {execute.AUTO!r}, got {workers!r}")
+    if ray and workers not in (1, execute.AUTO):
+        raise ValueError(f"workers={workers} counts local processes; with Ray each shard is a task of its own (give one or the other)")
     max_retries = _positive_int("max_retries", max_retries, minimum=0)
     cfg = _resolve_config(config, resolution, spp)
     layout = shards.plan(samples, shard_size)
