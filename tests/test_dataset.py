@@ -92,13 +92,16 @@ def test_auto_workers_are_one_per_cpu_within_the_shards_and_the_memory(monkeypat
     gib = 1 << 30
     monkeypatch.setattr(execute, "usable_cpus", lambda: 8)
     monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: 3 * gib + 1)
-    assert execute.auto_workers(10, "llvm_ad_rgb") == 3  # memory: one per GiB
-    assert execute.auto_workers(2, "llvm_ad_rgb") == 2  # no more than the shards
-    assert execute.auto_workers(10, "cuda_ad_rgb") == 1  # one GPU: this process
+    assert execute.auto_workers(10, "llvm_ad_rgb", 128) == 2  # memory: 1 GiB + 32 MiB each
+    assert execute.auto_workers(10, "llvm_ad_rgb", 1024) == 1  # 1 GiB + 2 GiB each
+    assert execute.auto_workers(1, "llvm_ad_rgb", 16) == 1  # no more than the shards
+    assert execute.auto_workers(10, "cuda_ad_rgb", 16) == 1  # one GPU: this process
+    monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: 100 * gib)
+    assert execute.auto_workers(10, "llvm_ad_rgb", 16) == 8  # one per CPU
     monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: gib // 2)
-    assert execute.auto_workers(10, "llvm_ad_rgb") == 1
+    assert execute.auto_workers(10, "llvm_ad_rgb", 16) == 1
     monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: None)  # not Linux: no memory bound
-    assert execute.auto_workers(10, "llvm_ad_rgb") == 8
+    assert execute.auto_workers(3, "llvm_ad_rgb", 16) == 3
 
 
 def test_the_command_takes_auto_workers_and_the_api_one(reference, tmp_path, monkeypatch):

@@ -44,7 +44,7 @@ def dataset_group():
 @click.option("--spp", type=int, default=None, help="Override render.spp (paths per pixel).")
 @click.option("--shard-size", type=int, default=DEFAULT_SHARD_SIZE, show_default=True, help="Samples per shard.")
 @click.option("--workers", default=AUTO, show_default=True, metavar="N|auto", callback=lambda ctx, param, value: _workers(value),
-              help="Local worker processes (spawned), or 'auto': one per CPU, at most one per shard and per GiB of available memory (1 with a cuda variant).")
+              help="Local worker processes (spawned), or 'auto': one per CPU, at most one per shard and as many as the available memory holds at 1 GiB + 2 KiB a pixel each (1 with a cuda variant).")
 @click.option("--ray", "use_ray", is_flag=True, help="Render on Ray: one task per shard (one actor per GPU with a cuda variant).")
 @click.option("--address", default=None, help="Ray cluster address (with --ray; default: a local Ray).")
 @click.option("--shards", "shard_range", default=None, help="Only shards a:b (b excluded), e.g. one Slurm array task.")

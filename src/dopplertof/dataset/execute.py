@@ -34,7 +34,11 @@ from . import shards
 
 FAULT_ENV = "DOPPLERTOF_DATASET_FAULT"
 AUTO = "auto"  # workers="auto": auto_workers
-WORKER_MEMORY_BYTES = 1 << 30  # what workers="auto" sets aside per worker: a rule of thumb (one rendering 128² x 64 spp samples peaked at 0.23 GiB, ad hoc)
+# What workers="auto" sets aside per worker, a rule of thumb with room to spare: 1 GiB, plus
+# 2 KiB per pixel of the film (ad hoc: a worker rendering street samples at 64 spp peaked at
+# 0.26, 0.39 and 0.65 GiB at 128², 256² and 512², about 0.3 GiB + 1.4 KiB a pixel).
+WORKER_MEMORY_BYTES = 1 << 30
+WORKER_MEMORY_BYTES_PER_PIXEL = 2048
 
 
 def usable_cpus() -> int:
@@ -52,16 +56,19 @@ def usable_cpus() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def auto_workers(shards_to_render: int, variant: str) -> int:
+def auto_workers(shards_to_render: int, variant: str, resolution: int) -> int:
     """The local workers of ``workers="auto"``: one per usable CPU (:func:`usable_cpus`), at
-    most one per shard to render and one per :data:`WORKER_MEMORY_BYTES` of available memory;
-    1 (this process) with a ``cuda_*`` variant, whose processes would share one GPU.
+    most one per shard to render and as many as the available memory holds at
+    :data:`WORKER_MEMORY_BYTES` + :data:`WORKER_MEMORY_BYTES_PER_PIXEL` a pixel each; 1 (this
+    process) with a ``cuda_*`` variant, whose processes would share one GPU.
 
     Parameters
     ----------
     shards_to_render : int
     variant : str
         The Mitsuba variant the shards are rendered with.
+    resolution : int
+        The film's side (pixels).
 
     Returns
     -------
@@ -73,7 +80,7 @@ def auto_workers(shards_to_render: int, variant: str) -> int:
     if variant.startswith("cuda"):
         return 1
     available = available_memory_bytes()
-    by_memory = usable_cpus() if available is None else available // WORKER_MEMORY_BYTES
+    by_memory = usable_cpus() if available is None else available // (WORKER_MEMORY_BYTES + WORKER_MEMORY_BYTES_PER_PIXEL * resolution**2)
     return max(1, min(usable_cpus(), shards_to_render, by_memory))
 
 

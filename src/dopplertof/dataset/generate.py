@@ -175,8 +175,8 @@ def generate(
         Samples per shard (default 16).
     workers : int or "auto"
         Local worker processes (spawned; default 1: this process). ``"auto"``: one per CPU,
-        at most one per shard to render and per GiB of available memory, 1 with a
-        ``cuda_*`` variant (:func:`~dopplertof.dataset.execute.auto_workers`; the command's
+        at most one per shard to render and as many as the available memory holds (1 GiB
+        and 2 KiB a pixel each), 1 with a ``cuda_*`` variant (:func:`~dopplertof.dataset.execute.auto_workers`; the command's
         default). More than one spawns processes that import the calling script again: call
         ``generate`` under ``if __name__ == "__main__":`` (hence the default of 1 here).
     ray : bool
@@ -273,7 +273,7 @@ def generate(
                 executor = "Ray"
                 execute.run_ray(jobs, on_done, address=address, max_retries=max_retries)
             elif jobs:
-                local = execute.auto_workers(len(jobs), name) if workers == execute.AUTO else workers
+                local = execute.auto_workers(len(jobs), name, cfg["render"]["resolution"]) if workers == execute.AUTO else workers
                 executor = "this process" if local == 1 else f"{local} worker processes"
                 execute.run_local(jobs, local, on_done, max_retries=max_retries)
     finally:
