@@ -14,6 +14,9 @@ model) into a fresh folder, shard size 1:
 * ``local-2`` -- ``workers=2``: two spawned processes with cpu_count/2 Dr.Jit threads each;
 * ``ray-2``   -- ``ray=True`` on a local Ray started with ``ray.init(num_cpus=2)`` (its start-up
   is not timed): one task per shard, 1 CPU (and 1 Dr.Jit thread) per task.
+* ``local-auto`` -- ``workers="auto"``, what ``dopplertof dataset generate`` does by default:
+  one process per CPU within the shards and the memory (not in the default set; on 2 cores
+  it is ``local-2``). The row's ``executor`` says what it took.
 
 Each configuration renders a different seed's samples, so every one pays the same kind of
 new-scene kernel compilations a real dataset pays (Dr.Jit's kernel cache never hits on new
@@ -42,10 +45,11 @@ import dopplertof  # noqa: I001 - must precede the first `import drjit` (sets th
 
 import _common
 
-CONFIGS = ("local-1", "local-2", "ray-2")
+CONFIGS = ("local-1", "local-2", "ray-2", "local-auto")
+DEFAULT_CONFIGS = ["local-1", "local-2", "ray-2"]
 CSV_FIELDS = ["config", "samples", "resolution", "spp", "cameras", "wall_s", "samples_per_hour", "outside_render_share",
               "record_s", "scene_s", "render_s", "sensor_s", "write_s", "worker_total_s", "worker_startup_s",
-              "compile_s", "compile_share", "kernels_compiled", "large_kernels_compiled"]
+              "compile_s", "compile_share", "kernels_compiled", "large_kernels_compiled", "executor"]
 LARGE_KERNEL_OPS = 1000  # a path tracer's kernel: thousands of operations; the reductions' tens
 
 
@@ -54,7 +58,7 @@ def parse_args(argv):
     p.add_argument("--samples", type=int, default=None, help="samples per configuration (default 8; quick 4)")
     p.add_argument("--resolution", type=int, default=None, help="film size (default 128; quick 32)")
     p.add_argument("--spp", type=int, default=None, help="paths per pixel of each render (default 64; quick 16)")
-    p.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
+    p.add_argument("--configs", nargs="+", choices=CONFIGS, default=DEFAULT_CONFIGS)
     p.add_argument("--street-bodies", type=int, default=None, metavar="N",
                    help="street scenes only, N to N+4 bodies, all moving (default: the default dataset configuration)")
     p.add_argument("--warm-cache", action="store_true",
@@ -98,7 +102,7 @@ def run_config(name, args, seed, scratch, log):
         dr.set_flag(dr.JitFlag.KernelHistory, in_process)
         dr.kernel_history()
         t0 = time.perf_counter()
-        result = generate(folder, args.samples, seed, workers=int(name.split("-")[1]), **kwargs)
+        result = generate(folder, args.samples, seed, workers="auto" if name == "local-auto" else int(name.split("-")[1]), **kwargs)
         wall = time.perf_counter() - t0
         history = dr.kernel_history() if in_process else None
         dr.set_flag(dr.JitFlag.KernelHistory, False)
@@ -108,7 +112,7 @@ def run_config(name, args, seed, scratch, log):
         "config": name, "samples": args.samples, "resolution": args.resolution, "spp": args.spp, "cameras": 4, "wall_s": wall,
         "samples_per_hour": 3600.0 * args.samples / wall, "outside_render_share": (total - sec["render"]) / total,
         "record_s": sec["record"], "scene_s": sec["scene"], "render_s": sec["render"], "sensor_s": sec["sensor"], "write_s": sec["write"],
-        "worker_total_s": total, "worker_startup_s": sec.get("startup", 0.0),
+        "worker_total_s": total, "worker_startup_s": sec.get("startup", 0.0), "executor": result["executor"],
     }  # fmt: skip
     if name == "local-1":
         compiled = [k for k in history if _common.compiled_here(k)]
@@ -117,7 +121,7 @@ def run_config(name, args, seed, scratch, log):
         row["compile_share"] = row["compile_s"] / wall
         log(f"{name}: compiling kernels {row['compile_s']:.1f} s ({100 * row['compile_share']:.0f} % of the wall time), "
             f"{row['kernels_compiled']} kernels compiled, {row['large_kernels_compiled']} of them path tracers (> {LARGE_KERNEL_OPS} operations)")
-    log(f"{name}: {wall:.1f} s, {row['samples_per_hour']:.0f} samples/h, outside the renderer {100 * row['outside_render_share']:.1f} %")
+    log(f"{name}: {wall:.1f} s on {result['executor']}, {row['samples_per_hour']:.0f} samples/h, outside the renderer {100 * row['outside_render_share']:.1f} %")
     shutil.rmtree(folder, ignore_errors=True)
     return row
 
