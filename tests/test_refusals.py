@@ -489,3 +489,18 @@ def test_dict_entries_that_would_be_dropped_or_fail_mid_render_are_refused(entri
 def test_an_odd_spp_from_the_files_sampler_says_where_it_came_from(tmp_path):
     path = xml_scene(tmp_path, sensor_inner='<sampler type="independent"><integer name="sample_count" value="7"/></sampler>')
     assert_cli_error(cli("render", path, "-o", tmp_path / "out"), "spp=7 must be a multiple of the 2", "the scene's <sampler> sample_count")
+
+
+def test_what_is_not_a_dopplertof_scene_is_refused_saying_what_to_do():
+    """``mi.cornell_box()`` or a file name handed to ``render`` is told to go through
+    ``load_scene``; a scene Mitsuba already loaded (its motions, if any, gone) is told where
+    it can go instead."""
+    with pytest.raises(ValueError, match=r"got dict; give it to dopplertof.load_scene first"):
+        dt.render(mi.cornell_box(), spp=4)
+    with pytest.raises(ValueError, match=r"got str; give it to dopplertof.load_scene first"):
+        dt.render("scene.xml", spp=4)
+    loaded = mi.load_dict(dict_scene())
+    for call in (lambda: dt.render(loaded, spp=4), lambda: dt.load_scene(loaded)):
+        with pytest.raises(ValueError, match=r"got Scene; a loaded mi.Scene cannot be taken apart again: give its file or dict to dopplertof.load_scene, "
+                                             r"or render it with mi.render and the 'dopplertof' integrator"):
+            call()

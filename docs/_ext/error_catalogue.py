@@ -152,7 +152,7 @@ TOPICS = [
     ("Rendering", "Limits of one render (and the API's `dt.render`).", [
         ("the film must be at least 1x1 pixels, got …x…", "an empty film", "give a positive resolution"),
         ("a …x… film with … camera(s) needs about … GiB of memory for its buffers; … GiB are available", "the film's per-pixel sums do not fit in memory", "a smaller film or fewer cameras"),
-        ("render() takes a scene from dopplertof.load_scene(...) or dopplertof.scenes.build(...), got …", "the API's `render` got something else", "load the scene with `dt.load_scene`"),
+        ("render() takes a scene from dopplertof.load_scene(...) or dopplertof.scenes.build(...), got …", "the API's `render` got something else: a dict, a path, or a scene Mitsuba loaded (`mi.load_dict`, `mi.load_file`)", "load the file or dict with `dt.load_scene`; a static `mi.Scene` also renders with `mi.render` and the `dopplertof` integrator"),
         ("executor must be one of …, got …", "an unknown executor", "`local` or `ray`"),
         ("address and workers apply to executor='ray'", "Ray options without Ray", "`executor=\"ray\"`, or drop them"),
         ("stop must be a callable returning True to stop, got …", "the API's `stop` is not callable", "pass a function"),

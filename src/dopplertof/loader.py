@@ -142,7 +142,29 @@ def load_scene(source, *, film_resolution=None, **params) -> DynamicScene:
         scene = _load_xml(os.fspath(source), params, size)
         scene.recipe = ("file", os.path.abspath(source), params, size)
         return scene
-    raise SceneError(f"load_scene expects a file path or a dict, got {type(source).__name__}")
+    raise SceneError(f"load_scene expects a file path or a dict, got {type(source).__name__}{loaded_scene_hint(source)}")
+
+
+def loaded_scene_hint(value) -> str:
+    """What to do instead where ``value``, given as a scene, is a loaded ``mi.Scene``: its
+    motions, if any, are gone once Mitsuba loaded it.
+
+    Parameters
+    ----------
+    value : object
+        What was given as a scene.
+
+    Returns
+    -------
+    str
+        ``"; …"`` to end an error message with, or empty where ``value`` is no ``mi.Scene``.
+    """
+    import mitsuba as mi
+
+    if not isinstance(value, mi.Scene):
+        return ""
+    return ("; a loaded mi.Scene cannot be taken apart again: give its file or dict to dopplertof.load_scene, "
+            "or render it with mi.render and the 'dopplertof' integrator (static scenes: docs, the Mitsuba plugin)")
 
 
 def _film_size(resolution) -> tuple[int, int]:

@@ -533,7 +533,10 @@ def render(
 
     ensure_variant()
     if not hasattr(scene, "static"):
-        raise ValueError(f"render() takes a scene from dopplertof.load_scene(...) or dopplertof.scenes.build(...), got {type(scene).__name__}")
+        from .loader import loaded_scene_hint
+
+        given = "; give it to dopplertof.load_scene first" if isinstance(scene, (dict, str, os.PathLike)) else loaded_scene_hint(scene)
+        raise ValueError(f"render() takes a scene from dopplertof.load_scene(...) or dopplertof.scenes.build(...), got {type(scene).__name__}{given}")
     if executor not in EXECUTORS:
         raise ValueError(f"executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
     if executor != "ray" and (address is not None or workers is not None):
