@@ -141,7 +141,7 @@ TOPICS = [
         ("output … exists and is not a folder", "`-o` names a file", "give a folder"),
         ("output … lies under …, which is a file", "a parent of `-o` is a file", "give another path"),
         ("output folder … has … MB free; this render writes about … MB", "not enough disk space for the render's files and checkpoint", "free space or use another folder"),
-        ("output folder … holds …; use --overwrite to replace them, or another folder", "another render's files are there", "`--overwrite` replaces them (only them), or use another folder; `--resume` continues an interrupted render"),
+        ("output folder … holds …; use --overwrite (overwrite=True) to replace them, or another folder", "another render's files are there", "`--overwrite` replaces them (only them), or use another folder; `--resume` continues an interrupted render"),
         ("output folder … is not writable (…)", "the folder is read-only or not yours", "use another folder"),
         ("-o/--output is empty; leave it out for the default folder (…)", "`-o \"\"` (an unset shell variable, say)", "a folder name, or no `-o` for the default"),
         ("…=… exceeds its maximum …: …", "a setting above its maximum (`spp` above 2³¹: the most paths per pixel one render takes)", "what the message says (for `spp`: render several times with different seeds and average)"),

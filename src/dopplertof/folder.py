@@ -256,7 +256,7 @@ def prepare(folder: str, *, overwrite: bool = False, resume: bool = False, bytes
             what = "a finished render (nothing to resume: its checkpoint goes when a render completes)"
         else:
             what = "another render's files"
-        raise ValueError(f"output folder {folder!r} holds {what}; use --overwrite to replace them, or another folder")
+        raise ValueError(f"output folder {folder!r} holds {what}; use --overwrite (overwrite=True) to replace them, or another folder")
     _remove_files(parts, owned)
 
 
