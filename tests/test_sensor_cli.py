@@ -83,6 +83,7 @@ phase = 0.5
         (None, ["--sensor", "missing.toml"], "error: sensor file 'missing.toml' not found"),
         ('taps = 2\n[[frames]]\nmodulation_frequency = 30e6\nlight_code = { table = "nosuch.npz", row = 0 }\nsensor_code = [1, 1, 1, 1, 0, 0, 0, 0]\n',
          ["--sensor", "s.toml"], "error: s.toml: frame 0: light_code: code table 'nosuch.npz' not found"),
+        ('preset = "mlx75027"\nlight_bandwidth = -1.0\n', ["--sensor", "s.toml"], "error: s.toml: light_bandwidth: frame 0: "),
     ],
 )
 def test_bad_sensors_are_one_error_line(tmp_path, toml, args, message):
@@ -110,3 +111,23 @@ def test_a_suspicious_frame_is_warned_about_once(tmp_path):
     proc = _run("render", "cornell-box", "--resolution", "8", "--spp", "4", "--max-depth", "2", "--quiet", "--sensor", "s.toml", "-o", str(tmp_path / "out"), cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr.strip().splitlines() == ["warning: Camera: modulation_frequency=30 Hz, a wavelength of 9.99e+06 m; the unit is Hz (30 MHz is 30e6)"], proc.stderr
+
+
+def test_a_sensor_file_gives_every_frame_the_light_bandwidth_and_design_reads_a_preset_out(tmp_path):
+    """A preset's rectangular frames have unbounded harmonics, which a response record cannot
+    read out: ``design --sensor mlx75027`` says how to band-limit them, and a file with the
+    preset and a top-level ``light_bandwidth`` (for every frame that gives none) is read out."""
+    from dopplertof.sensors.files import load_sensor
+
+    refused = _run("design", "cornell-box", "--sensor", "mlx75027", "--sweep", "f=20e6:100e6:3", "--resolution", "8", "--spp", "4",
+                   "-o", str(tmp_path / "refused"), cwd=tmp_path)
+    assert refused.returncode == 2 and "`light_bandwidth = …` at the top of its file" in refused.stderr, refused.stderr
+    (tmp_path / "s.toml").write_text('preset = "mlx75027"\nlight_bandwidth = 300e6\n')
+    (tmp_path / "own.toml").write_text('taps = 2\nlight_bandwidth = 300e6\n[[frames]]\nwaveform = "rectangular"\nlight_bandwidth = 200e6\n'
+                                       '[[frames]]\nwaveform = "rectangular"\nphase = 3.141592653589793\n')
+    assert {f.light_bandwidth for f in load_sensor(str(tmp_path / "s.toml")).frames} == {300e6}
+    assert [f.light_bandwidth for f in load_sensor(str(tmp_path / "own.toml")).frames] == [200e6, 300e6]  # a frame's own stays
+    designed = _run("design", "cornell-box", "--sensor", "s.toml", "--sweep", "f=20e6:100e6:3", "--resolution", "8", "--spp", "4",
+                    "--quiet", "-o", str(tmp_path / "design"), cwd=tmp_path)
+    assert designed.returncode == 0, designed.stderr
+    assert (tmp_path / "design" / "best_sensor.toml").is_file()

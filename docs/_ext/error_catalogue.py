@@ -310,6 +310,7 @@ TOPICS = [
         ("…: code table … not found (…)", "a `{ table = …, row = … }` code names a file that does not exist (relative to the sensor file)", "give the table's path relative to the sensor file"),
         ("sensor_toml: cannot write … as TOML", "a sensor setting has no TOML form", "use numbers, strings and lists"),
         ("unknown key… …", "keys the sensor file does not take (every one is named)", "the message suggests the closest key"),
+        ("light_bandwidth: frame …: …", "a sensor file's top-level `light_bandwidth` does not suit a frame (the message says why)", "a bandwidth in Hz the frame accepts, or the frame's own `light_bandwidth`"),
         ("…: a code written as a dict has one key, 'samples' or 'fourier', got …", "a code in a sensor file has other keys", "`{samples = [...]}` or `{fourier = [[re, im], ...]}`"),
         ("… must be one period of sampled values (1-D array) or a dopplertof.codes.Code, got …", "a code is neither samples nor a `Code`", "one period of samples"),
         ("…: complex values are Fourier coefficients; pass dopplertof.codes.fourier(...)", "complex samples were given as a code", "`dopplertof.codes.fourier(...)`"),

@@ -5,6 +5,9 @@ A sensor file (TOML)::
 
     preset = "mlx75027"        # optional: the chip's silicon, taps and limits
     taps = 2                   # without a preset: 1, 2 or 4 (default 2)
+    light_bandwidth = 300e6    # optional (Hz): the light source's, for every frame that gives
+                               # none (a rectangular waveform is then band-limited: what a
+                               # response record reads out, dopplertof.design)
 
     [silicon]                  # Silicon parameters (changes to the preset's)
     radiance_unit = 1e-3
@@ -39,7 +42,7 @@ from .frames import TAP_LAYOUTS, RawFrame, Sensor
 from .noise import Silicon
 from .presets import PRESETS, preset
 
-_FILE_KEYS = ("preset", "taps", "silicon", "frames")
+_FILE_KEYS = ("preset", "taps", "light_bandwidth", "silicon", "frames")
 _FRAME_KEYS = tuple(f.name for f in dataclasses.fields(RawFrame))
 _SILICON_KEYS = tuple(f.name for f in dataclasses.fields(Silicon))
 
@@ -139,13 +142,28 @@ def _from_dict(data: dict, folder: str) -> Sensor:
             raise ValueError(f"'taps' is the preset's ({data['preset']!r}); remove it")
         if not isinstance(data["preset"], str) or data["preset"] not in PRESETS:
             raise ValueError(f"unknown sensor preset {data['preset']!r}; choose one of {', '.join(PRESETS)}")
-        return preset(data["preset"], frames, **silicon)
+        return _with_light_bandwidth(preset(data["preset"], frames, **silicon), data)
     if frames is None:
         raise ValueError("a sensor without a preset needs [[frames]]")
     taps = data.get("taps", 2)
     if taps not in TAP_LAYOUTS or isinstance(taps, bool):
         raise ValueError(f"'taps' must be one of {', '.join(map(str, TAP_LAYOUTS))}, got {taps!r}")
-    return Sensor(frames=frames, taps=taps, noise=Silicon(**silicon))
+    return _with_light_bandwidth(Sensor(frames=frames, taps=taps, noise=Silicon(**silicon)), data)
+
+
+def _with_light_bandwidth(sensor: Sensor, data: dict) -> Sensor:
+    """``sensor`` with the file's top-level ``light_bandwidth`` given to every frame that
+    gives none of its own (the frames check it: :class:`~dopplertof.Camera`)."""
+    if "light_bandwidth" not in data:
+        return sensor
+    bandwidth = data["light_bandwidth"]
+    frames = []
+    for index, frame in enumerate(sensor.frames):
+        try:
+            frames.append(frame if frame.light_bandwidth is not None else dataclasses.replace(frame, light_bandwidth=bandwidth))
+        except ValueError as exc:
+            raise ValueError(f"light_bandwidth: frame {index}: {exc}") from None
+    return dataclasses.replace(sensor, frames=frames)
 
 
 def _frame(data: dict, index: int, folder: str) -> RawFrame:
