@@ -738,7 +738,7 @@ def harmonics(camera: Camera, where: str) -> tuple[float, list[tuple[int, comple
         return float(camera.g1 * k[0].real + camera.g0 * camera.sensor_mean), terms
     if camera.waveform != "sinusoidal":
         hint = ("give it the source's light_bandwidth (Hz, within the record's band: Camera(light_bandwidth=…), or for a sensor "
-                "`light_bandwidth = …` at the top of its file, e.g. with preset = \"mlx75027\")") if camera.waveform in NAMED_CODES else "use the sinusoid or a band-limited code (light_bandwidth)"
+                "`light_bandwidth = …` at the top of its file, beside `preset = \"NAME\"` for a preset)") if camera.waveform in NAMED_CODES else "use the sinusoid or a band-limited code (light_bandwidth)"
         raise ValueError(f"{where}: the {camera.waveform} waveform has unbounded harmonics; {hint}")
     return 0.0, [(1, complex(0.5 * camera.g1))]
 

@@ -160,7 +160,7 @@ def record_spec(sensor, sweeps, beats_extra=(), optimize=(), doppler=True):
     frequencies, beats, cameras = set(), {0.0, *beats_extra}, []
     for v in variants:
         for index, camera in enumerate(v.cameras()):
-            _, terms = harmonics(camera, f"frame {index}")
+            _, terms = harmonics(camera, f"sensor {sensor.name!r}, frame {index}")
             for m, _ in terms:
                 frequency = m * camera.modulation_frequency
                 if frequency != round(frequency):
