@@ -21,6 +21,7 @@ import pytest
 from click.testing import CliRunner
 
 import dopplertof as dt
+from dopplertof import resources
 from dopplertof.cli import main
 from dopplertof.dataset import config as config_mod
 from dopplertof.dataset import execute, schema, shards
@@ -88,19 +89,18 @@ def test_two_workers_and_a_killed_worker_give_the_same_bytes(reference, tmp_path
 
 
 def test_auto_workers_are_one_per_cpu_within_the_shards_and_the_memory(monkeypatch):
-    render_mod = sys.modules["dopplertof.render"]  # the module (dopplertof.render is the function)
     gib = 1 << 30
-    monkeypatch.setattr(execute, "usable_cpus", lambda: 8)
-    monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: 3 * gib + 1)
+    monkeypatch.setattr(resources, "usable_cpus", lambda: 8)
+    monkeypatch.setattr(resources, "available_memory_bytes", lambda: 3 * gib + 1)
     assert execute.auto_workers(10, "llvm_ad_rgb", 128) == 2  # memory: 1 GiB + 32 MiB each
     assert execute.auto_workers(10, "llvm_ad_rgb", 1024) == 1  # 1 GiB + 2 GiB each
     assert execute.auto_workers(1, "llvm_ad_rgb", 16) == 1  # no more than the shards
     assert execute.auto_workers(10, "cuda_ad_rgb", 16) == 1  # one GPU: this process
-    monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: 100 * gib)
+    monkeypatch.setattr(resources, "available_memory_bytes", lambda: 100 * gib)
     assert execute.auto_workers(10, "llvm_ad_rgb", 16) == 8  # one per CPU
-    monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: gib // 2)
+    monkeypatch.setattr(resources, "available_memory_bytes", lambda: gib // 2)
     assert execute.auto_workers(10, "llvm_ad_rgb", 16) == 1
-    monkeypatch.setattr(render_mod, "available_memory_bytes", lambda: None)  # not Linux: no memory bound
+    monkeypatch.setattr(resources, "available_memory_bytes", lambda: None)  # not Linux: no memory bound
     assert execute.auto_workers(3, "llvm_ad_rgb", 16) == 3
 
 
@@ -116,7 +116,8 @@ def test_the_command_takes_auto_workers_and_the_api_one(reference, tmp_path, mon
         taken.append(workers)
         return run_local(jobs, 1, on_done, **kwargs)  # in this process: the spy sees what it was asked
 
-    monkeypatch.setattr(execute, "usable_cpus", lambda: 3)
+    monkeypatch.setattr(resources, "usable_cpus", lambda: 3)
+    monkeypatch.setattr(resources, "available_memory_bytes", lambda: 100 << 30)
     monkeypatch.setattr(execute, "run_local", spy)
     res = CliRunner().invoke(main, _cli_args(tmp_path / "cli"))
     assert res.exit_code == 0 and res.output.rstrip().endswith("s on 3 worker processes"), res.output  # it says what rendered

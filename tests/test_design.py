@@ -659,7 +659,7 @@ def test_until_noise_needs_a_sensor_and_a_positive_ratio(cornell):
 def test_a_record_larger_than_the_memory_is_refused_before_rendering(cornell, monkeypatch):
     import sys
 
-    monkeypatch.setattr(sys.modules["dopplertof.render"], "available_memory_bytes", lambda: 10**5)  # 0.1 MB; the record and its Float64 sums need 0.42
+    monkeypatch.setattr(sys.modules["dopplertof.resources"], "available_memory_bytes", lambda: 10**5)  # 0.1 MB; the record and its Float64 sums need 0.42
     rendered = []
     monkeypatch.setattr(sys.modules["dopplertof.render"], "_traced_locally", lambda *a: rendered.append(a))
     with pytest.raises(ValueError, match=r"record: 30 frequencies x 2 beats x 1 window\(s\) on a 12x12 film need about 0.00039 GiB; 9.3e-05 GiB"):

@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import resources
 from .backend import signals_held
 from .io import NPZ_READ_ERRORS
 from .outputs import BY_NAME, ESTIMATES, TRUTH
@@ -194,22 +195,13 @@ def checkpoint_disk_bytes(width: int, height: int, settings: RenderSettings) -> 
     return 2 * width * height * sum(sums_bytes_per_pixel(len(w.cameras)) for w in settings.windows)
 
 
-def available_memory_bytes() -> int | None:
-    """The memory available to this process (bytes; Linux's MemAvailable), None elsewhere."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            return next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
-    except (OSError, StopIteration, ValueError):
-        return None  # not Linux: no check
-
-
 def check_film_memory(width: int, height: int, n_cameras: int, n_windows: int = 1) -> None:
     """ValueError for an empty film, or one whose buffers need more than the available memory
     (each exposure window of a capture schedule keeps sums of its own)."""
     if width < 1 or height < 1:
         raise ValueError(f"the film must be at least 1x1 pixels, got {width}x{height}")
     need = width * height * (host_bytes_per_pixel(n_cameras) + (n_windows - 1) * host_bytes_per_pixel(0))
-    available = available_memory_bytes()
+    available = resources.available_memory_bytes()
     if available is not None and need > available:
         raise ValueError(f"a {width}x{height} film with {n_cameras} camera(s) needs about {need / 2**30:.1f} GiB of memory for its buffers; {available / 2**30:.1f} GiB are available")
 

@@ -29,6 +29,7 @@ import contextlib
 import os
 import time
 
+from .. import resources
 from ..raytools import gpu_workers, node_local_cache, start_ray
 from . import shards
 
@@ -41,26 +42,12 @@ WORKER_MEMORY_BYTES = 1 << 30
 WORKER_MEMORY_BYTES_PER_PIXEL = 2048
 
 
-def usable_cpus() -> int:
-    """The CPUs this process may run on (its affinity mask where the OS has one: a container's
-    or a batch job's share, not the machine's).
-
-    Returns
-    -------
-    int
-        ≥ 1.
-    """
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
-
-
 def auto_workers(shards_to_render: int, variant: str, resolution: int) -> int:
-    """The local workers of ``workers="auto"``: one per usable CPU (:func:`usable_cpus`), at
-    most one per shard to render and as many as the available memory holds at
-    :data:`WORKER_MEMORY_BYTES` + :data:`WORKER_MEMORY_BYTES_PER_PIXEL` a pixel each; 1 (this
-    process) with a ``cuda_*`` variant, whose processes would share one GPU.
+    """The local workers of ``workers="auto"``: one per usable CPU
+    (:func:`dopplertof.resources.usable_cpus`), at most one per shard to render and as many
+    as the available memory (:func:`dopplertof.resources.available_memory_bytes`) holds at
+    :data:`WORKER_MEMORY_BYTES` + :data:`WORKER_MEMORY_BYTES_PER_PIXEL` a pixel each; 1
+    (this process) with a ``cuda_*`` variant, whose processes would share one GPU.
 
     Parameters
     ----------
@@ -75,13 +62,11 @@ def auto_workers(shards_to_render: int, variant: str, resolution: int) -> int:
     int
         ≥ 1.
     """
-    from ..render import available_memory_bytes
-
     if variant.startswith("cuda"):
         return 1
-    available = available_memory_bytes()
-    by_memory = usable_cpus() if available is None else available // (WORKER_MEMORY_BYTES + WORKER_MEMORY_BYTES_PER_PIXEL * resolution**2)
-    return max(1, min(usable_cpus(), shards_to_render, by_memory))
+    available = resources.available_memory_bytes()
+    by_memory = resources.usable_cpus() if available is None else available // (WORKER_MEMORY_BYTES + WORKER_MEMORY_BYTES_PER_PIXEL * resolution**2)
+    return max(1, min(resources.usable_cpus(), shards_to_render, by_memory))
 
 
 def _fault(job: dict) -> None:
@@ -196,7 +181,7 @@ def run_local(jobs: list[dict], workers: int, on_done, max_retries: int = 3) -> 
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
 
-    threads = max(1, usable_cpus() // workers)
+    threads = max(1, resources.usable_cpus() // workers)
     pending = {job["index"]: {**job, "threads": job.get("threads") or threads} for job in jobs}
     attempts = 0
     context = multiprocessing.get_context("spawn")

@@ -524,7 +524,7 @@ def check_memory(spec: RecordSpec, width: int, height: int, n_windows: int, prob
         per-pixel sums of one kernel's grid per window (with ``probes``: every probe side
         until their differences are taken) exceed the available memory.
     """
-    from ..render import available_memory_bytes
+    from ..resources import available_memory_bytes
 
     grid = spec.frequencies_hz.size * len(spec.beats)
     if probes:
