@@ -433,3 +433,14 @@ def test_a_comparison_with_the_ground_truth_where_lights_move_says_it_is_no_erro
     assert "light sources move here" in error["note"]
     reconstructed = io.read_exr(out / "velocity_reconstructed.exr")
     assert np.nanmedian(reconstructed) == pytest.approx(-5.0, abs=0.5)  # -5 cos θ, θ small
+
+
+def test_depth_takes_a_render_result_as_velocity_does(rendered):
+    """``rc.depth(result)`` reads the result's measurements and cameras, as
+    ``rc.velocity(result)`` does: the same depth as given them apart; bare measurements
+    without cameras are refused naming the function."""
+    np.testing.assert_array_equal(dt.reconstruct.depth(rendered), dt.reconstruct.depth(rendered.measurements, rendered.cameras))
+    with pytest.raises(ValueError, match=r"depth\(\) needs the cameras \(or a RenderResult\)"):
+        dt.reconstruct.depth(rendered.measurements)
+    with pytest.raises(ValueError, match=r"velocity\(\) needs the cameras \(or a RenderResult\)"):
+        dt.reconstruct.velocity(rendered.measurements)

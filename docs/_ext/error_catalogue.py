@@ -195,7 +195,7 @@ TOPICS = [
         ("… holds an animation with other settings (…); use another folder, or --overwrite to replace it", "the folder holds another clip", "use another folder, or `--overwrite`"),
         ("… has frame folders but no …; use another folder, or --overwrite to replace them", "the folder holds frames of an unknown clip", "use another folder, or `--overwrite`"),
         ("…: its motion has no end (or nothing moves); give --frames", "the clip's length cannot be taken from the scene", "give `--frames`"),
-        ("velocity() needs the cameras (or a RenderResult)", "the API's `velocity` was given bare measurements", "pass `cameras=` or the `RenderResult`"),
+        ("…() needs the cameras (or a RenderResult)", "the API's `velocity` or `depth` was given bare measurements", "pass `cameras=` or the `RenderResult`"),
         ("method must be 'auto', 'ratio' or 'fit', got …", "an unknown reconstruction method", "one of the three"),
         ("max_doppler_hz must be a finite number > 0, got …", "the fit's Doppler bound is not positive", "a frequency in Hz"),
         ("max_velocity_stderr=… m/s needs the measurements' errors", "the validity threshold needs standard errors", "pass the `RenderResult`, or `measurement_stderr`"),

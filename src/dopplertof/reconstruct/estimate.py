@@ -180,20 +180,13 @@ def velocity(
     >>> result.method, round(float(result.velocity[0]), 6)
     ('fit', 10.0)
     """
-    if hasattr(measurements, "measurements"):  # a RenderResult
-        result = measurements
-        # a sensor's render ends with one camera per window measuring its mean light (g1 = 0)
-        frames = len(result.cameras) if getattr(result, "sensor", None) is None else result.sensor.frame_cameras
-        cameras = result.cameras[:frames] if cameras is None else cameras
-        measurements = result.measurements[:frames]
-        if measurement_stderr is None and measurement_covariance is None:
-            measurement_covariance = result.maps.get("measurement_covariance")
-            measurement_covariance = None if measurement_covariance is None else measurement_covariance[:frames, :frames]
-            measurement_stderr = result.measurement_stderr[:frames]
-            stderr_dof = result.info.get("stderr_dof") if stderr_dof is None else stderr_dof
-    if cameras is None:
-        raise ValueError("velocity() needs the cameras (or a RenderResult)")
-    cameras = [cameras] if hasattr(cameras, "modulation_frequency") else list(cameras)
+    measurements, cameras, result = _unpacked(measurements, cameras, "velocity")
+    if result is not None and measurement_stderr is None and measurement_covariance is None:
+        frames = len(measurements)
+        measurement_covariance = result.maps.get("measurement_covariance")
+        measurement_covariance = None if measurement_covariance is None else measurement_covariance[:frames, :frames]
+        measurement_stderr = result.measurement_stderr[:frames]
+        stderr_dof = result.info.get("stderr_dof") if stderr_dof is None else stderr_dof
     groups = _frequency_groups(cameras)
     sets = [_camera_set([cameras[i] for i in group]) for group in groups]
     m = _measurement_array(measurements, cameras)
@@ -440,7 +433,23 @@ def unambiguous_speed_m_s(cams) -> float:
     return SPEED_OF_LIGHT_M_S / (4.0 * cams.frequency_hz * cams.exposure_s)
 
 
-def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None) -> np.ndarray:
+def _unpacked(measurements, cameras, what: str):
+    """(measurements, cameras as a list, the RenderResult or None) of what :func:`velocity`
+    or :func:`depth` (``what``) was given: a RenderResult gives its frames' measurements
+    and, unless ``cameras`` are given, their cameras (a sensor's render ends with one camera
+    per window measuring its mean light, g1 = 0: left out)."""
+    result = None
+    if hasattr(measurements, "measurements"):  # a RenderResult
+        result = measurements
+        frames = len(result.cameras) if getattr(result, "sensor", None) is None else result.sensor.frame_cameras
+        cameras = result.cameras[:frames] if cameras is None else cameras
+        measurements = result.measurements[:frames]
+    if cameras is None:
+        raise ValueError(f"{what}() needs the cameras (or a RenderResult)")
+    return measurements, ([cameras] if hasattr(cameras, "modulation_frequency") else list(cameras)), result
+
+
+def depth(measurements, cameras: Sequence | None = None, *, min_amplitude: float | None = None) -> np.ndarray:
     """Per-pixel distance (m) at mid-exposure, modulo the ambiguity range c/(2 f_g), or
     modulo c/(2 |f_1 − f_2|) when the cameras use two modulation frequencies (each
     determining depth on its own; :mod:`dopplertof.reconstruct.frequencies`).
@@ -456,8 +465,10 @@ def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None
 
     Parameters
     ----------
-    measurements : array_like, shape (n_cameras, ...)
+    measurements : array_like, shape (n_cameras, ...), or a RenderResult
+        A :class:`~dopplertof.render.RenderResult` gives its measurements and cameras.
     cameras : sequence of n_cameras camera configurations (one or two f_g, shared T)
+        Needed unless ``measurements`` is a RenderResult.
     min_amplitude : float, optional
         (g1/2)|Z| threshold (measurement units); default 1e-3 × the 99th percentile of
         the data amplitude sqrt(2 mean_i m_i²).
@@ -473,7 +484,7 @@ def depth(measurements, cameras: Sequence, *, min_amplitude: float | None = None
         On shape/camera mismatch, or when the phases cannot determine depth (fewer than
         two independent phase offsets).
     """
-    cameras = [cameras] if hasattr(cameras, "modulation_frequency") else list(cameras)
+    measurements, cameras, _ = _unpacked(measurements, cameras, "depth")
     groups = _frequency_groups(cameras)
     if len(groups) > 1:  # each frequency's depth, then the pair's (module frequencies)
         sets = [_camera_set([cameras[i] for i in group]) for group in groups]
