@@ -20,8 +20,9 @@ from .execute import AUTO
 from .generate import DEFAULT_SHARD_SIZE
 
 
-def _workers(value: str):
-    """``--workers``: ``auto`` as it is, else an integer (:func:`~dopplertof.dataset.generate` checks its range)."""
+def _workers(ctx, param, value: str):
+    """``--workers`` (a click callback): ``auto`` as it is, else an integer
+    (:func:`~dopplertof.dataset.generate` checks its range)."""
     if value == AUTO:
         return value
     try:
@@ -43,7 +44,7 @@ def dataset_group():
 @click.option("--resolution", type=int, default=None, help="Override render.resolution (pixels).")
 @click.option("--spp", type=int, default=None, help="Override render.spp (paths per pixel).")
 @click.option("--shard-size", type=int, default=DEFAULT_SHARD_SIZE, show_default=True, help="Samples per shard.")
-@click.option("--workers", default=AUTO, show_default=True, metavar="N|auto", callback=lambda ctx, param, value: _workers(value),
+@click.option("--workers", default=AUTO, show_default=True, metavar="N|auto", callback=_workers,
               help="Local worker processes (spawned), or 'auto': one per CPU, at most one per shard and as many as the available memory holds at 1 GiB + 2 KiB a pixel each (1 with a cuda variant).")
 @click.option("--ray", "use_ray", is_flag=True, help="Render on Ray: one task per shard (one actor per GPU with a cuda variant).")
 @click.option("--address", default=None, help="Ray cluster address (with --ray; default: a local Ray).")

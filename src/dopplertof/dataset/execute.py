@@ -64,9 +64,9 @@ def auto_workers(shards_to_render: int, variant: str, resolution: int) -> int:
     """
     if variant.startswith("cuda"):
         return 1
-    available = resources.available_memory_bytes()
-    by_memory = resources.usable_cpus() if available is None else available // (WORKER_MEMORY_BYTES + WORKER_MEMORY_BYTES_PER_PIXEL * resolution**2)
-    return max(1, min(resources.usable_cpus(), shards_to_render, by_memory))
+    cpus, available = resources.usable_cpus(), resources.available_memory_bytes()
+    by_memory = cpus if available is None else available // (WORKER_MEMORY_BYTES + WORKER_MEMORY_BYTES_PER_PIXEL * resolution**2)
+    return max(1, min(cpus, shards_to_render, by_memory))
 
 
 def _fault(job: dict) -> None:

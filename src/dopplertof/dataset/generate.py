@@ -176,9 +176,10 @@ def generate(
     workers : int or "auto"
         Local worker processes (spawned; default 1: this process). ``"auto"``: one per CPU,
         at most one per shard to render and as many as the available memory holds (1 GiB
-        and 2 KiB a pixel each), 1 with a ``cuda_*`` variant (:func:`~dopplertof.dataset.execute.auto_workers`; the command's
-        default). More than one spawns processes that import the calling script again: call
-        ``generate`` under ``if __name__ == "__main__":`` (hence the default of 1 here).
+        and 2 KiB a pixel each), 1 with a ``cuda_*`` variant
+        (:func:`~dopplertof.dataset.execute.auto_workers`; the command's default). More than
+        one spawns processes that import the calling script again: call ``generate`` under
+        ``if __name__ == "__main__":`` (hence the default of 1 here).
     ray : bool
         Render on Ray (one task per shard; one actor per GPU with a ``cuda_*`` variant); a
         number of ``workers`` is then refused.
@@ -217,8 +218,11 @@ def generate(
     if seed >= 1 << 63:
         raise ValueError(f"seed must be < 2**63, got {seed!r}")
     shard_size = _positive_int("shard_size", shard_size)
-    if workers != execute.AUTO and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ValueError(f"workers must be an integer ≥ 1 or {execute.AUTO!r}, got {workers!r}")
+    if workers != execute.AUTO:
+        try:
+            _positive_int("workers", workers)
+        except ValueError:
+            raise ValueError(f"workers must be an integer ≥ 1 or {execute.AUTO!r}, got {workers!r}") from None
     if ray and workers not in (1, execute.AUTO):
         raise ValueError(f"workers={workers} counts local processes; with Ray each shard is a task of its own (give one or the other)")
     max_retries = _positive_int("max_retries", max_retries, minimum=0)
