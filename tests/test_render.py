@@ -760,7 +760,7 @@ def test_another_spp_or_shift_reuses_the_kernels(correlation):
 
 
 def test_a_result_saved_from_python_is_a_render_folder_the_commands_read(tmp_path):
-    """``result.save(folder)`` writes what ``dopplertof render`` writes: the reconstruction
+    """``dt.folder.save(result, folder)`` writes what ``dopplertof render`` writes: the reconstruction
     reads back the very measurements, errors and cameras; a second save there is refused
     unless ``overwrite``."""
     from dopplertof.render_folder import read_render_folder
@@ -768,7 +768,7 @@ def test_a_result_saved_from_python_is_a_render_folder_the_commands_read(tmp_pat
     cameras = [dt.Camera(heterodyne=h, phase=p) for h in (0.0, 1.0) for p in (0.0, math.pi / 2)]
     result = dt.render(dt.scenes.cornell_box(resolution=8), cameras=cameras, spp=8, max_depth=3)
     folder = tmp_path / "saved"
-    written = result.save(folder)
+    written = dt.folder.save(result, folder)
     assert "metadata.json" in written[-1] and all(os.path.isfile(p) for p in written)
     read_cameras, measurements, truth, stderr, covariance = read_render_folder(str(folder))
     assert [c.label() for c in read_cameras] == [c.label() for c in result.cameras]
@@ -776,5 +776,5 @@ def test_a_result_saved_from_python_is_a_render_folder_the_commands_read(tmp_pat
     np.testing.assert_array_equal(stderr, result.measurement_stderr)
     np.testing.assert_array_equal(truth, result.velocity)
     with pytest.raises(ValueError, match=r"holds .*; use --overwrite \(overwrite=True\) to replace them"):
-        result.save(folder)
-    assert result.save(folder, overwrite=True) == written
+        dt.folder.save(result, folder)
+    assert dt.folder.save(result, folder, overwrite=True) == written

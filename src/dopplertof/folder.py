@@ -414,6 +414,40 @@ def write_result(result, folder: str, metadata: dict | None = None) -> list[str]
     return [os.path.join(folder, name) for name in written + [METADATA]]
 
 
+def save(result, folder, *, overwrite: bool = False) -> list[str]:
+    """Write a :class:`~dopplertof.render.RenderResult` rendered from Python into ``folder``
+    as ``dopplertof render`` writes its output folder (:func:`prepare`, then
+    :func:`write_result` while the folder is held), which ``dopplertof reconstruct FOLDER``
+    and the other commands then read.
+
+    Parameters
+    ----------
+    result : RenderResult
+    folder : str or path
+        The output folder (created if needed).
+    overwrite : bool, default False
+        Replace another render's files found there (only those).
+
+    Returns
+    -------
+    list of str
+        The paths written.
+
+    Raises
+    ------
+    ValueError
+        An unusable folder, one another process holds, or one holding another render
+        (without ``overwrite``).
+    OSError
+        A file could not be written (a full disk, …); the files written before stay.
+    """
+    folder = os.fspath(folder)
+    height, width = result.maps["coverage"].shape
+    with contextlib.ExitStack() as hold:
+        prepare(folder, overwrite=overwrite, bytes_needed=estimated_bytes(width, height, len(result.cameras)), hold=hold)
+        return write_result(result, folder)
+
+
 def versions() -> dict:
     """Package, Mitsuba and Dr.Jit versions, the variant and the device.
 

@@ -137,41 +137,6 @@ class RenderResult:
         """The render's seed (``settings.seed``)."""
         return self.settings.seed
 
-    def save(self, folder, *, overwrite: bool = False) -> list:
-        """Write the result into ``folder`` as ``dopplertof render`` writes its output folder
-        (EXR and PNG images, ``metadata.json``: :func:`dopplertof.folder.write_result`), which
-        ``dopplertof reconstruct FOLDER`` and the other commands then read.
-
-        Parameters
-        ----------
-        folder : str or path
-            The output folder (created if needed).
-        overwrite : bool, default False
-            Replace another render's files found there (only those).
-
-        Returns
-        -------
-        list of str
-            The paths written.
-
-        Raises
-        ------
-        ValueError
-            An unusable folder, one another process holds, or one holding another render
-            (without ``overwrite``).
-        OSError
-            A file could not be written (a full disk, …); the files written before stay.
-        """
-        import contextlib
-
-        from . import folder as out_folder
-
-        folder = os.fspath(folder)
-        height, width = self.maps["coverage"].shape
-        with contextlib.ExitStack() as hold:
-            out_folder.prepare(folder, overwrite=overwrite, bytes_needed=out_folder.estimated_bytes(width, height, len(self.cameras)), hold=hold)
-            return out_folder.write_result(self, folder)
-
 
 def sums_bytes_per_pixel(n_cameras: int) -> int:
     """Bytes per pixel of the Float64 sums and counters of one exposure window with
