@@ -279,9 +279,11 @@ def test_a_disk_that_fills_mid_render_keeps_the_checkpoint_and_resume_is_bit_ide
     import errno
 
     out = small_disk / "out"
-    proc = _start_and_wait_for_a_checkpoint(out)
-    # Another program fills the disk, and keeps it full, until the render gives up.
+    # Another program fills the disk, and keeps it full, until the render gives up. Its file
+    # is opened before the render starts: opened after, it could find the disk full for a
+    # moment (a checkpoint being saved holds two copies) and fail before the render does.
     with open(small_disk / "filler", "wb") as filler:
+        proc = _start_and_wait_for_a_checkpoint(out)
         while proc.poll() is None:
             try:
                 filler.write(b"\0" * 65536)
